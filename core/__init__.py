@@ -1,0 +1,57 @@
+"""handeye: hand-eye and robot-world calibration with pluggable problems and solvers.
+
+Public API::
+
+    import handeye
+    sol = handeye.solve("axyb", A=A, B=B, solver="lmi-sdp", backend="picos")
+    sol.X, sol.Y, sol.status, sol.diagnostics
+
+See docs/conventions.md for what A, B, X, Y are in eye-in-hand and eye-to-hand setups.
+"""
+
+from __future__ import annotations
+
+from importlib.metadata import PackageNotFoundError, version
+
+from .api import solve
+from .errors import (
+    BackendUnavailableError,
+    DegenerateDataError,
+    HandEyeError,
+    InputError,
+    PluginRegistrationError,
+    SolverError,
+    UnknownPluginError,
+)
+from .hookspecs import hookimpl
+from .options import NoOptions
+from .problem import Problem
+from .registry import get_registry, list_problems, list_solvers
+from .solution import Solution, SolverOutput, Status
+from .solver import SolverSpec
+
+try:
+    __version__ = version("handeye")
+except PackageNotFoundError:  # running from a source tree that is not installed
+    __version__ = "0+unknown"
+
+__all__ = [
+    "BackendUnavailableError",
+    "DegenerateDataError",
+    "HandEyeError",
+    "InputError",
+    "NoOptions",
+    "PluginRegistrationError",
+    "Problem",
+    "Solution",
+    "SolverError",
+    "SolverOutput",
+    "SolverSpec",
+    "Status",
+    "UnknownPluginError",
+    "get_registry",
+    "hookimpl",
+    "list_problems",
+    "list_solvers",
+    "solve",
+]

@@ -1,0 +1,106 @@
+"""`handeye.solve`: look up problem and solver, validate, run, check, and wrap the answer."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from .errors import BackendUnavailableError, InputError, SolverError, UnknownPluginError
+from .options import parse_options
+from .registry import get_registry
+from .se3 import orthonormality_error
+from .solution import Solution, SolverOutput, Status
+
+DEFAULT_SOLVER = "auto"
+#: largest |R^T R - I| accepted in an unknown a solver returns (it is then re-orthonormalised
+#: exactly by the host only in its last row; rotations must already be rotations).
+OUTPUT_ORTHONORMALITY_TOL = 1e-9
+
+
+def solve(problem: str, *, solver: str | None = None, backend: str | None = None, **data_and_options: Any) -> Solution:
+    """Solve a calibration problem with one registered solver.
+
+    Parameters
+    ----------
+    problem : registered problem name, e.g. ``"axyb"`` (see `handeye.list_problems`).
+    solver : registered solver name (see `handeye.list_solvers`); default ``"auto"`` where
+        registered.
+    backend : one of the solver's backends; default the solver's own default.
+    **data_and_options : the problem's data fields (for ``axyb``: ``A``, ``B`` as (m, 4, 4)
+        arrays or sequences of 4x4) and the solver's options.
+
+    Returns
+    -------
+    Solution with the unknowns as exact SE(3) (4, 4) arrays, status, timing and diagnostics.
+
+    Raises
+    ------
+    InputError, DegenerateDataError : bad or insufficient data (nothing is modified).
+    UnknownPluginError : unknown problem, solver, backend or option (lists the known ones).
+    BackendUnavailableError : the backend's package is missing (names it).
+    SolverError : the solver failed numerically.
+    """
+    registry = get_registry()
+    spec_problem = registry.problem(problem)
+    if solver is None:
+        if DEFAULT_SOLVER not in registry.solver_names(problem):
+            raise InputError(
+                f"no solver given and problem {problem!r} has no {DEFAULT_SOLVER!r} solver; pass "
+                f"solver= one of {registry.solver_names(problem)}"
+            )
+        solver = DEFAULT_SOLVER
+    spec = registry.solver(solver, problem)
+    backend = spec.default_backend if backend is None else backend
+    if backend not in spec.backends:
+        raise UnknownPluginError(f"backend of solver {solver!r}", backend, spec.backends)
+    reason = spec.unavailable_reason(backend)
+    if reason:
+        raise BackendUnavailableError(reason)
+
+    fields = spec_problem.data_fields
+    missing = [f for f in fields if f not in data_and_options]
+    if missing:
+        raise InputError(f"problem {problem!r} needs data {list(fields)}; missing {missing}")
+    data = spec_problem.validate(**{f: data_and_options[f] for f in fields})
+    options = parse_options(spec.options, {k: v for k, v in data_and_options.items() if k not in fields}, solver)
+
+    start = time.perf_counter()
+    output = spec.run(data, options, backend)
+    seconds = time.perf_counter() - start
+    if not isinstance(output, SolverOutput):
+        raise SolverError(f"solver {solver!r} returned {type(output).__name__}, not SolverOutput")
+
+    unknowns = {name: _checked_pose(output.unknowns, name, solver) for name in spec_problem.unknowns}
+    diagnostics = dict(output.diagnostics)
+    weak = spec_problem.diagnose(data)
+    diagnostics["warnings"] = list(weak.pop("warnings", [])) + list(diagnostics.get("warnings", []))
+    diagnostics.setdefault("data", weak)
+    return Solution(
+        unknowns=unknowns,
+        problem=problem,
+        solver=solver,
+        backend=backend,
+        status=Status(output.status),
+        seconds=seconds,
+        diagnostics=diagnostics,
+    )
+
+
+def _checked_pose(unknowns: Any, name: str, solver: str) -> np.ndarray:
+    """A read-only float64 copy of unknown `name`, with an exact last row; raise if not SE(3)."""
+    if name not in unknowns:
+        raise SolverError(f"solver {solver!r} did not return unknown {name!r}")
+    T = np.array(unknowns[name], dtype=float)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise SolverError(f"solver {solver!r} returned a non-finite or non-4x4 {name}: {T!r}")
+    R = T[:3, :3]
+    if orthonormality_error(R) > OUTPUT_ORTHONORMALITY_TOL or np.linalg.det(R) < 0:
+        raise SolverError(
+            f"solver {solver!r} returned {name} whose rotation is not in SO(3) "
+            f"(|R^T R - I| = {orthonormality_error(R):.2e}, det = {np.linalg.det(R):+.6f})"
+        )
+    T[3] = (0.0, 0.0, 0.0, 1.0)
+    T.setflags(write=False)
+    return T

@@ -1,0 +1,46 @@
+"""Exception types of handeye.
+
+Every error a user can provoke with bad input is a subclass of `HandEyeError`, itself a
+`ValueError`, so ``except ValueError`` keeps working for callers who do not care which one.
+Messages say what was wrong, what was expected and, where it helps, what to do.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+
+class HandEyeError(ValueError):
+    """Base class of every error raised by handeye."""
+
+
+class InputError(HandEyeError):
+    """Data has the wrong shape, length or type, contains NaN/inf, or is not in SE(3)."""
+
+
+class DegenerateDataError(InputError):
+    """Data is well formed but cannot determine the unknowns (too few pairs, too little motion)."""
+
+
+class SolverError(HandEyeError):
+    """A solver could not produce an answer it can stand behind (numerical failure, infeasible)."""
+
+
+class UnknownPluginError(HandEyeError):
+    """A problem, solver, backend or option name that nothing registered knows."""
+
+    def __init__(self, kind: str, name: str, known: Iterable[str], hint: str = "") -> None:
+        self.kind = kind
+        self.name = name
+        self.known = sorted(known)
+        listing = ", ".join(repr(k) for k in self.known) or "(none registered)"
+        message = f"unknown {kind} {name!r}; known {kind}s: {listing}"
+        super().__init__(message + (f". {hint}" if hint else ""))
+
+
+class BackendUnavailableError(HandEyeError):
+    """A known backend (or solver) whose optional dependency is not installed or not usable."""
+
+
+class PluginRegistrationError(HandEyeError):
+    """A plugin registered something invalid, e.g. a name another plugin already holds."""

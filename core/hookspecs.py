@@ -1,0 +1,40 @@
+"""Hook specifications of handeye (project name ``handeye`` for pluggy).
+
+A plugin is any module or object with functions decorated by `handeye.hookimpl`; it is found
+through the entry-point group ``handeye`` (the built-in problems and solvers are registered that
+way too) or registered explicitly with `handeye.registry.register_plugin`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import pluggy
+
+hookspec = pluggy.HookspecMarker("handeye")
+hookimpl = pluggy.HookimplMarker("handeye")
+
+
+@hookspec
+def register_problems(register: Callable) -> None:
+    """Register calibration problems.
+
+    :param register: call ``register(problem)`` once per problem, with an instance of a
+        `handeye.problem.Problem` subclass. A name another plugin already registered raises
+        `PluginRegistrationError` naming both plugins.
+
+    Called once, when the registry is first used (or rebuilt by `handeye.registry.reload`).
+    """
+
+
+@hookspec
+def register_solvers(register: Callable) -> None:
+    """Register solvers.
+
+    :param register: call ``register(spec)`` once per solver, with a `handeye.SolverSpec`.
+        Each spec names the problems it solves; a problem that no plugin registered is an error
+        at registration time. Duplicate solver names raise `PluginRegistrationError` naming
+        both plugins.
+
+    Called once, after every plugin's ``register_problems``.
+    """

@@ -1,0 +1,50 @@
+"""Solver options: each solver declares a frozen dataclass; unknown keys are errors.
+
+`parse_options` builds that dataclass from keyword arguments and names the known options when a
+key is wrong; `check_choice` / `check_positive` are small validators for ``__post_init__``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Collection, Mapping
+from typing import Any, TypeVar
+
+from .errors import InputError, UnknownPluginError
+
+T = TypeVar("T")
+
+
+@dataclasses.dataclass(frozen=True)
+class NoOptions:
+    """Options of a solver that takes none."""
+
+
+def parse_options(cls: type[T], values: Mapping[str, Any], solver: str) -> T:
+    """Instantiate the options dataclass `cls` from `values`; unknown keys raise, listing known."""
+    known = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    for key in values:
+        if key not in known:
+            raise UnknownPluginError(
+                f"option of solver {solver!r}", key, known,
+                hint="Data fields and options are passed as keyword arguments to handeye.solve",
+            )
+    return cls(**values)
+
+
+def check_choice(name: str, value: Any, allowed: Collection[Any]) -> None:
+    """Raise InputError unless `value` is one of `allowed`."""
+    if value not in allowed:
+        listing = ", ".join(repr(a) for a in allowed)
+        raise InputError(f"option {name}={value!r} is not one of {listing}")
+
+
+def check_positive(name: str, value: Any, *, allow_zero: bool = False) -> None:
+    """Raise InputError unless `value` is a finite number > 0 (or >= 0 with allow_zero)."""
+    try:
+        ok = float(value) >= 0 if allow_zero else float(value) > 0
+    except (TypeError, ValueError):
+        ok = False
+    if not ok or value != value or value in (float("inf"),):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise InputError(f"option {name}={value!r} must be a finite number {bound}")

@@ -1,0 +1,53 @@
+"""The contract every calibration problem plugin fulfils (AX=YB, AX=XB, AXB=YCZ, ...).
+
+A problem knows its data fields and unknowns, validates raw input into an immutable data object,
+computes per-pair residuals and errors against a known truth, and simulates data with a truth.
+Solvers receive the validated data object, never raw user input.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+
+Poses = Mapping[str, np.ndarray]
+#: errors per unknown: {"X": {"rotation": rad, "translation": data units}, ...}
+ErrorTable = dict[str, dict[str, float]]
+
+
+class Problem(ABC):
+    """Base class of problem plugins.  Subclasses set the class variables and methods below."""
+
+    name: ClassVar[str]
+    summary: ClassVar[str]
+    #: names of the unknown poses, e.g. ("X", "Y")
+    unknowns: ClassVar[tuple[str, ...]]
+    #: names of the data stacks, e.g. ("A", "B"), each (m, 4, 4)
+    data_fields: ClassVar[tuple[str, ...]]
+    min_pairs: ClassVar[int]
+
+    @abstractmethod
+    def validate(self, **data: Any) -> Any:
+        """Check raw data and return an immutable, validated data object (float64 copies).
+
+        Raises `InputError` / `DegenerateDataError` naming what is wrong.
+        """
+
+    @abstractmethod
+    def residuals(self, data: Any, unknowns: Poses) -> dict[str, np.ndarray]:
+        """Per-pair residuals of the problem's equation: {"rotation": (m,), "translation": (m,)}."""
+
+    @abstractmethod
+    def errors(self, unknowns: Poses, truth: Poses) -> ErrorTable:
+        """Errors of estimated unknowns against the truth (rotation angle, translation norm)."""
+
+    @abstractmethod
+    def simulate(self, *, pairs: int, seed: int | None = None, **options: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        """Simulated data and the truth it was made from: (data fields, unknowns)."""
+
+    def diagnose(self, data: Any) -> dict[str, Any]:
+        """Figures describing how well the data determine the unknowns, and ``warnings``."""
+        return {"warnings": []}

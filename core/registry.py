@@ -1,0 +1,194 @@
+"""The plugin manager and the registry of problems and solvers built from it.
+
+Plugins are loaded from the entry-point group ``handeye``. Setting the environment variable
+``HANDEYE_DISABLE_PLUGIN_AUTOLOAD`` (to anything non-empty) loads only the entry points of the
+handeye distribution itself, i.e. the built-in problems and solvers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.metadata
+import os
+import threading
+from collections.abc import Iterable
+from typing import Any
+
+import pluggy
+
+from . import hookspecs
+from .errors import PluginRegistrationError, UnknownPluginError
+from .problem import Problem
+from .solver import SolverSpec
+
+ENTRY_POINT_GROUP = "handeye"
+AUTOLOAD_ENV = "HANDEYE_DISABLE_PLUGIN_AUTOLOAD"
+OWN_DISTRIBUTION = "handeye"
+
+
+@dataclasses.dataclass(frozen=True)
+class PluginInfo:
+    """Where a plugin came from: its registered name and the distribution that provides it."""
+
+    name: str
+    distribution: str
+    version: str
+
+
+class Registry:
+    """Problems and solvers registered by every loaded plugin."""
+
+    def __init__(self, plugin_manager: pluggy.PluginManager, plugins: dict[str, PluginInfo]) -> None:
+        self.plugin_manager = plugin_manager
+        self.plugins = plugins
+        self.problems: dict[str, Problem] = {}
+        self.solvers: dict[str, SolverSpec] = {}
+        self._problem_owner: dict[str, str] = {}
+        self.solver_owner: dict[str, str] = {}
+        self._collect()
+
+    def _collect(self) -> None:
+        hook = self.plugin_manager.hook
+        for impl in hook.register_problems.get_hookimpls():
+            impl.function(register=lambda p, _owner=impl.plugin_name: self._add_problem(p, _owner))
+        for impl in hook.register_solvers.get_hookimpls():
+            impl.function(register=lambda s, _owner=impl.plugin_name: self._add_solver(s, _owner))
+
+    def _add_problem(self, problem: Problem, owner: str) -> None:
+        if not isinstance(problem, Problem):
+            raise PluginRegistrationError(
+                f"plugin {owner!r} registered {problem!r}, which is not a handeye.Problem instance"
+            )
+        if problem.name in self.problems:
+            raise PluginRegistrationError(
+                f"problem {problem.name!r} is registered by both plugin "
+                f"{self._problem_owner[problem.name]!r} and plugin {owner!r}"
+            )
+        self.problems[problem.name] = problem
+        self._problem_owner[problem.name] = owner
+
+    def _add_solver(self, spec: SolverSpec, owner: str) -> None:
+        if not isinstance(spec, SolverSpec):
+            raise PluginRegistrationError(
+                f"plugin {owner!r} registered {spec!r}, which is not a handeye.SolverSpec"
+            )
+        if spec.name in self.solvers:
+            raise PluginRegistrationError(
+                f"solver {spec.name!r} is registered by both plugin "
+                f"{self.solver_owner[spec.name]!r} and plugin {owner!r}"
+            )
+        for problem in spec.problems:
+            if problem not in self.problems:
+                raise PluginRegistrationError(
+                    f"solver {spec.name!r} of plugin {owner!r} claims problem {problem!r}, which no "
+                    f"plugin registered (known: {sorted(self.problems)})"
+                )
+        self.solvers[spec.name] = spec
+        self.solver_owner[spec.name] = owner
+
+    def problem(self, name: str) -> Problem:
+        try:
+            return self.problems[name]
+        except KeyError:
+            raise UnknownPluginError("problem", name, self.problems) from None
+
+    def solver(self, name: str, problem: str | None = None) -> SolverSpec:
+        known = self.solver_names(problem)
+        if name not in known:
+            hint = ""
+            if name in self.solvers and problem is not None:
+                hint = f"solver {name!r} exists but solves only {list(self.solvers[name].problems)}"
+            raise UnknownPluginError(
+                "solver" if problem is None else f"solver for problem {problem!r}", name, known, hint
+            )
+        return self.solvers[name]
+
+    def solver_names(self, problem: str | None = None) -> list[str]:
+        if problem is not None:
+            self.problem(problem)
+        return sorted(n for n, s in self.solvers.items() if problem is None or problem in s.problems)
+
+    def provider(self, solver: str) -> PluginInfo:
+        """The plugin (and distribution) that registered `solver`."""
+        owner = self.solver_owner[solver]
+        return self.plugins.get(owner, PluginInfo(owner, "(registered at run time)", ""))
+
+
+def _entry_points(include_third_party: bool) -> Iterable[importlib.metadata.EntryPoint]:
+    seen: set[str] = set()
+    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        dist = ep.dist.name if ep.dist is not None else ""
+        if not include_third_party and _normalise(dist) != OWN_DISTRIBUTION:
+            continue
+        if ep.name in seen:  # the same distribution visible twice on sys.path
+            continue
+        seen.add(ep.name)
+        yield ep
+
+
+def _normalise(name: str) -> str:
+    return name.lower().replace("_", "-")
+
+
+def _build(extra_plugins: Iterable[tuple[str, Any]]) -> Registry:
+    pm = pluggy.PluginManager(ENTRY_POINT_GROUP)
+    pm.add_hookspecs(hookspecs)
+    plugins: dict[str, PluginInfo] = {}
+    autoload = not os.environ.get(AUTOLOAD_ENV)
+    for ep in _entry_points(include_third_party=autoload):
+        if pm.get_plugin(ep.name) is not None:
+            continue
+        pm.register(ep.load(), name=ep.name)
+        dist = ep.dist
+        plugins[ep.name] = PluginInfo(
+            ep.name, dist.name if dist else "?", dist.version if dist else "?"
+        )
+    for name, plugin in extra_plugins:
+        pm.register(plugin, name=name)
+        plugins[name] = PluginInfo(name, "(registered at run time)", "")
+    return Registry(pm, plugins)
+
+
+_lock = threading.Lock()
+_registry: Registry | None = None
+_extra: list[tuple[str, Any]] = []
+
+
+def get_registry() -> Registry:
+    """The registry, built on first use from the entry points (and any run-time plugins)."""
+    global _registry
+    with _lock:
+        if _registry is None:
+            _registry = _build(_extra)
+        return _registry
+
+
+def reload() -> Registry:
+    """Rebuild the registry, e.g. after installing a plugin or changing the autoload variable."""
+    global _registry
+    with _lock:
+        _registry = None
+    return get_registry()
+
+
+def register_plugin(plugin: Any, name: str | None = None) -> None:
+    """Register a plugin object (module or instance with hookimpls) at run time, then rebuild."""
+    name = name or getattr(plugin, "__name__", None) or repr(plugin)
+    _extra.append((name, plugin))
+    reload()
+
+
+def unregister_plugin(name: str) -> None:
+    """Remove a plugin registered with `register_plugin`, then rebuild."""
+    _extra[:] = [(n, p) for n, p in _extra if n != name]
+    reload()
+
+
+def list_problems() -> list[str]:
+    """Names of the registered problems."""
+    return sorted(get_registry().problems)
+
+
+def list_solvers(problem: str | None = None) -> list[str]:
+    """Names of the registered solvers, or of those that solve `problem`."""
+    return get_registry().solver_names(problem)

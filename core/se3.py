@@ -1,0 +1,138 @@
+"""Rigid-motion helpers on plain numpy arrays.
+
+Poses are 4x4 homogeneous matrices, stacked as arrays of shape (m, 4, 4); rotations are (m, 3, 3);
+rotation vectors (axis * angle, radians) are (m, 3). Every function is vectorised over the leading
+axis and returns new arrays (inputs are never modified).
+
+Quaternions follow scipy's convention: Hamilton, scalar LAST, ``(x, y, z, w)``, unless a function
+says otherwise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+Array = NDArray[np.float64]
+
+#: Largest deviation |R^T R - I| (max abs entry) accepted for a rotation block of input data.
+ORTHONORMALITY_TOL = 1e-6
+
+
+def skew(v: ArrayLike) -> Array:
+    """Skew-symmetric matrices [v]_x with [v]_x w = v x w.  v: (..., 3) -> (..., 3, 3)."""
+    v = np.asarray(v, dtype=float)
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
+
+def vee(S: ArrayLike) -> Array:
+    """Inverse of `skew` on the skew part of S.  S: (..., 3, 3) -> (..., 3)."""
+    S = np.asarray(S, dtype=float)
+    return 0.5 * np.stack(
+        [S[..., 2, 1] - S[..., 1, 2], S[..., 0, 2] - S[..., 2, 0], S[..., 1, 0] - S[..., 0, 1]],
+        axis=-1,
+    )
+
+
+def make_pose(R: ArrayLike, t: ArrayLike) -> Array:
+    """Homogeneous matrices from rotations (..., 3, 3) and translations (..., 3) -> (..., 4, 4)."""
+    R = np.asarray(R, dtype=float)
+    t = np.asarray(t, dtype=float)
+    out = np.zeros(R.shape[:-2] + (4, 4))
+    out[..., :3, :3] = R
+    out[..., :3, 3] = t
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def inverse(T: ArrayLike) -> Array:
+    """Inverse of rigid motions T: (..., 4, 4), using R^T (exact for SE(3) input)."""
+    T = np.asarray(T, dtype=float)
+    Rt = np.swapaxes(T[..., :3, :3], -1, -2)
+    return make_pose(Rt, -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3]))
+
+
+def so3_exp(w: ArrayLike) -> Array:
+    """Rotation matrices exp([w]_x) from rotation vectors w: (..., 3) -> (..., 3, 3)."""
+    w = np.asarray(w, dtype=float)
+    flat = Rotation.from_rotvec(w.reshape(-1, 3)).as_matrix()
+    return flat.reshape(w.shape[:-1] + (3, 3))
+
+
+def so3_log(R: ArrayLike) -> Array:
+    """Rotation vectors of rotations R: (..., 3, 3) -> (..., 3), angle in [0, pi]."""
+    R = np.asarray(R, dtype=float)
+    flat = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec()
+    return flat.reshape(R.shape[:-2] + (3,))
+
+
+def rotation_angle(R: ArrayLike) -> Array:
+    """Angle (radians, in [0, pi]) of rotations R: (..., 3, 3).
+
+    Computed as atan2(|vee(R - R^T)|, tr(R) - 1), which is accurate for tiny angles (where
+    arccos((tr R - 1) / 2) loses half the digits) and near pi alike.
+    """
+    R = np.asarray(R, dtype=float)
+    sin_part = np.linalg.norm(2.0 * vee(R), axis=-1)  # = 2 sin(theta)
+    cos_part = np.trace(R, axis1=-2, axis2=-1) - 1.0  # = 2 cos(theta)
+    return np.arctan2(sin_part, cos_part)
+
+
+def project_to_so3(M: ArrayLike) -> Array:
+    """Nearest rotation (Frobenius norm) to each M: (..., 3, 3), by SVD with det = +1."""
+    M = np.asarray(M, dtype=float)
+    U, _, Vt = np.linalg.svd(M)
+    d = np.sign(np.linalg.det(U @ Vt))
+    d = np.where(d == 0, 1.0, d)
+    U = U.copy()
+    U[..., :, 2] *= d[..., None]
+    return U @ Vt
+
+
+def gram_schmidt(M: ArrayLike) -> Array:
+    """Orthonormalise the columns of M: (..., 3, 3) in order (classical Gram-Schmidt).
+
+    This is the "Schmidt orthogonalization" the paper applies after eq. 14. The third column is
+    taken as c1 x c2 so that the result is a proper rotation (det = +1) even when the input has
+    det < 0; for an input with det > 0 that equals orthogonalising the third column.
+    """
+    M = np.asarray(M, dtype=float)
+    c1 = M[..., :, 0] / np.linalg.norm(M[..., :, 0], axis=-1, keepdims=True)
+    c2 = M[..., :, 1] - np.sum(c1 * M[..., :, 1], axis=-1, keepdims=True) * c1
+    c2 = c2 / np.linalg.norm(c2, axis=-1, keepdims=True)
+    c3 = np.cross(c1, c2)
+    return np.stack([c1, c2, c3], axis=-1)
+
+
+def orthonormality_error(R: ArrayLike) -> Array:
+    """Max abs entry of R^T R - I for R: (..., 3, 3) -> (...)."""
+    R = np.asarray(R, dtype=float)
+    E = np.swapaxes(R, -1, -2) @ R - np.eye(3)
+    return np.max(np.abs(E), axis=(-2, -1))
+
+
+def random_rotations(n: int, rng: np.random.Generator) -> Array:
+    """n rotations uniformly distributed on SO(3): (n, 3, 3)."""
+    return Rotation.random(n, random_state=rng).as_matrix()
+
+
+def random_poses(n: int, rng: np.random.Generator, translation_scale: float = 1.0) -> Array:
+    """n random rigid motions: uniform rotation, Gaussian translation of std translation_scale."""
+    return make_pose(random_rotations(n, rng), translation_scale * rng.standard_normal((n, 3)))
+
+
+def quat_from_matrix(R: ArrayLike) -> Array:
+    """Unit quaternions (x, y, z, w) of rotations R: (..., 3, 3) -> (..., 4)."""
+    R = np.asarray(R, dtype=float)
+    return Rotation.from_matrix(R.reshape(-1, 3, 3)).as_quat().reshape(R.shape[:-2] + (4,))
+
+
+def matrix_from_quat(q: ArrayLike) -> Array:
+    """Rotations from quaternions (x, y, z, w): (..., 4) -> (..., 3, 3) (normalised first)."""
+    q = np.asarray(q, dtype=float)
+    return Rotation.from_quat(q.reshape(-1, 4)).as_matrix().reshape(q.shape[:-1] + (3, 3))

@@ -1,0 +1,106 @@
+"""What a solver returns: `Status` and the frozen `Solution` record."""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+class Status(str, enum.Enum):
+    """How far a solver stands behind its answer.
+
+    - ``optimal``: the method solved its own problem to its tolerance (closed forms: exactly).
+    - ``optimal_inaccurate``: the numerical solver stopped close to, but not at, its tolerance.
+    - ``uncertified``: a certifiable method found a solution but could not prove it globally optimal.
+    - ``not_converged``: an iterative method hit its iteration limit or diverged; the returned
+      unknowns are its last iterate and must not be trusted.
+    - ``failed``: no usable answer (used by the harness for solvers that raised).
+    """
+
+    OPTIMAL = "optimal"
+    OPTIMAL_INACCURATE = "optimal_inaccurate"
+    UNCERTIFIED = "uncertified"
+    NOT_CONVERGED = "not_converged"
+    FAILED = "failed"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+@dataclass(frozen=True)
+class SolverOutput:
+    """What a solver plugin's ``run`` returns; the host turns it into a `Solution`.
+
+    unknowns: name -> 4x4 pose (must be in SE(3); the host checks).
+    diagnostics: free-form but JSON-friendly (numbers, strings, lists), e.g. ``iterations``,
+    ``cost``, ``solver_status``; ``warnings`` is a list of strings shown to the user.
+    """
+
+    unknowns: Mapping[str, np.ndarray]
+    status: Status = Status.OPTIMAL
+    diagnostics: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Solution:
+    """The answer of `handeye.solve`.
+
+    Attributes
+    ----------
+    unknowns : dict name -> (4, 4) float64 array, exactly in SE(3) (read-only arrays).
+        Also reachable as attributes: ``sol.X``, ``sol.Y``.
+    problem, solver, backend : names used.
+    status : `Status`.
+    seconds : wall time of the solver itself (validation excluded).
+    diagnostics : dict of solver-specific figures (cost, iterations, certificate, ...) and
+        ``warnings`` (list of str) about weak data or numerical trouble.
+    """
+
+    unknowns: Mapping[str, np.ndarray]
+    problem: str
+    solver: str
+    backend: str
+    status: Status
+    seconds: float
+    diagnostics: Mapping[str, Any] = field(default_factory=dict)
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        unknowns = self.__dict__.get("unknowns", {})
+        if name in unknowns:
+            return unknowns[name]
+        raise AttributeError(f"{type(self).__name__!s} has no attribute {name!r}")
+
+    @property
+    def warnings(self) -> list[str]:
+        """Warnings about weak data or numerical trouble (also in ``diagnostics['warnings']``)."""
+        return list(self.diagnostics.get("warnings", []))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict: unknowns as nested lists, status as its string."""
+        return {
+            "problem": self.problem,
+            "solver": self.solver,
+            "backend": self.backend,
+            "status": self.status.value,
+            "seconds": self.seconds,
+            "unknowns": {k: v.tolist() for k, v in self.unknowns.items()},
+            "diagnostics": _jsonable(dict(self.diagnostics)),
+        }
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, enum.Enum):
+        return value.value
+    return value

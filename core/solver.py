@@ -1,0 +1,78 @@
+"""`SolverSpec`: what a solver plugin declares when it registers.
+
+A spec is pure data plus one callable, ``run(data, options, backend) -> SolverOutput``. The host
+(`handeye.api`) does everything shared: name look-up, backend choice and availability, option
+parsing, timing, checking that the unknowns returned are in SE(3), and building the `Solution`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from .options import NoOptions
+from .solution import SolverOutput
+
+#: run(validated problem data, options dataclass instance, backend name) -> SolverOutput
+RunFunction = Callable[[Any, Any, str], SolverOutput]
+
+
+@dataclasses.dataclass(frozen=True)
+class SolverSpec:
+    """Declaration of one solver.
+
+    name: kebab-case, unique across all plugins.
+    problems: names of the problems it solves.
+    run: the solver itself.
+    backends: backend name -> the importable modules it needs (checked with
+        `importlib.util.find_spec`, without importing them). A solver with no optional
+        dependency has one backend, conventionally ``"numpy"``.
+    default_backend: used when the caller gives none; must be a key of ``backends``.
+    options: frozen dataclass of the options; unknown keys are rejected.
+    citation: the method's reference.
+    summary: one line shown by ``handeye list``.
+    unit_invariant: True when scaling every translation by s scales the translations of the
+        answer by s and leaves rotations unchanged (tested for every solver declaring it).
+    exact: True when noise-free data are recovered to machine precision; False for numerical
+        solvers whose accuracy is bounded by their tolerance (the tests read this).
+    check: optional ``check(backend) -> reason or None``, called lazily for availability
+        conditions that a module look-up cannot see (e.g. a function missing from a version).
+    """
+
+    name: str
+    problems: tuple[str, ...]
+    run: RunFunction
+    backends: Mapping[str, tuple[str, ...]] = dataclasses.field(default_factory=lambda: {"numpy": ()})
+    default_backend: str = "numpy"
+    options: type = NoOptions
+    citation: str = ""
+    summary: str = ""
+    unit_invariant: bool = False
+    exact: bool = True
+    check: Callable[[str], str | None] | None = None
+
+    def __post_init__(self) -> None:
+        if self.default_backend not in self.backends:
+            raise ValueError(
+                f"solver {self.name!r}: default_backend {self.default_backend!r} is not one of "
+                f"its backends {sorted(self.backends)}"
+            )
+        if not dataclasses.is_dataclass(self.options):
+            raise ValueError(f"solver {self.name!r}: options must be a dataclass type")
+
+    def unavailable_reason(self, backend: str) -> str | None:
+        """Why `backend` cannot run here (missing module, ...), or None when it can."""
+        for module in self.backends[backend]:
+            if importlib.util.find_spec(module) is None:
+                return f"backend {backend!r} of solver {self.name!r} needs the Python module {module!r}; install it (pip install {_PIP_NAMES.get(module, module)})"
+        if self.check is not None:
+            return self.check(backend)
+        return None
+
+    def option_names(self) -> list[str]:
+        return [f.name for f in dataclasses.fields(self.options)]
+
+
+_PIP_NAMES = {"cv2": "opencv-python-headless", "casadi": "casadi", "picos": "picos", "cvxpy": "cvxpy"}

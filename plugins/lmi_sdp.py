@@ -1,0 +1,1 @@
+"""Placeholder: being written (must be replaced or deleted before commit)."""

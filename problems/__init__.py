@@ -1,0 +1,1 @@
+"""Calibration problems shipped with handeye (each module is one problem plugin)."""

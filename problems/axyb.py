@@ -1,0 +1,255 @@
+"""The robot-world / hand-eye problem A_i X = Y B_i (paper eq. 2).
+
+Data: A, B: (m, 4, 4) with A_i X = Y B_i. Unknowns: X, Y (4x4). In an eye-in-hand cell
+A_i = T_base_flange, B_i = T_target_cam (camera pose in the target frame), X = T_flange_cam,
+Y = T_base_target (docs/conventions.md gives the eye-to-hand mapping and OpenCV's).
+
+Shared by the solvers here:
+- `kronecker_system`: the linear system of eqs. 5-8, built vectorised over pairs and reduced in
+  O(m) to the 24x24 triangular factor R1 of eq. 10 (plus Q1^T w and |Q2^T w|^2), so that no
+  solver's cost grows with m beyond that reduction.
+- `solve_translations`: eqs. 20-21, translations by least squares given the rotations.
+- residuals (eqs. 32-33), errors against truth (eqs. 30-31) and the simulator of Sec. IV-A.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from handeye import hookimpl
+from handeye.errors import DegenerateDataError, InputError
+from handeye.kinematics import random_flange_poses
+from handeye.noise import NoiseModel
+from handeye.problem import ErrorTable, Problem
+from handeye.se3 import Array, inverse, make_pose, project_to_so3, random_rotations, rotation_angle
+from handeye.validation import pose_stack, same_length
+
+#: Ground truth of the paper's simulation (Sec. IV-A), projected onto SO(3): the printed 4-digit
+#: rotation blocks are not exactly orthonormal. Translations in mm.
+PAPER_X = make_pose(
+    project_to_so3([[0.0162, 0.9995, 0.0289], [-0.9996, 0.0168, -0.0207], [-0.0211, -0.0285, 0.9994]]),
+    [22.0, -3.0, -60.0],
+)
+PAPER_Y = make_pose(
+    project_to_so3([[-0.9990, -0.0327, 0.0279], [0.0274, 0.0155, 0.9995], [-0.0331, 0.9994, -0.0146]]),
+    [165.0, 300.0, -962.0],
+)
+
+#: Relative rotation excitation (see `AXYB.diagnose`) below which the rotations are undetermined.
+DEGENERATE_EXCITATION = 1e-10
+#: ... and below which a warning says the data are weak.
+WEAK_EXCITATION = 1e-4
+
+
+@dataclasses.dataclass(frozen=True)
+class AXYBData:
+    """Validated data of A_i X = Y B_i: read-only float64 stacks A, B of shape (m, 4, 4)."""
+
+    A: np.ndarray
+    B: np.ndarray
+
+    @property
+    def m(self) -> int:
+        return len(self.A)
+
+    @functools.cached_property
+    def translation_scale(self) -> float:
+        """RMS norm of all translations of A and B: the data's length unit, for normalisation."""
+        t = np.concatenate([self.A[:, :3, 3], self.B[:, :3, 3]])
+        scale = float(np.sqrt(np.mean(np.sum(t * t, axis=1))))
+        return scale if scale > 0 else 1.0
+
+    def scaled(self, s: float) -> AXYBData:
+        """The same data with every translation divided by s."""
+        A, B = self.A.copy(), self.B.copy()
+        A[:, :3, 3] /= s
+        B[:, :3, 3] /= s
+        return AXYBData(A, B)
+
+    @functools.cached_property
+    def kronecker_system(self) -> KroneckerSystem:
+        """The reduced system of eqs. 8-12 for these data (computed once)."""
+        return reduce_system(self.A, self.B)
+
+
+@dataclasses.dataclass(frozen=True)
+class KroneckerSystem:
+    """Eq. 8, H beta = w, reduced by QR (eq. 10): |H beta - w|^2 = |R1 beta - q1|^2 + rest.
+
+    R1: (24, 24) upper triangular; q1 = Q1^T w: (24,); rest = |Q2^T w|^2 (eq. 12).
+    beta = [vec(R_X); vec(R_Y); t_X; t_Y] (column-major vec, as in the paper).
+    """
+
+    R1: np.ndarray
+    q1: np.ndarray
+    rest: float
+
+    def least_squares(self) -> np.ndarray:
+        """beta minimising |H beta - w| (the optimum of eq. 14), by back substitution."""
+        from scipy.linalg import solve_triangular
+
+        return solve_triangular(self.R1, self.q1, lower=False)
+
+    def smallest_singular_value(self) -> float:
+        """sigma_min(H) = sigma_min(R1): how well eq. 8 determines beta."""
+        return float(np.linalg.svd(self.R1, compute_uv=False)[-1])
+
+
+def regression_blocks(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The per-pair blocks H_i: (m, 12, 24) and w_i: (m, 12) of eq. 8, without a loop over pairs."""
+    m = len(A)
+    RA, RB, tA, tB = A[:, :3, :3], B[:, :3, :3], A[:, :3, 3], B[:, :3, 3]
+    H = np.zeros((m, 12, 24))
+    H[:, :9, :9] = np.einsum("nij,nkl->nikjl", RB, RA).reshape(m, 9, 9)  # R_B kron R_A (eq. 6)
+    H[:, :9, 9:18] = -np.eye(9)
+    H[:, 9:, 9:18] = np.einsum("nj,kl->nkjl", tB, np.eye(3)).reshape(m, 3, 9)  # t_B^T kron I (eq. 7)
+    H[:, 9:, 18:21] = -RA
+    H[:, 9:, 21:24] = np.eye(3)
+    w = np.zeros((m, 12))
+    w[:, 9:] = tA
+    return H, w
+
+
+def reduce_system(A: np.ndarray, B: np.ndarray) -> KroneckerSystem:
+    """QR-reduce eq. 8 (eqs. 10-12): one QR of the augmented (12m, 25) matrix [H | w]."""
+    H, w = regression_blocks(A, B)
+    Hw = np.concatenate([H, w[:, :, None]], axis=2).reshape(-1, 25)
+    R = np.linalg.qr(Hw, mode="r")
+    return KroneckerSystem(R1=R[:24, :24].copy(), q1=R[:24, 24].copy(), rest=float(R[24, 24] ** 2))
+
+
+def split_beta(beta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(M_X, M_Y, t_X, t_Y) from beta of eq. 8; M are 3x3 (not yet rotations)."""
+    beta = np.asarray(beta, dtype=float).ravel()
+    return (beta[:9].reshape(3, 3, order="F"), beta[9:18].reshape(3, 3, order="F"),
+            beta[18:21].copy(), beta[21:24].copy())
+
+
+def solve_translations(data: AXYBData, RX: np.ndarray, RY: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """t_X, t_Y by least squares given rotations (eqs. 20-21): [R_Ai, -I] [t_X; t_Y] = R_Y t_Bi - t_Ai."""
+    RA, tA, tB = data.A[:, :3, :3], data.A[:, :3, 3], data.B[:, :3, 3]
+    J = np.concatenate([RA, np.broadcast_to(-np.eye(3), RA.shape)], axis=2).reshape(-1, 6)
+    p = (tB @ RY.T - tA).reshape(-1)
+    t, *_ = np.linalg.lstsq(J, p, rcond=None)
+    return t[:3], t[3:]
+
+
+def random_truth(rng: np.random.Generator, translation_scale: float = 500.0) -> dict[str, np.ndarray]:
+    """Random X, Y: uniform rotations, translations N(0, scale^2) per axis (data units)."""
+    R = random_rotations(2, rng)
+    t = translation_scale * rng.standard_normal((2, 3))
+    return {"X": make_pose(R[0], t[0]), "Y": make_pose(R[1], t[1])}
+
+
+class AXYB(Problem):
+    """A_i X = Y B_i: simultaneous hand-eye (X) and robot-world (Y) calibration."""
+
+    name = "axyb"
+    summary = "robot-world and hand-eye calibration, A_i X = Y B_i"
+    unknowns = ("X", "Y")
+    data_fields = ("A", "B")
+    min_pairs = 3
+
+    def validate(self, **data: Any) -> AXYBData:
+        unexpected = set(data) - set(self.data_fields)
+        if unexpected:
+            raise InputError(f"problem 'axyb' takes data {list(self.data_fields)}, not {sorted(unexpected)}")
+        A, B = pose_stack(data["A"], "A"), pose_stack(data["B"], "B")
+        same_length({"A": A, "B": B}, self.min_pairs)
+        out = AXYBData(A, B)
+        excitation = rotation_excitation(out)
+        if excitation < DEGENERATE_EXCITATION:
+            raise DegenerateDataError(
+                f"the rotations of A and B do not determine R_X and R_Y (relative excitation "
+                f"{excitation:.1e} < {DEGENERATE_EXCITATION:g}): the poses must rotate about at "
+                "least two different axes"
+            )
+        return out
+
+    def diagnose(self, data: AXYBData) -> dict[str, Any]:
+        excitation = rotation_excitation(data)
+        warnings = []
+        if excitation < WEAK_EXCITATION:
+            warnings.append(
+                f"weak rotation excitation ({excitation:.1e} < {WEAK_EXCITATION:g}): rotations of "
+                "the poses differ too little or about too few axes; X and Y will be poorly determined"
+            )
+        return {"pairs": data.m, "rotation_excitation": excitation, "warnings": warnings}
+
+    def residuals(self, data: AXYBData, unknowns: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Per pair: rotation angle of (A_i X)(Y B_i)^-1 (eq. 32), |t(A_i X) - t(Y B_i)| (eq. 33)."""
+        AX = data.A @ np.asarray(unknowns["X"], dtype=float)
+        YB = np.asarray(unknowns["Y"], dtype=float) @ data.B
+        return {
+            "rotation": rotation_angle(AX[:, :3, :3] @ np.swapaxes(YB[:, :3, :3], 1, 2)),
+            "translation": np.linalg.norm(AX[:, :3, 3] - YB[:, :3, 3], axis=1),
+        }
+
+    def errors(self, unknowns: Mapping[str, np.ndarray], truth: Mapping[str, np.ndarray]) -> ErrorTable:
+        """Eq. 30: angle of R_cal R_true^-1; eq. 31: |t_cal - t_true|; per unknown."""
+        return pose_errors(unknowns, truth, self.unknowns)
+
+    def simulate(self, *, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
+                 X: np.ndarray | None = None, Y: np.ndarray | None = None,
+                 **options: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        """Sec. IV-A: A_i = forward kinematics of an LR Mate 200iD-like arm at random joints (mm),
+        B_i = Y^-1 A_i X, then noise (`handeye.noise.NoiseModel`) on A and/or B.
+
+        X, Y default to the paper's `PAPER_X`, `PAPER_Y`. The random stream is drawn in a fixed
+        order (poses, then noise on A, then on B), so a seed gives the same poses at every noise
+        level.
+        """
+        if options:
+            raise InputError(f"unknown simulate option(s) {sorted(options)}; known: pairs, seed, noise, X, Y")
+        if pairs < 1:
+            raise InputError(f"pairs must be >= 1, got {pairs}")
+        rng = np.random.default_rng(seed)
+        X = PAPER_X if X is None else pose_stack(np.asarray(X)[None], "X")[0]
+        Y = PAPER_Y if Y is None else pose_stack(np.asarray(Y)[None], "Y")[0]
+        A = random_flange_poses(pairs, rng)
+        B = inverse(Y) @ A @ X
+        noise = noise or NoiseModel()
+        pose_rng = np.random.default_rng(rng.integers(2**63))
+        A_noisy = noise.apply("A", A, pose_rng)
+        B_noisy = noise.apply("B", B, pose_rng)
+        return {"A": A_noisy, "B": B_noisy}, {"X": np.array(X), "Y": np.array(Y)}
+
+
+def pose_errors(unknowns: Mapping[str, np.ndarray], truth: Mapping[str, np.ndarray],
+                names: tuple[str, ...]) -> ErrorTable:
+    """Rotation angle of R_cal R_true^T and translation distance for each named unknown."""
+    table: ErrorTable = {}
+    for name in names:
+        cal, true = np.asarray(unknowns[name], dtype=float), np.asarray(truth[name], dtype=float)
+        table[name] = {
+            "rotation": float(rotation_angle(cal[:3, :3] @ true[:3, :3].T)),
+            "translation": float(np.linalg.norm(cal[:3, 3] - true[:3, 3])),
+        }
+    return table
+
+
+def rotation_excitation(data: AXYBData) -> float:
+    """How well the rotations determine R_X, R_Y, in [0, 1]: 1 - sigma_2(S) / m.
+
+    With K_i = R_Bi kron R_Ai (orthogonal 9x9), the normal matrix of the rotation rows of eq. 8 is
+    [[m I, -S^T], [-S, m I]] with S = sum_i K_i, whose eigenvalues are m -+ sigma_j(S). Noise-free
+    data make sigma_1(S) = m (the solution); sigma_2(S) = m means a second null direction, i.e.
+    undetermined rotations (all rotations equal, or all about one axis).
+    """
+    RA, RB = data.A[:, :3, :3], data.B[:, :3, :3]
+    S = np.einsum("nij,nkl->ikjl", RB, RA).reshape(9, 9)
+    sigma = np.linalg.svd(S, compute_uv=False)
+    return float(max(0.0, 1.0 - sigma[1] / data.m))
+
+
+PROBLEM = AXYB()
+
+
+@hookimpl
+def register_problems(register):
+    register(PROBLEM)
