@@ -40,7 +40,7 @@ def pose_stack(value: Any, name: str, *, tol: float = ORTHONORMALITY_TOL) -> np.
             f"tolerance {tol:g}) in pose(s) {_indices(bad)}; re-orthonormalise the data or check "
             "its units and layout (row-major 4x4 expected)"
         )
-    bad = np.linalg.det(R) < 0
+    bad = np.sum(R[:, :, 0] * np.cross(R[:, :, 1], R[:, :, 2]), axis=1) < 0  # det(R)
     if bad.any():
         raise InputError(f"{name}: rotation block has det -1 (a reflection) in pose(s) {_indices(bad)}")
     T[:, 3, :] = (0.0, 0.0, 0.0, 1.0)

