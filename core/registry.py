@@ -115,14 +115,20 @@ class Registry:
 
 
 def _entry_points(include_third_party: bool) -> Iterable[importlib.metadata.EntryPoint]:
-    seen: set[str] = set()
+    seen: dict[str, str] = {}  # entry-point name -> distribution declaring it
     for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
         dist = ep.dist.name if ep.dist is not None else ""
         if not include_third_party and _normalise(dist) != OWN_DISTRIBUTION:
             continue
-        if ep.name in seen:  # the same distribution visible twice on sys.path
-            continue
-        seen.add(ep.name)
+        if ep.name in seen:
+            if _normalise(seen[ep.name]) == _normalise(dist):
+                continue  # the same distribution visible twice on sys.path
+            raise PluginRegistrationError(
+                f"entry point {ep.name!r} of group {ENTRY_POINT_GROUP!r} is declared by both "
+                f"distribution {seen[ep.name]!r} and distribution {dist!r}; plugin names must be "
+                "unique: rename one of them (or uninstall one package)"
+            )
+        seen[ep.name] = dist
         yield ep
 
 
@@ -144,6 +150,11 @@ def _build(extra_plugins: Iterable[tuple[str, Any]]) -> Registry:
             ep.name, dist.name if dist else "?", dist.version if dist else "?"
         )
     for name, plugin in extra_plugins:
+        if pm.get_plugin(name) is not None:
+            raise PluginRegistrationError(
+                f"a plugin named {name!r} is already loaded (from {plugins[name].distribution}); "
+                "register the run-time plugin under another name"
+            )
         pm.register(plugin, name=name)
         plugins[name] = PluginInfo(name, "(registered at run time)", "")
     return Registry(pm, plugins)
@@ -175,7 +186,12 @@ def register_plugin(plugin: Any, name: str | None = None) -> None:
     """Register a plugin object (module or instance with hookimpls) at run time, then rebuild."""
     name = name or getattr(plugin, "__name__", None) or repr(plugin)
     _extra.append((name, plugin))
-    reload()
+    try:
+        reload()
+    except Exception:  # an invalid plugin must not leave the registry broken: roll back
+        _extra.pop()
+        reload()
+        raise
 
 
 def unregister_plugin(name: str) -> None:

@@ -1,0 +1,62 @@
+"""The ``handeye`` command line: ``handeye list | simulate | solve`` (see ``handeye --help``).
+
+Each subcommand is one module of this package with ``add_parser(subparsers)`` (which registers
+the subcommand and its arguments) and ``run(args) -> int`` (the exit code). `COMMANDS` lists
+them; a new subcommand is one module plus one entry there.
+
+Exit codes: 0 success; 2 bad input (unknown name, bad file, bad option, bad data: every
+`handeye.HandEyeError` except `SolverError`, and unreadable files); 1 the solver failed
+(`SolverError`). Errors are one line on stderr, ``handeye: error: ...``, without a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from .. import __version__
+from ..errors import HandEyeError, SolverError
+from . import compare, list_cmd, simulate_cmd, solve_cmd
+
+#: the subcommand modules, in the order ``handeye --help`` shows them
+COMMANDS = [list_cmd, simulate_cmd, solve_cmd, compare]
+
+EXIT_OK, EXIT_SOLVER_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="handeye",
+        description="Robot hand-eye / robot-world calibration, A_i X = Y B_i (docs/conventions.md).",
+    )
+    parser.add_argument("--version", action="version", version=f"handeye {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for command in COMMANDS:
+        command.add_parser(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line with `argv` (default ``sys.argv[1:]``); return the exit code."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version, or an argparse usage error (code 2)
+        return int(exc.code or 0) if not isinstance(exc.code, str) else EXIT_BAD_INPUT
+    try:
+        return int(args.run(args))
+    except SolverError as exc:
+        return _fail(exc, EXIT_SOLVER_FAILED)
+    except HandEyeError as exc:
+        return _fail(exc, EXIT_BAD_INPUT)
+    except OSError as exc:  # unreadable / unwritable files
+        return _fail(exc, EXIT_BAD_INPUT)
+    except KeyboardInterrupt:
+        return _fail("interrupted", 130)
+
+
+def _fail(exc: BaseException | str, code: int) -> int:
+    message = " ".join(str(exc).split()) or type(exc).__name__
+    print(f"handeye: error: {message}", file=sys.stderr)
+    return code

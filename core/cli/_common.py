@@ -1,0 +1,58 @@
+"""Helpers shared by the subcommands: option parsing and text/JSON output."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+
+
+def parse_key_values(items: Sequence[str] | None, what: str = "--option") -> dict[str, Any]:
+    """``["k=v", ...]`` -> dict; v parsed as a JSON literal when it is one (``1e-6``, ``true``,
+    ``"x"``, ``[1, 2]``), else kept as the string. Raises InputError on a malformed item."""
+    out: dict[str, Any] = {}
+    for item in items or ():
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise InputError(f"{what} expects key=value, got {item!r}")
+        if key in out:
+            raise InputError(f"{what} {key!r} given twice")
+        try:
+            out[key] = json.loads(text)
+        except json.JSONDecodeError:
+            out[key] = text
+    return out
+
+
+def format_pose(T: np.ndarray, indent: str = "  ") -> str:
+    """A 4x4 pose as aligned rows, rotation to 6 decimals, translation to 6 significant-ish digits."""
+    T = np.asarray(T, dtype=float)
+    width = max(10, max(len(f"{v:.6f}") for v in T.ravel()) + 1)
+    return "\n".join(indent + "".join(f"{v:{width}.6f}" for v in row) for row in T)
+
+
+def dump_json(obj: Any) -> str:
+    """JSON text of `obj` (numpy arrays and scalars converted; NaN/inf as null)."""
+    return json.dumps(_plain(obj), indent=2)
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return _plain(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if hasattr(value, "value") and isinstance(getattr(value, "value"), str):  # enums
+        return value.value
+    return value

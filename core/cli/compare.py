@@ -1,0 +1,149 @@
+"""``handeye compare``: run a comparison study of registered solvers on simulated data and write
+a tidy CSV, a JSON summary, PNG figures and markdown tables of times and errors.
+
+The study comes from flags (``--solvers``, ``--noise-levels``, ``--pairs``, ...), from a study
+file (``--study FILE.toml``, docs/harness.md), or is one of the built-in studies: ``--paper
+OUTDIR`` (the paper's Sec. IV-A: Fig. 3, Fig. 4, Table I; docs/reproducing-the-paper.md) or
+``--accuracy OUTDIR`` (issue 4: realistic noise on A and B, m = 8, 16, 50, every solver against a
+refinement started at the truth when ``refine`` is installed). ``--trials``, ``--seed``,
+``--solvers``, ``--units`` and ``--truth`` override what the study says.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+from ..noise import NoiseModel
+from ..registry import get_registry
+
+NAME = "compare"
+#: the noise levels (sigma_N, paper reading: rad and mm on A and B) when neither levels nor a
+#: base noise are given
+DEFAULT_LEVELS = "0,0.02,0.05,0.1"
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(NAME, help="compare solvers on simulated data (harness)",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument("--paper", metavar="OUTDIR", help="run the paper's study (Fig. 3, Fig. 4, Table I) into OUTDIR")
+    which.add_argument("--accuracy", metavar="OUTDIR", help="run issue 4's accuracy study into OUTDIR")
+    which.add_argument("--study", metavar="FILE", help="study file (TOML, docs/harness.md)")
+    parser.add_argument("-o", "--output", metavar="OUTDIR", help="output directory (not with --paper/--accuracy)")
+    parser.add_argument("--problem", default="axyb", help="problem (default axyb)")
+    parser.add_argument("--solvers", metavar="LIST",
+                        help="comma-separated: name, name/backend, name/* (every backend) or all "
+                             "(default: every registered solver, every lmi-sdp backend)")
+    parser.add_argument("--noise-levels", metavar="LEVELS",
+                        help=f"multipliers of the base noise, '0,0.01' or start:stop:step (default "
+                             f"{DEFAULT_LEVELS} with the paper's base noise, 1 with --noise-rot/--noise-trans)")
+    parser.add_argument("--noise-rot", type=float, metavar="RAD", help="base rotation noise std (rad)")
+    parser.add_argument("--noise-trans", type=float, metavar="MM", help="base translation noise std (mm)")
+    parser.add_argument("--noise-on", default=None, metavar="B|A|both",
+                        help="data stack(s) the base noise goes on (default both for the paper's reading, "
+                             "B with --noise-rot/--noise-trans)")
+    parser.add_argument("--pairs", metavar="LIST", help="pair counts, '10,20' or start:stop:step (default 16)")
+    parser.add_argument("--paper-pairs", type=int, default=None, metavar="M",
+                        help="m of the paper's noise sweep (Fig. 3; default 16)")
+    parser.add_argument("--trials", type=int, help="trials per cell (default 5; --accuracy 20)")
+    parser.add_argument("--seed", type=int, help="master seed (default 0)")
+    parser.add_argument("--units", choices=("mm", "m"), help="length unit the solvers get (default mm)")
+    parser.add_argument("--truth", choices=("paper", "random"), help="X, Y: the paper's or random per trial")
+    parser.add_argument("--name", help="study name (file prefix; default study)")
+    parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    parser.add_argument("--executor", choices=("process", "dask"), default="process",
+                        help="process pool (default) or a dask.distributed cluster (pip install handeye[dask])")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="dask scheduler address, e.g. tcp://host:8786 (default: a local cluster)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.set_defaults(run=run)
+    return parser
+
+
+def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
+    """The study and the output directory the arguments describe."""
+    from ..harness import (Study, Sweep, accuracy_study, load_study, paper_noise, paper_study,
+                           parse_floats, parse_ints, parse_specs)
+
+    grid_flags = [f for f in ("noise_levels", "pairs", "noise_rot", "noise_trans", "noise_on") if getattr(args, f) is not None]
+    builtin = args.paper or args.accuracy or args.study
+    if builtin and grid_flags:
+        raise InputError(f"--{grid_flags[0].replace('_', '-')} defines a grid; it cannot be combined with "
+                         "--paper, --accuracy or --study (edit a study file instead)")
+    if (args.paper or args.accuracy) and args.output:
+        raise InputError("--paper and --accuracy take the output directory themselves; drop -o")
+    if args.paper_pairs is not None and not args.paper:
+        raise InputError("--paper-pairs only applies to --paper")
+    if not (args.paper or args.accuracy) and not args.output:
+        raise InputError("give an output directory with -o OUTDIR (or use --paper/--accuracy OUTDIR)")
+    specs = parse_specs(args.solvers, args.problem) if args.solvers else ()
+
+    if args.paper:
+        study = paper_study(specs=specs, **({"pairs": args.paper_pairs} if args.paper_pairs else {}))
+        outdir = args.paper
+    elif args.accuracy:
+        study = accuracy_study(specs=specs)
+        outdir = args.accuracy
+    elif args.study:
+        study = load_study(args.study)
+        outdir = args.output
+    else:
+        if args.noise_rot is None and args.noise_trans is None:
+            noise = paper_noise(1.0, stacks=_stacks(args, default=("A", "B")))
+            levels = parse_floats(args.noise_levels or DEFAULT_LEVELS, "--noise-levels")
+        else:
+            noise = NoiseModel.on(_stacks(args, default=("B",)), args.noise_rot or 0.0, args.noise_trans or 0.0)
+            levels = parse_floats(args.noise_levels or "1", "--noise-levels")
+        pairs = parse_ints(args.pairs or "16", "--pairs")
+        study = Study(name=args.name or "study", problem=args.problem, noise=noise,
+                      sweeps=(Sweep("grid", levels, pairs),))
+        outdir = args.output
+    changes: dict[str, Any] = {}
+    if specs:
+        changes["specs"] = specs
+    for name in ("trials", "seed", "units", "truth", "name"):
+        if getattr(args, name) is not None:
+            changes[name] = getattr(args, name)
+    if args.problem != "axyb" and builtin:
+        changes["problem"] = args.problem
+    return (study.replace(**changes) if changes else study), Path(outdir)
+
+
+def _stacks(args: argparse.Namespace, default: tuple[str, ...]) -> tuple[str, ...]:
+    fields = tuple(get_registry().problem(args.problem).data_fields)
+    if args.noise_on is None:
+        return default
+    if args.noise_on in ("both", "all"):
+        return fields
+    stacks = tuple(s.strip() for s in args.noise_on.split(",") if s.strip())
+    unknown = [s for s in stacks if s not in fields]
+    if unknown or not stacks:
+        raise InputError(f"--noise-on {args.noise_on!r}: use data fields of {args.problem!r} {list(fields)} or 'both'")
+    return stacks
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..harness import run_study, time_table, write_report
+
+    study, outdir = build_study(args)
+    if args.scheduler and args.executor != "dask":
+        raise InputError("--scheduler needs --executor dask")
+    result = run_study(study, jobs=args.jobs, progress=not args.no_progress,
+                       executor=args.executor, scheduler=args.scheduler)
+    paths = write_report(result, outdir)
+    failed = sum(r["status"] == "failed" for r in result.records)
+    print(f"study {study.name!r}: {len(result.records)} runs ({failed} failed) of {len(result.specs)} "
+          f"solver(s) in {result.seconds:.1f} s with {result.jobs} job(s) [{result.executor}]")
+    print()
+    print(time_table(result), end="")
+    print()
+    for key in ("csv", "json", "times", "errors"):
+        print(f"{key:>7}: {paths[key]}")
+    for path in paths["figures"]:
+        print(f" figure: {path}")
+    sys.stdout.flush()
+    return 0

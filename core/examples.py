@@ -1,0 +1,44 @@
+"""Bundled example data sets (files in handeye/data/, made by tools/make_example_data.py).
+
+- ``eth-robot-arm``: REAL eye-in-hand data, 50 pose pairs of the ETH Zurich ASL ``robot_arm``
+  recording (Furrer et al., FSR 2017; BSD-3-Clause, Copyright (c) 2017 ETHZ ASL), metres.
+- ``simulated``: the paper's simulation (Pan et al., T-ASE 2022, Sec. IV-A), 16 pairs with
+  noise on B, millimetres, with the true X and Y.
+
+``handeye solve --example [NAME]`` solves one of these.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+
+import numpy as np
+
+from .errors import UnknownPluginError
+from .io import load_file
+
+#: example name -> file in handeye/data/
+EXAMPLES: dict[str, str] = {
+    "eth-robot-arm": "eth_robot_arm.json",
+    "simulated": "simulated_paper.json",
+}
+DEFAULT_EXAMPLE = "eth-robot-arm"
+
+
+def list_examples() -> list[str]:
+    """Names of the bundled examples."""
+    return sorted(EXAMPLES)
+
+
+def load_example(name: str = DEFAULT_EXAMPLE) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray] | None, dict[str, str]]:
+    """``(data, truth, metadata)`` of a bundled example (all ``axyb`` data: A, B (m, 4, 4)).
+
+    truth is None for real data; metadata holds ``units``, ``setup``, ``description``,
+    ``source`` and ``license``. Raises UnknownPluginError (listing the names) for an unknown name.
+    """
+    if name not in EXAMPLES:
+        raise UnknownPluginError("example", name, EXAMPLES)
+    resource = resources.files("handeye").joinpath("data", EXAMPLES[name])
+    with resources.as_file(resource) as path:
+        pose_file = load_file(path, problem="axyb")
+    return pose_file.data, pose_file.truth, pose_file.metadata

@@ -1,0 +1,46 @@
+"""The evaluation harness: compare registered solvers on simulated data, as the paper's Sec. IV-A.
+
+::
+
+    from handeye.harness import Study, Sweep, Spec, run_study, write_report
+    study = Study(specs=(Spec("kron-lstsq"), Spec("lmi-sdp", "picos")),
+                  sweeps=(Sweep("noise", levels=(0.0, 0.01, 0.05), pairs=(16,)),), trials=5)
+    result = run_study(study, jobs=2)          # StudyResult: .records, .summary(), .to_csv()
+    write_report(result, "out/")               # CSV, JSON summary, PNG figures, markdown tables
+
+`study` defines studies (and the paper's and issue 4's), `runner` runs them (processes or
+dask), `result` holds the records, `report` draws and tabulates. docs/harness.md has the study
+file format and the record columns; docs/reproducing-the-paper.md the paper's study.
+"""
+
+from __future__ import annotations
+
+from .report import error_table, plot_study, time_table, write_report
+from .result import StudyResult, read_csv
+from .runner import data_seed, run_study, run_unit, units_of
+from .study import (
+    ACCURACY_NOISE,
+    PAPER_MM_PER_RAD,
+    PAPER_PAIRS,
+    UNITS,
+    Cell,
+    Spec,
+    Study,
+    Sweep,
+    accuracy_study,
+    default_specs,
+    load_study,
+    paper_noise,
+    paper_study,
+    parse_floats,
+    parse_ints,
+    parse_specs,
+    study_from_dict,
+)
+
+__all__ = [
+    "ACCURACY_NOISE", "PAPER_MM_PER_RAD", "PAPER_PAIRS", "UNITS", "Cell", "Spec", "Study", "StudyResult",
+    "Sweep", "accuracy_study", "data_seed", "default_specs", "error_table", "load_study", "paper_noise",
+    "paper_study", "parse_floats", "parse_ints", "parse_specs", "plot_study", "read_csv", "run_study",
+    "run_unit", "study_from_dict", "time_table", "units_of", "write_report",
+]

@@ -1,0 +1,280 @@
+"""Running a `Study`: work units, seeds, executors, and the per-trial records.
+
+One work unit is one (cell, trial): it simulates the data once and runs every spec on them, so
+every solver of a cell sees the same data and process overhead is paid once per unit, not per
+solve. The data seed of a unit comes from the master seed and the unit's indices,
+``SeedSequence(seed, spawn_key=(sweep, level, pairs, trial))`` (the same as spawning children of
+the master sequence), never from the order in which units run: results are the same for any job
+count and executor. Units run in-process (``jobs=1``), in a `ProcessPoolExecutor` (fork start
+method where available, so run-time plugins registered with `handeye.registry.register_plugin`
+are inherited; elsewhere workers re-register them) or on a dask.distributed cluster.
+
+Each record (one per trial x spec) holds: where it comes from (study, sweep, level, pairs,
+trial, data seed, noise sigmas), what ran (label, solver, backend, options), how it went (status,
+error, seconds = `Solution.seconds`), errors against the truth (eqs. 30-31, ``err_rot_<U>`` rad,
+``err_trans_<U>`` mm for every unknown U) and residual summaries (eqs. 32-33, ``res_rot_mean``,
+``res_rot_median`` rad, ``res_trans_mean``, ``res_trans_median`` mm). Translations are always
+reported in mm, the simulator's unit, whatever `Study.units` the solvers were given.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import multiprocessing
+import os
+import sys
+import time
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Any
+
+import numpy as np
+
+from ..api import solve
+from ..errors import InputError
+from ..registry import _extra as _runtime_plugins  # run-time plugins, re-registered in workers
+from ..registry import get_registry, register_plugin
+from ..se3 import random_poses
+from ..solution import Status
+from .result import StudyResult
+from .study import UNITS, Cell, Spec, Study
+
+#: std of each translation axis of a random truth (mm), as `handeye.problems.axyb.random_truth`
+RANDOM_TRUTH_MM = 500.0
+EXECUTORS = ("process", "dask")
+
+
+@dataclasses.dataclass(frozen=True)
+class Unit:
+    """One work unit: trial `trial` of `cell`, run with every spec."""
+
+    index: int
+    study: Study
+    specs: tuple[Spec, ...]
+    cell: Cell
+    trial: int
+
+
+def data_seed(study: Study, cell: Cell, trial: int) -> int:
+    """The 63-bit simulation seed of a unit, from the master seed and the unit's indices only."""
+    seq = np.random.SeedSequence(study.seed, spawn_key=(cell.sweep_index, cell.level_index, cell.pairs_index, trial))
+    return int(seq.generate_state(1, np.uint64)[0] >> np.uint64(1))
+
+
+def units_of(study: Study, specs: Sequence[Spec]) -> list[Unit]:
+    """Every unit of `study`, in a fixed order (cells as `Study.cells`, then trials)."""
+    units = []
+    for cell in study.cells():
+        for trial in range(study.trials):
+            units.append(Unit(len(units), study, tuple(specs), cell, trial))
+    return units
+
+
+def simulate(study: Study, cell: Cell, trial: int) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], int]:
+    """The unit's data and truth (in mm, the simulator's unit) and its seed."""
+    problem = get_registry().problem(study.problem)
+    seed = data_seed(study, cell, trial)
+    truth_kwargs: dict[str, Any] = {}
+    if study.truth == "random":
+        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(1,)))
+        poses = random_poses(len(problem.unknowns), rng, RANDOM_TRUTH_MM)
+        truth_kwargs = dict(zip(problem.unknowns, poses))
+    data, truth = problem.simulate(pairs=cell.pairs, seed=seed, noise=cell.noise, **truth_kwargs)
+    return data, truth, seed
+
+
+def _in_units(poses: dict[str, np.ndarray], divisor: float) -> dict[str, np.ndarray]:
+    """Copies with every translation divided by `divisor` (mm -> the study's units)."""
+    out = {}
+    for name, T in poses.items():
+        T = np.array(T, dtype=float, copy=True)
+        T[..., :3, 3] /= divisor
+        out[name] = T
+    return out
+
+
+_warmed: set[tuple[str, str]] = set()
+
+
+def run_unit(unit: Unit) -> tuple[int, list[dict[str, Any]]]:
+    """Run every spec on the unit's data; return (unit index, records). Never raises for a
+    failing solver: its record has status ``failed`` and the exception's type and message."""
+    study, cell = unit.study, unit.cell
+    problem = get_registry().problem(study.problem)
+    divisor = UNITS[study.units]
+    base = {
+        "study": study.name, "sweep": cell.sweep, "level": cell.level, "pairs": cell.pairs,
+        "trial": unit.trial, "units": study.units,
+    }
+    for name, (rot, trans) in sorted(cell.noise.sigmas.items()):
+        base[f"sigma_rot_{name}"] = rot
+        base[f"sigma_trans_{name}"] = trans
+    try:
+        data_mm, truth_mm, seed = simulate(study, cell, unit.trial)
+        base["seed"] = seed
+        data, truth = _in_units(data_mm, divisor), _in_units(truth_mm, divisor)
+        validated = problem.validate(**data)
+    except Exception as exc:  # the data themselves could not be made: every spec fails alike
+        reason = f"simulation: {type(exc).__name__}: {exc}"
+        return unit.index, [_failed(base, spec, reason, problem.unknowns) for spec in unit.specs]
+    records = []
+    for spec in unit.specs:
+        options = dict(spec.options)
+        if spec.init_from_truth:
+            options[spec.truth_option] = {k: v.copy() for k, v in truth.items()}
+        key = (study.problem, spec.label)
+        if study.warmup and key not in _warmed:
+            _warmed.add(key)
+            try:  # one-off costs (imports, compiled-problem caches) stay out of the timings
+                solve(study.problem, solver=spec.solver, backend=spec.backend, **data, **options)
+            except Exception:
+                pass
+        try:
+            sol = solve(study.problem, solver=spec.solver, backend=spec.backend, **data, **options)
+        except Exception as exc:
+            records.append(_failed(base, spec, f"{type(exc).__name__}: {exc}", problem.unknowns))
+            continue
+        row = _row(base, spec, sol.backend)
+        row["status"] = Status(sol.status).value
+        row["error"] = ""
+        row["seconds"] = float(sol.seconds)
+        errors = problem.errors(sol.unknowns, truth)
+        for name in problem.unknowns:
+            row[f"err_rot_{name}"] = float(errors[name]["rotation"])
+            row[f"err_trans_{name}"] = float(errors[name]["translation"]) * divisor
+        res = problem.residuals(validated, sol.unknowns)
+        row["res_rot_mean"] = float(np.mean(res["rotation"]))
+        row["res_rot_median"] = float(np.median(res["rotation"]))
+        row["res_trans_mean"] = float(np.mean(res["translation"])) * divisor
+        row["res_trans_median"] = float(np.median(res["translation"])) * divisor
+        row["warnings"] = len(sol.warnings)
+        records.append(row)
+    return unit.index, records
+
+
+def _row(base: dict[str, Any], spec: Spec, backend: str | None) -> dict[str, Any]:
+    row = dict(base)
+    row["label"] = spec.label
+    row["solver"] = spec.solver
+    row["backend"] = backend if backend is not None else ""
+    row["options"] = json.dumps(spec.options, sort_keys=True, default=str)
+    row["init_from_truth"] = spec.init_from_truth
+    return row
+
+
+def _failed(base: dict[str, Any], spec: Spec, reason: str, unknowns: Iterable[str]) -> dict[str, Any]:
+    row = _row(base, spec, spec.backend)
+    row.update(status=Status.FAILED.value, error=" ".join(reason.split()), seconds=math.nan)
+    for name in unknowns:
+        row[f"err_rot_{name}"] = row[f"err_trans_{name}"] = math.nan
+    for key in ("res_rot_mean", "res_rot_median", "res_trans_mean", "res_trans_median"):
+        row[key] = math.nan
+    row["warnings"] = 0
+    return row
+
+
+# --------------------------------------------------------------------------------------------
+# executors
+
+def _init_worker(plugins: list[tuple[str, Any]]) -> None:
+    """Make a worker see the run-time plugins of its parent (a no-op after fork)."""
+    from .. import registry
+
+    known = {name for name, _ in registry._extra}
+    for name, plugin in plugins:
+        if name not in known:
+            register_plugin(plugin, name)
+
+
+def _process_context() -> multiprocessing.context.BaseContext:
+    if sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("fork")
+    return multiprocessing.get_context()
+
+
+def _progress(total: int, desc: str, enabled: bool) -> Any:
+    """A tqdm bar on stderr without tqdm's monitor thread (no thread may run when workers fork)."""
+    from tqdm import tqdm
+
+    class Bar(tqdm):
+        monitor_interval = 0
+
+    return Bar(total=total, desc=desc, unit="trial", disable=not enabled, dynamic_ncols=True, file=sys.stderr)
+
+
+def _run_serial(units: list[Unit], tick: Callable[[], None]) -> dict[int, list[dict[str, Any]]]:
+    out = {}
+    for unit in units:
+        index, records = run_unit(unit)
+        out[index] = records
+        tick()
+    return out
+
+
+def _run_processes(units: list[Unit], jobs: int, tick: Callable[[], None]) -> dict[int, list[dict[str, Any]]]:
+    out = {}
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=_process_context(),
+                             initializer=_init_worker, initargs=(list(_runtime_plugins),)) as pool:
+        futures = [pool.submit(run_unit, unit) for unit in units]
+        for future in as_completed(futures):
+            index, records = future.result()
+            out[index] = records
+            tick()
+    return out
+
+
+def _run_dask(units: list[Unit], scheduler: Any, jobs: int, tick: Callable[[], None]) -> dict[int, list[dict[str, Any]]]:
+    try:
+        from distributed import Client, as_completed as dask_completed
+    except ImportError:
+        raise InputError('executor "dask" needs dask.distributed: pip install "handeye[dask]"') from None
+    own = not isinstance(scheduler, Client)
+    if own:
+        client = Client(scheduler) if scheduler else Client(n_workers=jobs, threads_per_worker=1)
+    else:
+        client = scheduler
+    out = {}
+    try:
+        futures = client.map(run_unit, units, pure=False)
+        for future in dask_completed(futures):
+            index, records = future.result()
+            out[index] = records
+            tick()
+    finally:
+        if own:
+            client.close()
+    return out
+
+
+def run_study(study: Study, jobs: int | None = None, progress: bool = True, *,
+              executor: str = "process", scheduler: Any = None) -> StudyResult:
+    """Run every (cell, trial) unit of `study` and collect the records.
+
+    jobs: worker processes (default: all cores; 1 runs in this process). progress: show a tqdm
+    bar on stderr. executor: ``"process"`` or ``"dask"``; scheduler: for dask, a scheduler
+    address (``"tcp://host:8786"``), a `distributed.Client`, or None for a local cluster of
+    `jobs` workers. Returns a `StudyResult` whose records are in unit order, then spec order.
+    """
+    if executor not in EXECUTORS:
+        raise InputError(f"executor must be one of {EXECUTORS}, got {executor!r}")
+    jobs = (os.cpu_count() or 1) if jobs is None else int(jobs)
+    if jobs < 1:
+        raise InputError(f"jobs must be >= 1, got {jobs}")
+    specs = study.resolved_specs()
+    units = units_of(study, specs)
+    start = time.perf_counter()
+    bar = _progress(len(units), study.name, progress)
+    try:
+        if executor == "dask":
+            by_index = _run_dask(units, scheduler, jobs, bar.update)
+        elif jobs == 1 or len(units) == 1:
+            by_index = _run_serial(units, bar.update)
+        else:
+            by_index = _run_processes(units, min(jobs, len(units)), bar.update)
+    finally:
+        bar.close()
+    records = [row for index in sorted(by_index) for row in by_index[index]]
+    return StudyResult(study=study, specs=specs, records=records, seconds=time.perf_counter() - start,
+                       jobs=jobs, executor=executor)

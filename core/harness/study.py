@@ -1,0 +1,387 @@
+"""What a comparison study is: solvers to compare, the data to compare them on, and how often.
+
+A `Study` is pure data (frozen, picklable, JSON-able): the problem, a list of `Spec` entries
+(solver + backend + options, with a label), a base `handeye.noise.NoiseModel`, one or more
+`Sweep` grids (noise levels x pair counts), the number of trials per cell and a master seed.
+A noise *level* is a multiplier of the base model's standard deviations (so with a base of
+1 rad and 1 mm a level is the paper's sigma_N, Sec. IV-A); a sweep may carry its own base model
+instead, which is how explicit noise models are expressed.
+
+Studies come from Python, from CLI flags (`parse_specs`, `parse_floats`) or from a TOML file
+(`load_study`, format in docs/harness.md). `paper_study` is the paper's Sec. IV-A (Fig. 3, Fig. 4,
+Table I) and `accuracy_study` the issue-4 accuracy study with its ground-truth "oracle" hook.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import tomllib
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError, UnknownPluginError
+from ..noise import NoiseModel
+from ..registry import get_registry
+
+#: length units the harness can hand the data to the solvers in; the simulator works in mm, and
+#: `Study.units = "m"` divides every translation (data and truth) by 1000 before solving.
+UNITS = {"mm": 1.0, "m": 1000.0}
+TRUTHS = ("paper", "random")
+
+
+@dataclasses.dataclass(frozen=True)
+class Spec:
+    """One contender of a study: a registered solver, a backend, options, and a label.
+
+    solver: registered solver name; backend: one of its backends (None: the solver's default).
+    options: keyword options passed to `handeye.solve` (JSON-able values).
+    label: the name rows, plots and tables use (default ``solver`` or ``solver/backend``).
+    init_from_truth: pass the ground truth, ``{"X": 4x4, "Y": 4x4}`` in the data's units, as the
+        option named `truth_option` (default ``init``): the "oracle" of a refinement started at the
+        truth, i.e. the accuracy floor of the data (issue 4). A solver that does not accept it
+        is recorded as failed, with the reason.
+    """
+
+    solver: str
+    backend: str | None = None
+    options: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    label: str = ""
+    init_from_truth: bool = False
+    truth_option: str = "init"
+
+    def __post_init__(self) -> None:
+        if not self.solver:
+            raise InputError("a study spec needs a solver name")
+        if not isinstance(self.options, Mapping):
+            raise InputError(f"spec {self.solver!r}: options must be a table/dict, got {self.options!r}")
+        object.__setattr__(self, "options", dict(self.options))
+        if not self.label:
+            label = self.solver if self.backend is None else f"{self.solver}/{self.backend}"
+            object.__setattr__(self, "label", label)
+
+    def __hash__(self) -> int:  # options is a dict: hash by its JSON text
+        return hash((self.solver, self.backend, json.dumps(self.options, sort_keys=True, default=str),
+                     self.label, self.init_from_truth, self.truth_option))
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+@dataclasses.dataclass(frozen=True)
+class Sweep:
+    """A grid of cells: every noise level x every pair count.
+
+    name: used in file names and the ``sweep`` column. levels: multipliers of the base noise
+    (>= 0). pairs: numbers of pairs m (>= 1). noise: this sweep's base model (None: the study's).
+    """
+
+    name: str
+    levels: tuple[float, ...] = (1.0,)
+    pairs: tuple[int, ...] = (16,)
+    noise: NoiseModel | None = None
+
+    def __post_init__(self) -> None:
+        levels = tuple(float(v) for v in self.levels)
+        pairs = tuple(int(v) for v in self.pairs)
+        if not self.name or not all(c.isalnum() or c in "-_." for c in self.name):
+            raise InputError(f"sweep name must be non-empty letters, digits, '-', '_' or '.', got {self.name!r}")
+        if not levels or any(not math.isfinite(v) or v < 0 for v in levels):
+            raise InputError(f"sweep {self.name!r}: noise levels must be finite numbers >= 0, got {self.levels}")
+        if not pairs or any(p < 1 for p in pairs) or any(p != v for p, v in zip(pairs, self.pairs)):
+            raise InputError(f"sweep {self.name!r}: pair counts must be integers >= 1, got {self.pairs}")
+        object.__setattr__(self, "levels", levels)
+        object.__setattr__(self, "pairs", pairs)
+
+
+@dataclasses.dataclass(frozen=True)
+class Cell:
+    """One (sweep, level, pairs) point with its indices (the indices seed its trials)."""
+
+    sweep: str
+    sweep_index: int
+    level: float
+    level_index: int
+    pairs: int
+    pairs_index: int
+    noise: NoiseModel
+
+
+@dataclasses.dataclass(frozen=True)
+class Study:
+    """A comparison study; see the module docstring and docs/harness.md.
+
+    specs: empty means every registered solver of `problem` with its default backend plus every
+        other available backend of ``lmi-sdp`` (`default_specs`), resolved at run time.
+    noise: the base model the levels multiply. truth: ``"paper"`` (the paper's X, Y) or
+        ``"random"`` (new X, Y per trial). units: ``"mm"`` or ``"m"`` (see `UNITS`).
+    warmup: solve once per spec and worker process (on the first unit's data, answer thrown
+        away) before timing, so that one-off costs (imports, compiled-problem caches) do not land
+        in the first trial's time. level_label: x-axis label of the error-vs-noise figures.
+    """
+
+    name: str = "study"
+    problem: str = "axyb"
+    specs: tuple[Spec, ...] = ()
+    noise: NoiseModel = dataclasses.field(default_factory=lambda: paper_noise(1.0))
+    sweeps: tuple[Sweep, ...] = (Sweep("grid", (0.0, 0.02, 0.05, 0.1), (16,)),)
+    trials: int = 5
+    seed: int = 0
+    truth: str = "paper"
+    units: str = "mm"
+    warmup: bool = True
+    level_label: str = "noise level (multiplier of the base noise)"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "specs", tuple(self.specs))
+        object.__setattr__(self, "sweeps", tuple(self.sweeps))
+        if isinstance(self.trials, bool) or not isinstance(self.trials, int) or self.trials < 1:
+            raise InputError(f"trials must be an integer >= 1, got {self.trials!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise InputError(f"seed must be an integer >= 0, got {self.seed!r}")
+        if self.truth not in TRUTHS:
+            raise InputError(f"truth must be one of {TRUTHS}, got {self.truth!r}")
+        if self.units not in UNITS:
+            raise InputError(f"units must be one of {sorted(UNITS)}, got {self.units!r}")
+        if not self.sweeps:
+            raise InputError("a study needs at least one sweep")
+        names = [s.name for s in self.sweeps]
+        if len(set(names)) != len(names):
+            raise InputError(f"sweep names must be unique, got {names}")
+        labels = [s.label for s in self.specs]
+        if len(set(labels)) != len(labels):
+            raise InputError(f"spec labels must be unique, got {labels}; give duplicates a label")
+
+    def cells(self) -> Iterator[Cell]:
+        """Every cell of every sweep, in a fixed order."""
+        for si, sweep in enumerate(self.sweeps):
+            base = sweep.noise if sweep.noise is not None else self.noise
+            for li, level in enumerate(sweep.levels):
+                for pi, m in enumerate(sweep.pairs):
+                    yield Cell(sweep.name, si, level, li, m, pi, scale_noise(base, level))
+
+    def resolved_specs(self) -> tuple[Spec, ...]:
+        """`specs` (or `default_specs(problem)` when empty) with default backends filled in;
+        raises `UnknownPluginError` for an unknown solver or backend."""
+        registry = get_registry()
+        out = []
+        for spec in self.specs or default_specs(self.problem):
+            solver = registry.solver(spec.solver, self.problem)  # raises UnknownPluginError
+            if spec.backend is None:
+                spec = dataclasses.replace(spec, backend=solver.default_backend)
+            elif spec.backend not in solver.backends:
+                raise UnknownPluginError(f"backend of solver {spec.solver!r}", spec.backend, solver.backends)
+            out.append(spec)
+        return tuple(out)
+
+    def replace(self, **changes: Any) -> Study:
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (the same fields as the TOML format)."""
+        return {
+            "name": self.name, "problem": self.problem, "trials": self.trials, "seed": self.seed,
+            "truth": self.truth, "units": self.units, "warmup": self.warmup, "level_label": self.level_label,
+            "noise": _noise_dict(self.noise),
+            "sweeps": [{"name": s.name, "levels": list(s.levels), "pairs": list(s.pairs),
+                        **({"noise": _noise_dict(s.noise)} if s.noise is not None else {})}
+                       for s in self.sweeps],
+            "solvers": [s.to_dict() for s in self.specs],
+        }
+
+
+def scale_noise(noise: NoiseModel, level: float) -> NoiseModel:
+    """The model with every standard deviation multiplied by `level`."""
+    return NoiseModel({k: (rot * level, trans * level) for k, (rot, trans) in noise.sigmas.items()})
+
+
+def _noise_dict(noise: NoiseModel) -> dict[str, list[float]]:
+    return {k: [float(r), float(t)] for k, (r, t) in sorted(noise.sigmas.items())}
+
+
+# --------------------------------------------------------------------------------------------
+# defaults and the two built-in studies
+
+#: mm of translation noise per rad of rotation noise in the reading of the paper's sigma_N
+#: (docs/reproducing-the-paper.md explains the choice): sigma_N rad and sigma_N mm.
+PAPER_MM_PER_RAD = 1.0
+#: pairs of the paper's noise sweep (Fig. 3); the paper does not state m, its experiment uses 16.
+PAPER_PAIRS = 16
+
+
+def paper_noise(level: float = 1.0, mm_per_rad: float = PAPER_MM_PER_RAD,
+                stacks: tuple[str, ...] = ("A", "B")) -> NoiseModel:
+    """Our reading of the paper's sigma_N: `level` rad on rotations and ``level * mm_per_rad`` mm
+    on translations, on both A and B ("injected into the (A_i, B_i)", Sec. IV-A, Step 2)."""
+    return NoiseModel.on(stacks, level, level * mm_per_rad)
+
+
+def default_specs(problem: str = "axyb") -> tuple[Spec, ...]:
+    """Every registered solver of `problem` with its default backend, plus every other backend of
+    ``lmi-sdp`` (the paper's method: its backends are part of the comparison). Backends that
+    cannot run here are left out."""
+    registry = get_registry()
+    specs = []
+    for name in registry.solver_names(problem):
+        solver = registry.solvers[name]
+        backends = list(solver.backends) if name == "lmi-sdp" else [solver.default_backend]
+        backends.sort(key=lambda b: b != solver.default_backend)
+        for backend in backends:
+            if solver.unavailable_reason(backend) is None:
+                label = f"{name}/{backend}" if len(solver.backends) > 1 and name == "lmi-sdp" else name
+                specs.append(Spec(name, backend, label=label))
+    return tuple(specs)
+
+
+def paper_study(*, trials: int = 5, seed: int = 0, pairs: int = PAPER_PAIRS,
+                mm_per_rad: float = PAPER_MM_PER_RAD, specs: Sequence[Spec] = ()) -> Study:
+    """Sec. IV-A: sigma_N = 0, 0.01, ..., 0.1 at m = `pairs` (Fig. 3) and m = 10, 20, ..., 100 at
+    sigma_N = 0.05 (Fig. 4), `trials` trials per cell (the paper: 5), the paper's X and Y, mm."""
+    return Study(
+        name="paper", specs=tuple(specs), noise=paper_noise(1.0, mm_per_rad),
+        sweeps=(Sweep("noise", tuple(round(0.01 * i, 2) for i in range(11)), (pairs,)),
+                Sweep("pairs", (0.05,), tuple(range(10, 101, 10)))),
+        trials=trials, seed=seed,
+        level_label=f"sigma_N  (rotations: sigma_N rad; translations: {mm_per_rad:g} sigma_N mm; on A and B)",
+    )
+
+
+#: issue 4: realistic noise, camera (B) ten times noisier than the robot (A); rad and mm
+ACCURACY_NOISE = NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)})
+
+
+def accuracy_study(*, trials: int = 20, seed: int = 0, specs: Sequence[Spec] = (),
+                   oracle: bool | None = None, units: str = "mm") -> Study:
+    """Issue 4's accuracy study: noise on A and B (`ACCURACY_NOISE`) and ten times that, m = 8,
+    16, 50, random X and Y per trial. With `oracle` (default: when ``refine`` is registered) an
+    extra spec ``oracle`` runs ``refine`` started at the ground truth (`Spec.init_from_truth`)."""
+    specs = tuple(specs) or default_specs("axyb")
+    if oracle is None:
+        oracle = "refine" in get_registry().solver_names("axyb")
+    if oracle:
+        specs += (Spec("refine", label="oracle", init_from_truth=True),)
+    return Study(name="accuracy", specs=specs, noise=ACCURACY_NOISE,
+                 sweeps=(Sweep("accuracy", (1.0, 10.0), (8, 16, 50)),),
+                 trials=trials, seed=seed, truth="random", units=units)
+
+
+# --------------------------------------------------------------------------------------------
+# parsing: CLI strings and TOML files
+
+def parse_specs(text: str, problem: str = "axyb") -> tuple[Spec, ...]:
+    """Specs from a comma-separated list: ``name`` (default backend), ``name/backend``,
+    ``name/*`` (every available backend) or ``all`` (= `default_specs`)."""
+    registry = get_registry()
+    specs: list[Spec] = []
+    for item in (part.strip() for part in text.split(",")):
+        if not item:
+            continue
+        if item == "all":
+            specs.extend(default_specs(problem))
+            continue
+        name, _, backend = item.partition("/")
+        solver = registry.solver(name, problem)
+        if backend == "*":
+            for b in solver.backends:
+                if solver.unavailable_reason(b) is None:
+                    specs.append(Spec(name, b, label=f"{name}/{b}"))
+        elif backend:
+            if backend not in solver.backends:
+                raise UnknownPluginError(f"backend of solver {name!r}", backend, solver.backends)
+            specs.append(Spec(name, backend, label=item))
+        else:
+            specs.append(Spec(name, solver.default_backend, label=name))
+    if not specs:
+        raise InputError(f"no solvers in {text!r}; known: {registry.solver_names(problem)}")
+    seen: dict[str, Spec] = {}
+    for spec in specs:
+        seen.setdefault(spec.label, spec)
+    return tuple(seen.values())
+
+
+def parse_floats(text: str, what: str) -> tuple[float, ...]:
+    """``"0,0.01,0.02"`` or a range ``"0:0.1:0.01"`` (start:stop:step, stop included)."""
+    text = text.strip()
+    try:
+        if ":" in text:
+            start, stop, step = (float(v) for v in text.split(":"))
+            if step <= 0:
+                raise ValueError
+            n = int(math.floor((stop - start) / step + 1e-9)) + 1
+            return tuple(round(start + i * step, 12) for i in range(n))
+        return tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise InputError(f"{what} must be numbers separated by commas or start:stop:step, got {text!r}") from None
+
+
+def parse_ints(text: str, what: str) -> tuple[int, ...]:
+    values = parse_floats(text, what)
+    if any(v != int(v) for v in values):
+        raise InputError(f"{what} must be integers, got {text!r}")
+    return tuple(int(v) for v in values)
+
+
+_STUDY_KEYS = {"name", "problem", "trials", "seed", "truth", "units", "warmup", "level_label", "noise", "levels",
+               "pairs", "sweep", "solver"}
+_SWEEP_KEYS = {"name", "levels", "pairs", "noise"}
+_SOLVER_KEYS = {"name", "backend", "options", "label", "init_from_truth", "truth_option"}
+
+
+def load_study(path: str | Path) -> Study:
+    """Read a study file (TOML; docs/harness.md). Unknown keys are errors."""
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            doc = tomllib.load(f)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"study file {path}: not valid TOML ({exc})") from None
+    return study_from_dict(doc, source=str(path))
+
+
+def study_from_dict(doc: Mapping[str, Any], source: str = "study") -> Study:
+    """A `Study` from the parsed TOML structure (see docs/harness.md)."""
+    _check_keys(doc, _STUDY_KEYS, source)
+    kwargs: dict[str, Any] = {k: doc[k] for k in ("name", "problem", "trials", "seed", "truth", "units", "warmup", "level_label")
+                              if k in doc}
+    if "noise" in doc:
+        kwargs["noise"] = _noise_from(doc["noise"], f"{source}: [noise]")
+    sweeps = []
+    if "levels" in doc or "pairs" in doc:
+        sweeps.append(Sweep("grid", tuple(doc.get("levels", (1.0,))), tuple(doc.get("pairs", (16,)))))
+    for i, table in enumerate(doc.get("sweep", [])):
+        where = f"{source}: [[sweep]] #{i + 1}"
+        _check_keys(table, _SWEEP_KEYS, where)
+        noise = _noise_from(table["noise"], where + " noise") if "noise" in table else None
+        sweeps.append(Sweep(table.get("name", f"sweep{i + 1}"), tuple(table.get("levels", (1.0,))),
+                            tuple(table.get("pairs", (16,))), noise))
+    if sweeps:
+        kwargs["sweeps"] = tuple(sweeps)
+    specs = []
+    for i, table in enumerate(doc.get("solver", [])):
+        where = f"{source}: [[solver]] #{i + 1}"
+        _check_keys(table, _SOLVER_KEYS, where)
+        if "name" not in table:
+            raise InputError(f"{where} needs name = \"<registered solver>\"")
+        specs.append(Spec(table["name"], table.get("backend"), table.get("options", {}), table.get("label", ""),
+                          bool(table.get("init_from_truth", False)), table.get("truth_option", "init")))
+    kwargs["specs"] = tuple(specs)
+    return Study(**kwargs)
+
+
+def _noise_from(table: Any, where: str) -> NoiseModel:
+    if not isinstance(table, Mapping):
+        raise InputError(f"{where} must be a table like {{ B = [0.002, 0.5] }} (rad, data units)")
+    sigmas = {}
+    for name, pair in table.items():
+        if not isinstance(pair, Sequence) or len(pair) != 2:
+            raise InputError(f"{where}: {name} must be [sigma_rot_rad, sigma_trans], got {pair!r}")
+        sigmas[name] = (float(pair[0]), float(pair[1]))
+    return NoiseModel(sigmas)
+
+
+def _check_keys(table: Mapping[str, Any], known: Iterable[str], where: str) -> None:
+    unknown = set(table) - set(known)
+    if unknown:
+        raise InputError(f"{where}: unknown key(s) {sorted(unknown)}; known: {sorted(known)}")

@@ -1,0 +1,150 @@
+"""Shared fixtures of the test suite.
+
+- ``solver_backend``: any test that asks for it is parametrised over EVERY (solver, backend) of
+  every solver registered for problem "axyb" when the tests are collected (ids "solver/backend"),
+  so a new plugin, built in or installed by a third party, is tested without writing a test.
+- ``solver_case``: the `SolverSpec` and backend of that parameter; skips when the backend is not
+  available here, giving the solver's own reason.
+- ``solve_once``: memoised `handeye.solve` for the deterministic reference cases, so the suite
+  solves each case once per solver/backend however many tests look at the answer.
+- ``runtime_plugins``: registers plugin objects at run time and removes them (and rebuilds the
+  registry) after the test, even when the registration itself failed.
+- ``example_dist``: a directory holding the third-party example solver of
+  docs/examples/handeye-example-solver as an "installed" distribution (module + dist-info with real
+  entry-point metadata), built without pip, ready to put on sys.path.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+import tomllib
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from hypothesis import settings
+
+import handeye
+from handeye import registry
+
+# property tests: enough examples to find edge cases, few enough for the suite's time budget;
+# no deadline (the machine is shared, timings vary)
+settings.register_profile("handeye", max_examples=60, deadline=None)
+settings.load_profile("handeye")
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE_DIR = ROOT / "docs" / "examples" / "handeye-example-solver"
+
+
+@dataclasses.dataclass(frozen=True)
+class SolverCase:
+    name: str
+    backend: str
+    spec: handeye.SolverSpec
+
+    @property
+    def id(self) -> str:
+        return f"{self.name}/{self.backend}"
+
+
+def registered_axyb_backends() -> list[tuple[str, str]]:
+    """(solver, backend) for every solver of problem "axyb" registered now, sorted."""
+    reg = handeye.get_registry()
+    return [(name, backend) for name in reg.solver_names("axyb") for backend in reg.solvers[name].backends]
+
+
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    if "solver_backend" in metafunc.fixturenames:
+        pairs = registered_axyb_backends()
+        metafunc.parametrize("solver_backend", pairs, ids=[f"{s}/{b}" for s, b in pairs])
+
+
+@pytest.fixture
+def solver_case(solver_backend: tuple[str, str]) -> SolverCase:
+    name, backend = solver_backend
+    spec = handeye.get_registry().solvers[name]
+    reason = spec.unavailable_reason(backend)
+    if reason:
+        pytest.skip(f"{name}/{backend} unavailable: {reason}")
+    return SolverCase(name, backend, spec)
+
+
+@pytest.fixture(scope="session")
+def solve_once() -> Callable[..., Any]:
+    """solve_once(case_key, case, data, **options): handeye.solve, memoised on (case_key, case.id)."""
+    cache: dict[tuple[Any, str], handeye.Solution] = {}
+
+    def solve(key: Any, case: SolverCase, data: dict[str, Any], **options: Any) -> handeye.Solution:
+        k = (key, case.id)
+        if k not in cache:
+            cache[k] = handeye.solve("axyb", solver=case.name, backend=case.backend, **data, **options)
+        return cache[k]
+
+    return solve
+
+
+@pytest.fixture
+def runtime_plugins() -> Iterator[Callable[[Any, str], None]]:
+    """register(plugin, name): `handeye.registry.register_plugin`, undone after the test."""
+    names: list[str] = []
+
+    def register(plugin: Any, name: str) -> None:
+        names.append(name)
+        registry.register_plugin(plugin, name)
+
+    yield register
+    for name in reversed(names):
+        try:
+            registry.unregister_plugin(name)
+        except handeye.PluginRegistrationError:
+            pass  # a plugin still registered is invalid; removed in a later round of the loop
+    registry.reload()
+
+
+def example_entry_points() -> dict[str, str]:
+    """The ``handeye`` entry points declared in the example's real pyproject.toml."""
+    with open(EXAMPLE_DIR / "pyproject.toml", "rb") as f:
+        project = tomllib.load(f)["project"]
+    return dict(project["entry-points"]["handeye"])
+
+
+def example_project() -> dict[str, Any]:
+    with open(EXAMPLE_DIR / "pyproject.toml", "rb") as f:
+        return tomllib.load(f)["project"]
+
+
+@pytest.fixture
+def example_dist(tmp_path: Path) -> Path:
+    """A sys.path directory where the example solver looks installed (module + dist-info).
+
+    The dist-info is what an installer writes: METADATA (Name, Version) and entry_points.txt, both
+    taken from the example's pyproject.toml, so discovery goes through real entry-point metadata.
+    """
+    project = example_project()
+    site = tmp_path / "site"
+    site.mkdir()
+    module = "handeye_example_solver"
+    shutil.copy(EXAMPLE_DIR / f"{module}.py", site / f"{module}.py")
+    dist_info = site / f"{module}-{project['version']}.dist-info"
+    dist_info.mkdir()
+    (dist_info / "METADATA").write_text(
+        f"Metadata-Version: 2.1\nName: {project['name']}\nVersion: {project['version']}\n"
+    )
+    lines = ["[handeye]"] + [f"{name} = {target}" for name, target in example_entry_points().items()]
+    (dist_info / "entry_points.txt").write_text("\n".join(lines) + "\n")
+    return site
+
+
+@pytest.fixture
+def installed_example(example_dist: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    """`example_dist` on sys.path for the test; afterwards off it, its module forgotten, and the
+    registry rebuilt without it."""
+    import sys
+
+    monkeypatch.syspath_prepend(str(example_dist))
+    yield example_dist
+    monkeypatch.undo()
+    sys.modules.pop("handeye_example_solver", None)
+    registry.reload()

@@ -1,0 +1,205 @@
+"""The ``handeye`` command line, mostly in-process through handeye.cli.main(argv)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from handeye import SolverError
+from handeye.cli import COMMANDS, main
+from handeye.io import load_data, save_data
+from handeye.registry import get_registry
+
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_commands_registered_in_one_list():
+    from handeye.cli import build_parser
+
+    assert all(callable(c.add_parser) and callable(c.run) for c in COMMANDS)
+    subparsers = next(a for a in build_parser()._actions if a.dest == "command")
+    assert {"list", "simulate", "solve"} <= set(subparsers.choices)
+    assert len(subparsers.choices) == len(COMMANDS)  # one subcommand per module in COMMANDS
+
+
+def test_list_text_and_json(capsys):
+    code, out, _ = run_cli(capsys, "list")
+    assert code == 0
+    assert "axyb" in out and "kron-lstsq" in out and "numpy*" in out and "handeye" in out
+    code, out, _ = run_cli(capsys, "list", "--json")
+    assert code == 0
+    listing = json.loads(out)
+    assert [p["name"] for p in listing["problems"]] == sorted(get_registry().problems)
+    by_name = {s["name"]: s for s in listing["solvers"]}
+    assert set(by_name) == set(get_registry().solvers)
+    kron = by_name["kron-lstsq"]
+    assert kron["distribution"] == "handeye" and kron["version"]
+    assert kron["citation"] and kron["problems"] == ["axyb"]
+    assert [b["name"] for b in kron["backends"] if b["default"]] == ["numpy"]
+    assert all(b["available"] for b in kron["backends"])
+
+
+def test_list_markdown_table_has_a_row_per_solver(capsys):
+    code, out, _ = run_cli(capsys, "list", "--markdown")
+    rows = out.strip().splitlines()
+    assert code == 0 and rows[0].startswith("| solver | problems |")
+    assert [r.split("|")[1].strip(" `") for r in rows[2:]] == sorted(get_registry().solvers)
+
+
+def test_version_and_help_exit_0(capsys):
+    import handeye
+
+    code, out, _ = run_cli(capsys, "--version")
+    assert code == 0 and handeye.__version__ in out
+    code, out, _ = run_cli(capsys, "solve", "--help")
+    assert code == 0 and "--example" in out
+
+
+def test_list_shows_unavailable_backend_with_reason(capsys, monkeypatch):
+    spec = get_registry().solvers["kron-lstsq"]
+    monkeypatch.setattr(type(spec), "unavailable_reason", lambda self, b: "needs the moon" if self is spec else None)
+    code, out, _ = run_cli(capsys, "list")
+    assert code == 0 and "UNAVAILABLE: needs the moon" in out
+
+
+@pytest.mark.parametrize("ext", ["npz", "json"])
+def test_simulate_then_solve_reports_truth_errors(capsys, tmp_path, ext):
+    path = tmp_path / f"data.{ext}"
+    code, out, err = run_cli(capsys, "simulate", "--problem", "axyb", "--pairs", "16", "--noise-rot", "0.001",
+                             "--noise-trans", "0.1", "--seed", "1", "-o", str(path))
+    assert code == 0, err
+    data, truth = load_data(path)
+    assert data["A"].shape == (16, 4, 4) and truth is not None
+    code, out, err = run_cli(capsys, "solve", "--problem", "axyb", "--solver", "kron-lstsq", str(path))
+    assert code == 0, err
+    assert "X =" in out and "Y =" in out and "errors against the file's truth" in out and "median" in out
+    code, out, err = run_cli(capsys, "solve", "--solver", "kron-lstsq", "--json", str(path))
+    report = json.loads(out)
+    assert report["status"] == "optimal" and report["units"] == "mm" and report["pairs"] == 16
+    assert np.asarray(report["unknowns"]["X"]).shape == (4, 4)
+    assert report["errors"]["X"]["rotation"] < 0.01 and report["errors"]["Y"]["translation"] < 5
+    assert len(report["residuals_per_pair"]["rotation"]) == 16
+    assert report["residuals"]["rotation"]["max"] >= report["residuals"]["rotation"]["median"] > 0
+
+
+def test_noise_free_simulation_recovers_truth(capsys, tmp_path):
+    path = tmp_path / "clean.json"
+    assert run_cli(capsys, "simulate", "--pairs", "8", "--seed", "4", "-o", str(path))[0] == 0
+    code, out, _ = run_cli(capsys, "solve", "--solver", "kron-lstsq", "--json", str(path))
+    errors = json.loads(out)["errors"]
+    assert max(e["rotation"] for e in errors.values()) < 1e-8
+    assert max(e["translation"] for e in errors.values()) < 1e-5  # mm
+
+
+def test_noise_on_both_and_bad_noise_target(capsys, tmp_path):
+    path = tmp_path / "both.npz"
+    assert run_cli(capsys, "simulate", "--pairs", "5", "--noise-rot", "0.01", "--noise-on", "both",
+                   "--seed", "2", "-o", str(path))[0] == 0
+    data, truth = load_data(path)
+    # noise on A too: A is no longer exactly the noise-free forward kinematics, so A X != Y B
+    assert np.abs(data["A"] @ truth["X"] - truth["Y"] @ data["B"]).max() > 1e-6
+    code, _, err = run_cli(capsys, "simulate", "--noise-on", "C", "-o", str(tmp_path / "c.npz"))
+    assert code == 2 and err.startswith("handeye: error:") and "'both'" in err
+
+
+def test_option_values_parsed_as_json(capsys, tmp_path):
+    path = tmp_path / "d.npz"
+    run_cli(capsys, "simulate", "--pairs", "6", "--seed", "3", "-o", str(path))
+    code, out, err = run_cli(capsys, "solve", "--solver", "kron-lstsq", "--option", "normalize=false", "--json", str(path))
+    assert code == 0, err
+    assert json.loads(out)["options"] == {"normalize": False}
+
+
+def test_example_solve(capsys):
+    code, out, err = run_cli(capsys, "solve", "--example", "--solver", "kron-lstsq")
+    assert code == 0, err
+    assert "eth-robot-arm" in out and "lengths in m" in out and "errors against" not in out
+    code, out, err = run_cli(capsys, "solve", "--example", "simulated", "--solver", "kron-lstsq", "--json")
+    report = json.loads(out)
+    assert report["source"] == "example 'simulated'" and report["errors"]["X"]["rotation"] < 0.01
+
+
+def test_default_solver_is_explicit(capsys, tmp_path):
+    from handeye.cli.solve_cmd import default_solver
+
+    expected = "auto" if "auto" in get_registry().solver_names("axyb") else "kron-lstsq"
+    assert default_solver("axyb") == expected
+    code, out, err = run_cli(capsys, "solve", "--example", "--json")
+    assert code == 0, err
+    assert json.loads(out)["solver"] == expected
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["solve", "{tmp}/missing.npz"], "not found"),
+    (["solve", "{tmp}/bad.json"], "invalid JSON"),
+    (["solve", "{tmp}/data.txt"], "unsupported file extension"),
+    (["solve", "--solver", "no-such-solver", "{tmp}/good.json"], "unknown solver"),
+    (["solve", "--solver", "kron-lstsq", "--backend", "fortran", "{tmp}/good.json"], "unknown backend"),
+    (["solve", "--solver", "kron-lstsq", "--option", "bogus=1", "{tmp}/good.json"], "known option"),
+    (["solve", "--solver", "kron-lstsq", "--option", "novalue", "{tmp}/good.json"], "key=value"),
+    (["solve", "--solver", "kron-lstsq", "--option", "A=1", "{tmp}/good.json"], "clashes"),
+    (["solve", "--problem", "axxbz", "{tmp}/good.json"], "unknown problem"),
+    (["solve", "--example", "nope"], "unknown example"),
+    (["solve"], "either a data FILE or --example"),
+    (["solve", "--example", "{tmp}/good.json"], "unknown example"),
+])
+def test_bad_input_exits_2_with_one_line(capsys, tmp_path, argv, message):
+    data = {"A": np.stack([np.eye(4)] * 3), "B": np.stack([np.eye(4)] * 3)}
+    data["A"][1, :3, :3] = data["B"][1, :3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]
+    data["A"][2, :3, :3] = data["B"][2, :3, :3] = [[1, 0, 0], [0, 0, -1], [0, 1, 0]]
+    save_data(tmp_path / "good.json", data)
+    (tmp_path / "bad.json").write_text("{oops")
+    (tmp_path / "data.txt").write_text("")
+    code, out, err = run_cli(capsys, *[a.format(tmp=tmp_path) for a in argv])
+    assert code == 2
+    assert err.startswith("handeye: error: ") and err.count("\n") == 1 and "Traceback" not in err
+    assert message in err
+
+
+def test_argparse_usage_error_exits_2(capsys):
+    code, _, err = run_cli(capsys, "simulate", "--pairs", "many", "-o", "x.npz")
+    assert code == 2 and "invalid int value" in err
+
+
+def test_degenerate_data_exits_2(capsys, tmp_path):
+    path = tmp_path / "flat.json"
+    save_data(path, {"A": np.stack([np.eye(4)] * 4), "B": np.stack([np.eye(4)] * 4)})
+    code, _, err = run_cli(capsys, "solve", "--solver", "kron-lstsq", str(path))
+    assert code == 2 and "do not determine" in err
+
+
+def test_solver_failure_exits_1(capsys, monkeypatch):
+    spec = get_registry().solvers["kron-lstsq"]
+
+    def explode(data, options, backend):
+        raise SolverError("the solver gave up: numerical trouble")
+
+    monkeypatch.setitem(get_registry().solvers, "kron-lstsq", dataclasses.replace(spec, run=explode))
+    code, out, err = run_cli(capsys, "solve", "--example", "--solver", "kron-lstsq")
+    assert code == 1 and out == ""
+    assert err == "handeye: error: the solver gave up: numerical trouble\n"
+
+
+def test_console_script_exit_codes(tmp_path):
+    """The installed ``handeye`` console script in a real subprocess (exit codes, no traceback)."""
+    exe = shutil.which("handeye", path=str(Path(sys.executable).parent) + os.pathsep + os.environ.get("PATH", ""))
+    assert exe, "the handeye console script is not installed next to this Python (pip install .)"
+    cmd = [exe]
+    ok = subprocess.run([*cmd, "solve", "--example", "--solver", "kron-lstsq"], capture_output=True, text=True, timeout=120)
+    assert ok.returncode == 0, ok.stderr
+    assert "residuals" in ok.stdout
+    bad = subprocess.run([*cmd, "solve", str(tmp_path / "missing.json")], capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2
+    assert bad.stderr.startswith("handeye: error:") and "Traceback" not in bad.stderr

@@ -1,0 +1,280 @@
+"""The evaluation harness (handeye.harness) and ``handeye compare`` on tiny, fast studies."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from typing import Any
+
+import numpy as np
+import pytest
+
+from handeye import SolverOutput, SolverSpec, hookimpl
+from handeye.errors import InputError, UnknownPluginError
+from handeye.harness import (
+    Spec,
+    Study,
+    Sweep,
+    error_table,
+    load_study,
+    parse_floats,
+    parse_specs,
+    read_csv,
+    run_study,
+    time_table,
+    write_report,
+)
+from handeye.noise import NoiseModel
+from handeye.registry import register_plugin, unregister_plugin
+
+ERROR_COLUMNS = ["err_rot_X", "err_trans_X", "err_rot_Y", "err_trans_Y"]
+RESIDUAL_COLUMNS = ["res_rot_mean", "res_rot_median", "res_trans_mean", "res_trans_median"]
+
+
+def tiny_study(**changes: Any) -> Study:
+    """2 specs x 2 noise levels x 1 pair count x 2 trials = 8 records."""
+    study = Study(
+        name="tiny",
+        specs=(Spec("kron-lstsq"), Spec("kron-lstsq", options={"normalize": False}, label="kron-raw")),
+        noise=NoiseModel({"A": (0.0005, 0.05), "B": (0.005, 0.5)}),
+        sweeps=(Sweep("noise", levels=(0.0, 1.0), pairs=(8,)),),
+        trials=2, seed=7, warmup=False,
+    )
+    return dataclasses.replace(study, **changes)
+
+
+@pytest.fixture(scope="module")
+def serial_result():
+    return run_study(tiny_study(), jobs=1, progress=False)
+
+
+# --- run-time test plugins -------------------------------------------------------------------
+
+def _raise(data, options, backend):
+    raise RuntimeError("deliberate failure for the harness test")
+
+
+@dataclasses.dataclass(frozen=True)
+class TruthOptions:
+    init: Any = None
+
+
+def _return_init(data, options, backend):
+    if options.init is None:
+        raise ValueError("this test solver needs init")
+    return SolverOutput(unknowns={k: np.asarray(v) for k, v in options.init.items()})
+
+
+class HarnessTestPlugin:
+    @hookimpl
+    def register_solvers(self, register):
+        register(SolverSpec(name="harness-test-fail", problems=("axyb",), run=_raise, summary="always raises"))
+        register(SolverSpec(name="harness-test-truth", problems=("axyb",), run=_return_init,
+                            options=TruthOptions, summary="returns its init option"))
+
+
+@pytest.fixture()
+def test_plugin():
+    register_plugin(HarnessTestPlugin(), "harness-test-plugin")
+    try:
+        yield
+    finally:
+        unregister_plugin("harness-test-plugin")
+
+
+# --- shapes, determinism ---------------------------------------------------------------------
+
+def test_records_one_per_cell_trial_spec(serial_result):
+    rows = serial_result.records
+    assert len(rows) == 2 * 1 * 2 * 2
+    assert [r["label"] for r in rows[:2]] == ["kron-lstsq", "kron-raw"]
+    for column in ["study", "sweep", "level", "pairs", "trial", "seed", "label", "solver", "backend",
+                   "status", "error", "seconds", *ERROR_COLUMNS, *RESIDUAL_COLUMNS,
+                   "sigma_rot_A", "sigma_trans_A", "sigma_rot_B", "sigma_trans_B"]:
+        assert column in rows[0], column
+    assert all(r["status"] == "optimal" and r["error"] == "" for r in rows)
+    # every solver of a unit sees the same data; different units get different data
+    seeds = {(r["level"], r["trial"]): set() for r in rows}
+    for r in rows:
+        seeds[(r["level"], r["trial"])].add(r["seed"])
+    assert all(len(s) == 1 for s in seeds.values())
+    assert len({next(iter(s)) for s in seeds.values()}) == 4
+    noise_free = [r for r in rows if r["level"] == 0.0]
+    assert max(r[c] for r in noise_free for c in ERROR_COLUMNS + RESIDUAL_COLUMNS) < 1e-6
+    noisy = [r for r in rows if r["level"] == 1.0]
+    assert min(r["err_rot_X"] for r in noisy) > 1e-5
+    assert noisy[0]["sigma_rot_B"] == 0.005 and noise_free[0]["sigma_rot_B"] == 0.0
+
+
+def test_results_identical_whatever_the_job_count(serial_result):
+    parallel = run_study(tiny_study(), jobs=2, progress=False)
+    assert len(parallel.records) == len(serial_result.records)
+    for a, b in zip(serial_result.records, parallel.records):
+        assert (a["label"], a["level"], a["trial"], a["seed"]) == (b["label"], b["level"], b["trial"], b["seed"])
+        for column in ERROR_COLUMNS + RESIDUAL_COLUMNS:
+            assert a[column] == b[column], column
+
+
+def test_seed_changes_the_data(serial_result):
+    other = run_study(tiny_study(seed=8), jobs=1, progress=False)
+    assert other.records[2]["seed"] != serial_result.records[2]["seed"]
+    assert other.records[-1]["err_rot_X"] != serial_result.records[-1]["err_rot_X"]
+
+
+def test_metres_give_the_same_errors_in_mm_for_a_unit_invariant_solver(serial_result):
+    metres = run_study(tiny_study(units="m", specs=(Spec("kron-lstsq"),)), jobs=1, progress=False)
+    mm = [r for r in serial_result.records if r["label"] == "kron-lstsq" and r["level"] == 1.0]
+    m = [r for r in metres.records if r["level"] == 1.0]
+    assert [r["seed"] for r in m] == [r["seed"] for r in mm]
+    for a, b in zip(mm, m):
+        assert b["units"] == "m"
+        for column in ERROR_COLUMNS + ["res_trans_mean"]:
+            assert b[column] == pytest.approx(a[column], rel=1e-6), column
+
+
+# --- failures and the oracle hook ------------------------------------------------------------
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_failing_solver_is_recorded_and_the_study_goes_on(test_plugin, jobs):
+    study = tiny_study(specs=(Spec("harness-test-fail"), Spec("kron-lstsq")))
+    result = run_study(study, jobs=jobs, progress=False)
+    failed = result.select(label="harness-test-fail")
+    ok = result.select(label="kron-lstsq")
+    assert len(failed) == len(ok) == 4
+    for row in failed:
+        assert row["status"] == "failed"
+        assert row["error"] == "RuntimeError: deliberate failure for the harness test"
+        assert all(math.isnan(row[c]) for c in ERROR_COLUMNS + ["seconds"])
+    assert all(r["status"] == "optimal" and np.isfinite(r["err_rot_X"]) for r in ok)
+    summary = {(e["label"], e["level"]): e for e in result.summary()}
+    assert summary[("harness-test-fail", 1.0)]["failed"] == 2
+    assert math.isnan(summary[("harness-test-fail", 1.0)]["err_rot_X_median"])
+    assert "| harness-test-fail | numpy | - | - | 4 | 4 |" in time_table(result)
+
+
+def test_init_from_truth_passes_the_truth_in_the_data_units(test_plugin):
+    study = tiny_study(units="m", truth="random", specs=(
+        Spec("harness-test-truth", label="oracle", init_from_truth=True),
+        Spec("kron-lstsq", label="no-init-option", init_from_truth=True),
+    ))
+    result = run_study(study, jobs=1, progress=False)
+    for row in result.select(label="oracle"):
+        assert row["status"] == "optimal"
+        assert all(row[c] == 0.0 for c in ERROR_COLUMNS)
+    for row in result.select(label="no-init-option"):  # kron-lstsq has no `init` option
+        assert row["status"] == "failed" and row["error"].startswith("UnknownPluginError")
+    table = error_table(result, reference="oracle")
+    assert "| noise | 1 | 8 | oracle |" in table
+
+
+# --- outputs ---------------------------------------------------------------------------------
+
+def test_write_report_writes_csv_json_figures_and_tables(serial_result, tmp_path):
+    paths = write_report(serial_result, tmp_path)
+    rows = read_csv(paths["csv"])
+    assert len(rows) == 8
+    assert list(rows[0]) == serial_result.columns()
+    assert [float(r["err_rot_X"]) for r in rows] == [r["err_rot_X"] for r in serial_result.records]
+    doc = json.loads(paths["json"].read_text())
+    assert doc["study"]["trials"] == 2 and doc["run"]["records"] == 8
+    assert len(doc["summary"]) == 2 * 2  # cells x specs
+    entry = doc["summary"][-1]
+    assert entry["n"] == 2 and entry["label"] == "kron-raw" and entry["level"] == 1.0
+    assert entry["err_rot_X_median"] == pytest.approx(
+        float(np.median([r["err_rot_X"] for r in serial_result.select(label="kron-raw", level=1.0)])))
+    assert [p.name for p in paths["figures"]] == ["tiny_noise_vs_noise_m8.png"]
+    assert paths["figures"][0].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    times = paths["times"].read_text()
+    assert "| kron-lstsq | numpy |" in times and "| kron-raw | numpy |" in times
+    assert "| noise | 1 | 8 | kron-raw |" in paths["errors"].read_text()
+
+
+# --- study definitions -----------------------------------------------------------------------
+
+def test_study_file_round_trip(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text("""
+name = "mine"
+trials = 3
+seed = 11
+units = "m"
+[noise]
+B = [0.002, 0.5]
+[[sweep]]
+name = "noise"
+levels = [0, 1, 2]
+pairs = [16]
+[[sweep]]
+name = "pairs"
+pairs = [8, 32]
+noise = { A = [0.0002, 0.05], B = [0.002, 0.5] }
+[[solver]]
+name = "kron-lstsq"
+[[solver]]
+name = "kron-lstsq"
+label = "raw"
+options = { normalize = false }
+""")
+    study = load_study(path)
+    assert (study.name, study.trials, study.seed, study.units) == ("mine", 3, 11, "m")
+    assert study.noise.sigmas == {"B": (0.002, 0.5)}
+    assert [s.name for s in study.sweeps] == ["noise", "pairs"]
+    assert study.sweeps[1].levels == (1.0,) and study.sweeps[1].noise.sigmas["A"] == (0.0002, 0.05)
+    assert [s.label for s in study.specs] == ["kron-lstsq", "raw"] and study.specs[1].options == {"normalize": False}
+    cells = list(study.cells())
+    assert [(c.sweep, c.level, c.pairs) for c in cells] == [
+        ("noise", 0.0, 16), ("noise", 1.0, 16), ("noise", 2.0, 16), ("pairs", 1.0, 8), ("pairs", 1.0, 32)]
+    assert cells[2].noise.sigmas == {"B": (0.004, 1.0)}
+
+    path.write_text('trials = 2\ncolour = "red"\n')
+    with pytest.raises(InputError, match="colour"):
+        load_study(path)
+
+
+def test_bad_studies_are_rejected():
+    with pytest.raises(InputError, match="trials"):
+        Study(trials=0)
+    with pytest.raises(InputError, match="labels must be unique"):
+        Study(specs=(Spec("kron-lstsq"), Spec("kron-lstsq")))
+    with pytest.raises(InputError, match="noise levels"):
+        Sweep("s", levels=(-1.0,))
+    with pytest.raises(UnknownPluginError):
+        Study(specs=(Spec("no-such-solver"),)).resolved_specs()
+
+
+def test_parse_specs_and_levels():
+    specs = parse_specs("kron-lstsq, so3-sdp/*") if "so3-sdp" in __import__("handeye").list_solvers() else parse_specs("kron-lstsq")
+    assert specs[0] == Spec("kron-lstsq", "numpy", label="kron-lstsq")
+    with pytest.raises(UnknownPluginError):
+        parse_specs("kron-lstsq/gpu")
+    assert parse_floats("0:0.1:0.01", "x") == tuple(round(0.01 * i, 12) for i in range(11))
+    assert parse_floats("1, 2.5", "x") == (1.0, 2.5)
+    with pytest.raises(InputError):
+        parse_floats("a,b", "x")
+
+
+# --- CLI and dask ----------------------------------------------------------------------------
+
+def test_compare_command(tmp_path, capsys):
+    from handeye.cli import main
+
+    code = main(["compare", "--solvers", "kron-lstsq", "--noise-levels", "0,0.01", "--pairs", "8",
+                 "--trials", "2", "--jobs", "1", "--no-progress", "--name", "cli", "-o", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "4 runs (0 failed)" in out
+    assert len(read_csv(tmp_path / "cli.csv")) == 4
+    assert (tmp_path / "cli_grid_vs_noise_m8.png").exists()
+    assert main(["compare", "--paper", str(tmp_path), "--pairs", "8"]) == 2  # a grid flag with --paper
+
+
+def test_dask_executor_on_a_local_cluster(serial_result):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        result = run_study(tiny_study(), progress=False, executor="dask", scheduler=client)
+    assert result.executor == "dask"
+    for a, b in zip(serial_result.records, result.records):
+        assert (a["label"], a["seed"]) == (b["label"], b["seed"])
+        assert all(a[c] == b[c] for c in ERROR_COLUMNS)

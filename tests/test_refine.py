@@ -1,0 +1,242 @@
+"""Tests of the `refine` solver (plugins/refine.py): model, Jacobians, weights, losses, covariance,
+init handling. The shared suite (test_solvers.py) adds noise-free / noisy / invariance checks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import handeye
+from handeye.errors import InputError, UnknownPluginError
+from handeye.noise import NoiseModel
+from handeye.plugins import refine as R
+from handeye.problems.axyb import PROBLEM, random_truth
+from handeye.se3 import make_pose, rotation_angle, so3_exp
+
+NOISE = NoiseModel({"B": (0.002, 0.5), "A": (0.0002, 0.05)})
+
+
+def _perturb(T, rng, rot=0.05, trans=20.0):
+    return make_pose(T[:3, :3] @ so3_exp(rot * rng.standard_normal(3)), T[:3, 3] + trans * rng.standard_normal(3))
+
+
+def _errors(sol, truth):
+    return PROBLEM.errors(sol.unknowns, truth)
+
+
+@pytest.fixture(scope="module")
+def noisy16():
+    return PROBLEM.simulate(pairs=16, seed=7, noise=NOISE)
+
+
+def test_noise_free_recovery_from_perturbed_init():
+    rng = np.random.default_rng(3)
+    truth = random_truth(rng)
+    data, _ = PROBLEM.simulate(pairs=10, seed=3, X=truth["X"], Y=truth["Y"])
+    X0, Y0 = _perturb(truth["X"], rng), _perturb(truth["Y"], rng)
+    sol = handeye.solve("axyb", solver="refine", init_X=X0, init_Y=Y0, **data)
+    scale = PROBLEM.validate(**data).translation_scale
+    err = _errors(sol, truth)
+    assert sol.status == handeye.Status.OPTIMAL and sol.diagnostics["converged"]
+    for name in ("X", "Y"):
+        assert err[name]["rotation"] < 1e-10
+        assert err[name]["translation"] < 1e-10 * scale
+    assert sol.diagnostics["init"] == "given"
+
+
+def test_residual_definition_matches_problem_residuals(noisy16):
+    data, truth = noisy16
+    d = PROBLEM.validate(**data)
+    e, _ = R.residuals(R.Pairs.of(d), truth["X"], truth["Y"])
+    ref = PROBLEM.residuals(d, truth)
+    np.testing.assert_allclose(np.linalg.norm(e[:, :3], axis=1), ref["rotation"], rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(np.linalg.norm(e[:, 3:], axis=1), ref["translation"], rtol=1e-12)
+
+
+@pytest.mark.parametrize("residual_angle", [0.0, 0.3, 2.5])
+def test_analytic_jacobian_matches_finite_differences(residual_angle):
+    """Central differences of e_i(X exp(xi_X), Y exp(xi_Y)) against `jacobian`, including large
+    rotation residuals where Jl^-1 differs from the identity."""
+    rng = np.random.default_rng(11)
+    truth = random_truth(rng)
+    data, _ = PROBLEM.simulate(pairs=6, seed=11, X=truth["X"], Y=truth["Y"])
+    d = PROBLEM.validate(**data)
+    P = R.Pairs.of(d)
+    X = make_pose(truth["X"][:3, :3] @ so3_exp(residual_angle * np.array([0.6, -0.48, 0.64])),
+                  truth["X"][:3, 3] + 30.0 * rng.standard_normal(3))
+    Y = _perturb(truth["Y"], rng, rot=0.01, trans=10.0)
+    e, RAXB = R.residuals(P, X, Y)
+    J = R.jacobian(P, X, Y, e, RAXB)
+    h = 1e-6
+    Jfd = np.zeros_like(J)
+    for k in range(12):
+        xi = np.zeros(12)
+        xi[k] = h
+        ep = R.residuals(P, R.retract(X, xi[:6]), R.retract(Y, xi[6:]))[0]
+        em = R.residuals(P, R.retract(X, -xi[:6]), R.retract(Y, -xi[6:]))[0]
+        Jfd[:, :, k] = (ep - em) / (2 * h)
+    np.testing.assert_allclose(J, Jfd, atol=1e-6 * max(1.0, np.abs(J).max()), rtol=1e-6)
+
+
+def test_refine_is_more_accurate_than_kronecker_and_matches_oracle(noisy16):
+    data, truth = noisy16
+    kron = handeye.solve("axyb", solver="kron-lstsq", **data)
+    ref = handeye.solve("axyb", solver="refine", init="kron-lstsq", **data)
+    oracle = handeye.solve("axyb", solver="refine", init_X=truth["X"], init_Y=truth["Y"], **data)
+    # the same estimator from the truth lands on the same optimum (weights are a fixed point)
+    np.testing.assert_allclose(ref.X, oracle.X, atol=1e-6)
+    np.testing.assert_allclose(ref.Y, oracle.Y, atol=1e-5)
+    ek, er = _errors(kron, truth), _errors(ref, truth)
+    assert er["Y"]["rotation"] < ek["Y"]["rotation"]
+    assert ref.diagnostics["init"] == "kron-lstsq" and ref.diagnostics["init_status"] == "optimal"
+
+
+def test_cost_never_increases(noisy16):
+    data, truth = noisy16
+    rng = np.random.default_rng(5)
+    for init in ({"init": "kron-lstsq"}, {"init_X": _perturb(truth["X"], rng), "init_Y": _perturb(truth["Y"], rng)},
+                 {"init": "kron-lstsq", "loss": "cauchy"}, {"init": "kron-lstsq", "sigma_rot": 0.01, "sigma_trans": 0.1}):
+        d = handeye.solve("axyb", solver="refine", **init, **data).diagnostics
+        assert d["final_cost"] <= d["initial_cost"]
+        assert d["iterations"] >= 1
+
+
+def test_stated_sigmas_with_the_estimated_ratio_give_the_same_optimum(noisy16):
+    data, _ = noisy16
+    est = handeye.solve("axyb", solver="refine", init="kron-lstsq", **data)
+    assert est.diagnostics["weights"] == "estimated"
+    k = 3.7  # overall scale is irrelevant for least squares, only the ratio matters
+    stated = handeye.solve("axyb", solver="refine", init="kron-lstsq", sigma_rot=k * est.diagnostics["sigma_rot"],
+                           sigma_trans=k * est.diagnostics["sigma_trans"], **data)
+    assert stated.diagnostics["weights"] == "stated"
+    np.testing.assert_allclose(stated.X, est.X, atol=1e-9 * 100)
+    np.testing.assert_allclose(stated.Y, est.Y, atol=1e-9 * 1000)
+    # ... and a full 6x6 covariance with the same diagonal is the same weighting
+    cov = np.diag([est.diagnostics["sigma_rot"] ** 2] * 3 + [est.diagnostics["sigma_trans"] ** 2] * 3)
+    full = handeye.solve("axyb", solver="refine", init="kron-lstsq", covariance=cov, **data)
+    np.testing.assert_allclose(full.Y, est.Y, atol=1e-6)
+    # a different ratio gives a different optimum (the weights are used)
+    other = handeye.solve("axyb", solver="refine", init="kron-lstsq", sigma_rot=1.0, sigma_trans=1e-3, **data)
+    assert np.abs(other.Y - est.Y).max() > 1e-6
+
+
+def test_robust_losses_downweight_a_gross_outlier():
+    data, truth = PROBLEM.simulate(pairs=20, seed=21, noise=NOISE)
+    A = np.array(data["A"])
+    A[4] = make_pose(A[4, :3, :3] @ so3_exp([0.5, 0.0, 0.0]), A[4, :3, 3] + [100.0, 0.0, 0.0])
+    data = {"A": A, "B": data["B"]}
+    errs = {}
+    for loss in ("linear", "huber", "cauchy"):
+        sol = handeye.solve("axyb", solver="refine", init="kron-lstsq", loss=loss, **data)
+        assert sol.diagnostics["loss"] == loss
+        e = _errors(sol, truth)
+        errs[loss] = (max(e["X"]["rotation"], e["Y"]["rotation"]), max(e["X"]["translation"], e["Y"]["translation"]))
+    for loss in ("huber", "cauchy"):
+        assert errs[loss][0] < 0.25 * errs["linear"][0]
+        assert errs[loss][1] < 0.25 * errs["linear"][1]
+
+
+def test_covariance_is_symmetric_psd_and_shrinks_with_more_pairs():
+    stds = []
+    for m in (10, 40):
+        data, _ = PROBLEM.simulate(pairs=m, seed=31, noise=NOISE)
+        d = handeye.solve("axyb", solver="refine", init="kron-lstsq", **data).diagnostics
+        for name in ("X", "Y"):
+            C = np.array(d["covariance"][name])
+            assert C.shape == (6, 6)
+            np.testing.assert_allclose(C, C.T, rtol=0, atol=1e-15 * np.abs(C).max())
+            assert np.linalg.eigvalsh(C).min() > 0
+        full = np.array(d["covariance_XY"])
+        assert full.shape == (12, 12) and np.linalg.eigvalsh(full).min() > 0
+        stds.append([d["std"][n][q] for n in ("X", "Y") for q in ("rotation", "translation")])
+    assert np.all(np.array(stds[1]) < np.array(stds[0]))
+
+
+def test_covariance_predicts_the_spread_of_the_estimate():
+    """Over repeated noise draws, the predicted std of Y's rotation matches the observed one
+    within a factor of 1.5 (a calibration check of (J^T W J)^-1 times the variance factor)."""
+    errs, pred = [], []
+    for seed in range(12):
+        data, truth = PROBLEM.simulate(pairs=30, seed=100 + seed, noise=NOISE)
+        sol = handeye.solve("axyb", solver="refine", init="kron-lstsq", **data)
+        errs.append(_errors(sol, truth)["Y"]["rotation"])
+        pred.append(sol.diagnostics["std"]["Y"]["rotation"])
+    rms, predicted = np.sqrt(np.mean(np.square(errs))), np.sqrt(np.mean(np.square(pred)))
+    assert predicted / 1.5 < rms < predicted * 1.5
+
+
+def test_iteration_limit_reports_not_converged(noisy16):
+    data, _ = noisy16
+    sol = handeye.solve("axyb", solver="refine", init="kron-lstsq", max_iter=1, **data)
+    assert sol.status == handeye.Status.NOT_CONVERGED
+    assert not sol.diagnostics["converged"] and sol.diagnostics["warnings"]
+
+
+def test_unknown_init_lists_solvers(noisy16):
+    data, _ = noisy16
+    with pytest.raises(UnknownPluginError) as info:
+        handeye.solve("axyb", solver="refine", init="no-such-solver", **data)
+    assert "kron-lstsq" in str(info.value)
+
+
+@pytest.mark.parametrize("init", ["refine", "auto"])
+def test_recursive_init_is_rejected(noisy16, init):
+    data, _ = noisy16
+    with pytest.raises(InputError, match="init"):
+        handeye.solve("axyb", solver="refine", init=init, **data)
+
+
+@pytest.mark.parametrize("bad", [
+    {"loss": "l1"}, {"loss_scale": 0.0}, {"max_iter": 0}, {"tol": -1.0},
+    {"sigma_rot": 0.01}, {"sigma_rot": 0.01, "sigma_trans": -1.0},
+    {"sigma_rot": 0.01, "sigma_trans": 0.5, "covariance": np.eye(6)},
+    {"covariance": -np.eye(6)}, {"covariance": np.eye(5)},
+    {"init_X": np.eye(4)}, {"init_X": np.eye(3), "init_Y": np.eye(4)},
+])
+def test_bad_options_raise_input_error(noisy16, bad):
+    data, _ = noisy16
+    with pytest.raises(InputError):
+        handeye.solve("axyb", solver="refine", **bad, **data)
+
+
+def test_inputs_untouched(noisy16):
+    data, truth = noisy16
+    copies = {k: np.array(v) for k, v in data.items()}
+    X0 = np.array(truth["X"])
+    handeye.solve("axyb", solver="refine", init_X=X0, init_Y=truth["Y"], **data)
+    for k in data:
+        np.testing.assert_array_equal(data[k], copies[k])
+    np.testing.assert_array_equal(X0, truth["X"])
+
+
+def test_default_init_is_registered():
+    assert R.default_init() in handeye.list_solvers("axyb")
+    spec = handeye.get_registry().solvers.get("so3-sdp")
+    if spec is not None and spec.unavailable_reason(spec.default_backend) is None:
+        assert R.default_init() == "so3-sdp"
+    else:
+        assert R.default_init() == "kron-lstsq"
+
+
+def test_unit_invariance_with_robust_loss(noisy16):
+    data, _ = noisy16
+    base = handeye.solve("axyb", solver="refine", init="kron-lstsq", loss="huber", **data)
+    s = 1e-3
+    scaled = {k: np.array(v) for k, v in data.items()}
+    for v in scaled.values():
+        v[:, :3, 3] *= s
+    sol = handeye.solve("axyb", solver="refine", init="kron-lstsq", loss="huber", **scaled)
+    for name in ("X", "Y"):
+        assert rotation_angle(sol.unknowns[name][:3, :3] @ base.unknowns[name][:3, :3].T) < 1e-9
+        np.testing.assert_allclose(sol.unknowns[name][:3, 3], s * base.unknowns[name][:3, 3],
+                                   rtol=0, atol=1e-9 * s * np.linalg.norm(base.unknowns[name][:3, 3]))
+
+
+def test_init_as_mapping_of_poses(noisy16):
+    data, truth = noisy16
+    a = handeye.solve("axyb", solver="refine", init={"X": truth["X"], "Y": truth["Y"]}, **data)
+    b = handeye.solve("axyb", solver="refine", init_X=truth["X"], init_Y=truth["Y"], **data)
+    assert a.diagnostics["init"] == "given"
+    np.testing.assert_array_equal(a.X, b.X)
+    with pytest.raises(InputError):
+        handeye.solve("axyb", solver="refine", init={"X": truth["X"]}, **data)

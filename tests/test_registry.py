@@ -1,0 +1,213 @@
+"""The plugin registry: entry points, run-time plugins, duplicate and invalid registrations, the
+autoload switch, and errors that list the known names."""
+
+from __future__ import annotations
+
+import sys
+import tomllib
+
+import numpy as np
+import pytest
+
+import handeye
+from handeye import PluginRegistrationError, SolverOutput, SolverSpec, UnknownPluginError, hookimpl, registry
+from handeye.problems.axyb import AXYB
+
+from conftest import ROOT
+
+
+def _run(data, options, backend):
+    return SolverOutput({"X": np.eye(4), "Y": np.eye(4)})
+
+
+class SolverPlugin:
+    """A plugin object registering the given solver specs (each instance is a distinct plugin)."""
+
+    def __init__(self, *specs):
+        self.specs = specs
+
+    @hookimpl
+    def register_solvers(self, register):
+        for spec in self.specs:
+            register(spec)
+
+
+class ProblemPlugin:
+    def __init__(self, *problems):
+        self.problems = problems
+
+    @hookimpl
+    def register_problems(self, register):
+        for problem in self.problems:
+            register(problem)
+
+
+class OtherProblem(AXYB):
+    name = "test-other-problem"
+
+
+def _own_entry_points() -> dict[str, str]:
+    with open(ROOT / "pyproject.toml", "rb") as f:
+        return tomllib.load(f)["project"]["entry-points"]["handeye"]
+
+
+def test_list_problems_and_solvers():
+    assert "axyb" in handeye.list_problems()
+    solvers = handeye.list_solvers("axyb")
+    assert "kron-lstsq" in solvers and solvers == sorted(solvers)
+    assert set(solvers) <= set(handeye.list_solvers())
+    assert handeye.list_solvers("axyb") == handeye.get_registry().solver_names("axyb")
+
+
+def test_every_builtin_entry_point_is_loaded_as_a_plugin():
+    reg = handeye.get_registry()
+    for name in _own_entry_points():
+        info = reg.plugins[name]
+        assert (info.distribution.lower(), info.version) == ("handeye", handeye.__version__)
+
+
+def test_provider_of_a_builtin_solver():
+    info = handeye.get_registry().provider("kron-lstsq")
+    assert (info.name, info.distribution, info.version) == ("kron-lstsq", "handeye", handeye.__version__)
+    assert handeye.get_registry().problem("axyb").name == "axyb"
+
+
+def test_runtime_plugin_is_listed_and_removed(runtime_plugins):
+    runtime_plugins(SolverPlugin(SolverSpec("test-runtime", ("axyb",), _run)), "test-runtime-plugin")
+    assert "test-runtime" in handeye.list_solvers("axyb")
+    info = handeye.get_registry().provider("test-runtime")
+    assert info.name == "test-runtime-plugin" and info.distribution == "(registered at run time)"
+    registry.unregister_plugin("test-runtime-plugin")
+    assert "test-runtime" not in handeye.list_solvers("axyb")
+
+
+def test_duplicate_solver_names_both_plugins(runtime_plugins):
+    runtime_plugins(SolverPlugin(SolverSpec("test-dup", ("axyb",), _run)), "first-plugin")
+    with pytest.raises(PluginRegistrationError, match="solver 'test-dup' is registered by both") as info:
+        runtime_plugins(SolverPlugin(SolverSpec("test-dup", ("axyb",), _run)), "second-plugin")
+    assert "'first-plugin'" in str(info.value) and "'second-plugin'" in str(info.value)
+
+
+def test_duplicate_of_a_builtin_solver(runtime_plugins):
+    with pytest.raises(PluginRegistrationError, match="'kron-lstsq'") as info:
+        runtime_plugins(SolverPlugin(SolverSpec("kron-lstsq", ("axyb",), _run)), "impostor")
+    assert "'impostor'" in str(info.value)
+
+
+def test_duplicate_problem(runtime_plugins):
+    with pytest.raises(PluginRegistrationError, match="problem 'axyb' is registered by both plugin 'axyb'"):
+        runtime_plugins(ProblemPlugin(AXYB()), "second-axyb")
+
+
+def test_failed_registration_is_rolled_back(runtime_plugins):
+    runtime_plugins(SolverPlugin(SolverSpec("test-good", ("axyb",), _run)), "good-plugin")
+    with pytest.raises(PluginRegistrationError):
+        runtime_plugins(SolverPlugin(SolverSpec("kron-lstsq", ("axyb",), _run),
+                                     SolverSpec("test-bad", ("axyb",), _run)), "impostor")
+    reg = handeye.get_registry()  # usable at once, without the invalid plugin
+    assert "impostor" not in reg.plugins and "test-bad" not in reg.solvers
+    assert {"kron-lstsq", "test-good"} <= set(reg.solvers)
+    assert reg.provider("kron-lstsq").distribution == "handeye"
+
+
+def test_runtime_plugin_name_taken(runtime_plugins):
+    with pytest.raises(PluginRegistrationError, match="a plugin named 'kron-lstsq' is already loaded"):
+        runtime_plugins(SolverPlugin(SolverSpec("test-x", ("axyb",), _run)), "kron-lstsq")
+    assert "test-x" not in handeye.list_solvers()
+
+
+def test_entry_point_name_taken_by_another_distribution(example_dist, monkeypatch):
+    """A third-party package whose entry point reuses a built-in plugin name is an error naming
+    both distributions, not silently ignored."""
+    (entry_points,) = example_dist.glob("*.dist-info/entry_points.txt")
+    entry_points.write_text("[handeye]\nkron-lstsq = handeye_example_solver\n")
+    monkeypatch.syspath_prepend(str(example_dist))
+    try:
+        with pytest.raises(PluginRegistrationError, match="entry point 'kron-lstsq'") as info:
+            registry.reload()
+        assert "'handeye'" in str(info.value) and "'handeye-example-solver'" in str(info.value)
+        monkeypatch.setenv(registry.AUTOLOAD_ENV, "1")  # the switch is the way out
+        assert registry.reload().provider("kron-lstsq").distribution == "handeye"
+    finally:
+        monkeypatch.undo()
+        sys.modules.pop("handeye_example_solver", None)
+        registry.reload()
+
+
+def test_solver_claiming_unknown_problem(runtime_plugins):
+    with pytest.raises(PluginRegistrationError, match="claims problem 'axbycz'") as info:
+        runtime_plugins(SolverPlugin(SolverSpec("test-claims", ("axyb", "axbycz"), _run)), "claimer")
+    assert "'claimer'" in str(info.value) and "'axyb'" in str(info.value)  # the known problems
+
+
+@pytest.mark.parametrize("bad", [object(), "kron-lstsq", {"name": "x"}])
+def test_registering_a_non_spec(runtime_plugins, bad):
+    with pytest.raises(PluginRegistrationError, match="not a handeye.SolverSpec"):
+        runtime_plugins(SolverPlugin(bad), "bad-plugin")
+
+
+def test_registering_a_non_problem(runtime_plugins):
+    with pytest.raises(PluginRegistrationError, match="not a handeye.Problem"):
+        runtime_plugins(ProblemPlugin("axyb"), "bad-problem-plugin")
+
+
+def test_solver_spec_declaration_errors():
+    with pytest.raises(ValueError, match="default_backend 'gpu' is not one of its backends"):
+        SolverSpec("x", ("axyb",), _run, backends={"numpy": ()}, default_backend="gpu")
+    with pytest.raises(ValueError, match="options must be a dataclass"):
+        SolverSpec("x", ("axyb",), _run, options=dict)
+
+
+def test_unknown_names_list_the_known():
+    reg = handeye.get_registry()
+    with pytest.raises(UnknownPluginError, match="unknown problem 'axxxb'; known problems: 'axyb'"):
+        reg.problem("axxxb")
+    with pytest.raises(UnknownPluginError, match="unknown problem 'nope'"):
+        handeye.list_solvers("nope")
+    with pytest.raises(UnknownPluginError, match="unknown solver for problem 'axyb' 'kron'") as info:
+        reg.solver("kron", "axyb")
+    assert info.value.known == handeye.list_solvers("axyb")
+    assert "'kron-lstsq'" in str(info.value)
+    with pytest.raises(UnknownPluginError, match="unknown solver 'kron'"):
+        reg.solver("kron")
+
+
+def test_solver_of_another_problem_is_explained(runtime_plugins):
+    runtime_plugins(ProblemPlugin(OtherProblem()), "other-problem")
+    runtime_plugins(SolverPlugin(SolverSpec("test-other", ("test-other-problem",), _run)), "other-solver")
+    reg = handeye.get_registry()
+    assert reg.solver("test-other", "test-other-problem").name == "test-other"
+    assert "test-other" not in reg.solver_names("axyb")
+    with pytest.raises(UnknownPluginError, match=r"exists but solves only \['test-other-problem'\]"):
+        reg.solver("test-other", "axyb")
+    problems = handeye.list_problems()
+    assert {"axyb", "test-other-problem"} <= set(problems) and problems == sorted(problems)
+
+
+def test_autoload_switch_keeps_builtins(monkeypatch):
+    monkeypatch.setenv(registry.AUTOLOAD_ENV, "1")
+    try:
+        reg = registry.reload()
+        assert "kron-lstsq" in reg.solvers
+        assert {info.distribution.lower() for info in reg.plugins.values()} == {"handeye"}
+        assert set(reg.plugins) == set(_own_entry_points())
+    finally:
+        monkeypatch.delenv(registry.AUTOLOAD_ENV)
+        registry.reload()
+
+
+def test_autoload_switch_hides_third_party(installed_example, monkeypatch):
+    assert "example-kron" in registry.reload().solvers
+    monkeypatch.setenv(registry.AUTOLOAD_ENV, "1")
+    reg = registry.reload()
+    assert "example-kron" not in reg.solvers and "example-solver" not in reg.plugins
+    assert "kron-lstsq" in reg.solvers  # built-ins still load
+    monkeypatch.delenv(registry.AUTOLOAD_ENV)
+    assert "example-kron" in registry.reload().solvers
+
+
+def test_reload_returns_a_fresh_registry():
+    first = handeye.get_registry()
+    assert handeye.get_registry() is first
+    second = registry.reload()
+    assert second is not first and second.solver_names() == first.solver_names()

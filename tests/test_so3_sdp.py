@@ -1,0 +1,176 @@
+"""Tests of the `so3-sdp` solver: translation elimination, constraints, certificate, backends.
+
+Noise-free recovery, SE(3) output, bad input and unit invariance are also covered by the shared
+solver suite (tests/test_solvers.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import handeye
+from handeye import InputError, Status
+from handeye.noise import NoiseModel
+from handeye.plugins import so3_sdp
+from handeye.problems.axyb import PROBLEM, random_truth, solve_translations
+from handeye.se3 import random_poses, random_rotations
+
+NOISE = NoiseModel.on("B", 0.002, 0.5)
+HEAVY = NoiseModel.on("B", 0.02, 5.0)
+
+
+def simulate(pairs: int, seed: int, noise: NoiseModel | None = NOISE):
+    truth = random_truth(np.random.default_rng(1000 + seed))
+    return PROBLEM.simulate(pairs=pairs, seed=seed, noise=noise, X=truth["X"], Y=truth["Y"])
+
+
+def normalised_cost(data: dict) -> so3_sdp.RotationCost:
+    validated = PROBLEM.validate(**data)
+    return so3_sdp.eliminate_translations(validated.scaled(validated.translation_scale).kronecker_system)
+
+
+def eq8_cost(cost: so3_sdp.RotationCost, X: np.ndarray, Y: np.ndarray) -> float:
+    return cost.value(so3_sdp.rotations_vector(X[:3, :3], Y[:3, :3]))
+
+
+def test_translation_elimination_matches_eq8():
+    data, _ = simulate(6, seed=1)
+    validated = PROBLEM.validate(**data)
+    system = validated.kronecker_system
+    cost = so3_sdp.eliminate_translations(system)
+    RX, RY = random_rotations(2, np.random.default_rng(3))
+    r = so3_sdp.rotations_vector(RX, RY)
+    tX, tY = cost.translations(r)
+    # the eliminated translations are those of eqs. 20-21 (eq. 4 in least squares) ...
+    tX_ref, tY_ref = solve_translations(validated, RX, RY)
+    np.testing.assert_allclose(np.concatenate([tX, tY]), np.concatenate([tX_ref, tY_ref]),
+                               rtol=1e-9, atol=1e-9 * validated.translation_scale)
+    # ... and the reduced cost is the full eq. 8 cost at them
+    beta = np.concatenate([r, tX, tY])
+    full = float(np.sum((system.R1 @ beta - system.q1) ** 2) + system.rest)
+    assert cost.value(r) == pytest.approx(full, rel=1e-10)
+    y = np.append(r, 1.0)
+    assert float(y @ cost.matrix @ y) + cost.rest == pytest.approx(full, rel=1e-10)
+
+
+@pytest.mark.parametrize("redundant", [True, False])
+def test_constraints_hold_on_so3_only(redundant):
+    A, b = so3_sdp.constraint_matrices(redundant)
+    assert np.linalg.matrix_rank(A.reshape(len(A), -1)) == len(A)  # independent
+    rng = np.random.default_rng(0)
+    RX, RY = random_rotations(2, rng)
+    y = np.append(so3_sdp.rotations_vector(RX, RY), 1.0)
+    np.testing.assert_allclose(np.einsum("i,kij,j->k", y, A, y), b, atol=1e-12)
+    reflected = np.append(so3_sdp.rotations_vector(-RX, RY), 1.0)  # det R_X = -1
+    violation = np.max(np.abs(np.einsum("i,kij,j->k", reflected, A, reflected) - b))
+    if redundant:
+        assert violation > 0.5  # the handedness constraints exclude reflections
+    else:
+        assert violation < 1e-12  # only orthonormality: O(3), which is why it is weaker
+
+
+def test_certificate_passes_on_noisy_data():
+    data, truth = simulate(16, seed=2)
+    sol = handeye.solve("axyb", solver="so3-sdp", **data)
+    d = sol.diagnostics
+    assert sol.status is Status.OPTIMAL and d["certified"]
+    assert d["eigenvalue_ratio"] < so3_sdp.RATIO_THRESHOLD
+    assert d["relative_gap"] < so3_sdp.GAP_THRESHOLD
+    assert d["lower_bound"] <= d["cost"]
+    assert d["stationarity_residual"] < 1e-9 * d["cost_matrix_norm"]
+    errors = PROBLEM.errors(sol.unknowns, truth)
+    assert errors["X"]["rotation"] < 0.01 and errors["Y"]["rotation"] < 0.01
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_cost_not_above_kron_lstsq(seed):
+    data, _ = simulate(5, seed=seed, noise=HEAVY)
+    cost = normalised_cost(data)
+    sdp = handeye.solve("axyb", solver="so3-sdp", **data)
+    kron = handeye.solve("axyb", solver="kron-lstsq", **data)
+    assert sdp.status is Status.OPTIMAL
+    assert eq8_cost(cost, sdp.X, sdp.Y) <= eq8_cost(cost, kron.X, kron.Y) * (1 + 1e-12)
+    # the reported cost is that of eq. 8 on the normalised data, at the returned rotations
+    assert sdp.diagnostics["cost"] == pytest.approx(eq8_cost(cost, sdp.X, sdp.Y), rel=1e-9)
+
+
+def test_backends_agree():
+    spec = handeye.get_registry().solver("so3-sdp", "axyb")
+    reason = spec.unavailable_reason("picos")
+    if reason:
+        pytest.skip(reason)
+    data, _ = simulate(8, seed=4, noise=HEAVY)
+    a = handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", **data)
+    b = handeye.solve("axyb", solver="so3-sdp", backend="picos", **data)
+    assert a.status is Status.OPTIMAL and b.status is Status.OPTIMAL
+    scale = PROBLEM.validate(**data).translation_scale
+    for name in ("X", "Y"):
+        np.testing.assert_allclose(a.unknowns[name][:3, :3], b.unknowns[name][:3, :3], atol=1e-6)
+        np.testing.assert_allclose(a.unknowns[name][:3, 3], b.unknowns[name][:3, 3], atol=1e-6 * scale)
+
+
+def unrelated_poses(seed: int, pairs: int = 3) -> dict:
+    """A and B drawn independently: no X, Y fits; the cost landscape is arbitrary."""
+    rng = np.random.default_rng(seed)
+    return {"A": random_poses(pairs, rng, 1.0), "B": random_poses(pairs, rng, 1.0)}
+
+
+def test_non_tight_relaxation_is_detected():
+    # Seed found by a search (docs/solvers/so3-sdp.md): 3 of 200 such draws are not tight.
+    sol = handeye.solve("axyb", solver="so3-sdp", **unrelated_poses(15))
+    d = sol.diagnostics
+    assert sol.status is Status.UNCERTIFIED and not d["certified"]
+    assert d["eigenvalue_ratio"] > 1e-2  # Z is far from rank one
+    assert d["relative_gap"] > 1e-4
+    assert d["lower_bound"] < d["cost"]
+    # a tight draw of the same kind is certified
+    assert handeye.solve("axyb", solver="so3-sdp", **unrelated_poses(0)).status is Status.OPTIMAL
+
+
+def test_weak_relaxation_rank_one_reflection_is_caught_by_the_gap():
+    # Without the handedness constraints the relaxation is over O(3) x O(3): Z can be rank one
+    # (ratio ~ 0) at a reflection; after projection onto SO(3) only the duality gap shows it.
+    data, _ = PROBLEM.simulate(pairs=3, seed=2, noise=NoiseModel.on("B", 1.0, 100.0),
+                               **random_truth(np.random.default_rng(10_002)))
+    weak = handeye.solve("axyb", solver="so3-sdp", redundant=False, **data)
+    assert weak.status is Status.UNCERTIFIED
+    assert weak.diagnostics["eigenvalue_ratio"] < so3_sdp.RATIO_THRESHOLD
+    assert weak.diagnostics["relative_gap"] > 1e-2
+    strong = handeye.solve("axyb", solver="so3-sdp", **data)
+    assert strong.status is Status.OPTIMAL
+    assert strong.diagnostics["cost"] < weak.diagnostics["cost"]
+
+
+def test_compiled_problem_reused():
+    data, _ = simulate(4, seed=5)
+    handeye.solve("axyb", solver="so3-sdp", **data)
+    builds = so3_sdp.cvxpy_builds
+    problem = so3_sdp.cvxpy_problem(True)
+    handeye.solve("axyb", solver="so3-sdp", **simulate(9, seed=6)[0])
+    assert so3_sdp.cvxpy_builds == builds
+    assert so3_sdp.cvxpy_problem(True) is problem
+
+
+def test_noise_free_recovery_and_unit_invariance():
+    data, truth = simulate(3, seed=7, noise=None)
+    sol = handeye.solve("axyb", solver="so3-sdp", **data)
+    errors = PROBLEM.errors(sol.unknowns, truth)
+    assert max(errors["X"]["rotation"], errors["Y"]["rotation"]) < 1e-12
+    noisy, _ = simulate(6, seed=8, noise=HEAVY)
+    base = handeye.solve("axyb", solver="so3-sdp", **noisy)
+    for s in (1e-3, 1e3):
+        scaled = {k: v.copy() for k, v in noisy.items()}
+        for v in scaled.values():
+            v[:, :3, 3] *= s
+        other = handeye.solve("axyb", solver="so3-sdp", **scaled)
+        for name in ("X", "Y"):
+            np.testing.assert_allclose(other.unknowns[name][:3, :3], base.unknowns[name][:3, :3], atol=1e-9)
+            np.testing.assert_allclose(other.unknowns[name][:3, 3], s * base.unknowns[name][:3, 3],
+                                       rtol=1e-9, atol=1e-9 * s * np.abs(base.unknowns[name][:3, 3]).max())
+
+
+def test_options_are_validated():
+    data, _ = simulate(4, seed=9)
+    with pytest.raises(InputError):
+        handeye.solve("axyb", solver="so3-sdp", redundant="no", **data)
