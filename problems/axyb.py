@@ -27,7 +27,7 @@ from handeye.errors import DegenerateDataError, InputError
 from handeye.kinematics import random_flange_poses
 from handeye.noise import NoiseModel
 from handeye.problem import ErrorTable, Problem
-from handeye.se3 import Array, inverse, make_pose, project_to_so3, random_rotations, rotation_angle
+from handeye.se3 import inverse, make_pose, project_to_so3, random_rotations, rotation_angle
 from handeye.validation import pose_stack, same_length
 
 #: Ground truth of the paper's simulation (Sec. IV-A), projected onto SO(3): the printed 4-digit

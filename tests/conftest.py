@@ -23,11 +23,12 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from hypothesis import settings
 
 import handeye
-from handeye import registry
+from handeye import SolverOutput, hookimpl, registry
 
 # property tests: enough examples to find edge cases, few enough for the suite's time budget;
 # no deadline (the machine is shared, timings vary)
@@ -148,3 +149,20 @@ def installed_example(example_dist: Path, monkeypatch: pytest.MonkeyPatch) -> It
     monkeypatch.undo()
     sys.modules.pop("handeye_example_solver", None)
     registry.reload()
+
+
+def identity_run(data: Any, options: Any, backend: str) -> SolverOutput:
+    """A solver body for registration tests: returns identity X, Y whatever the data."""
+    return SolverOutput({"X": np.eye(4), "Y": np.eye(4)})
+
+
+class SolverPlugin:
+    """A plugin object registering the given solver specs (each instance is a distinct plugin)."""
+
+    def __init__(self, *specs: Any) -> None:
+        self.specs = specs
+
+    @hookimpl
+    def register_solvers(self, register: Callable[[Any], None]) -> None:
+        for spec in self.specs:
+            register(spec)

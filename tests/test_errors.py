@@ -22,12 +22,13 @@ from handeye import (
     SolverOutput,
     SolverSpec,
     UnknownPluginError,
-    hookimpl,
 )
 from handeye.noise import NoiseModel
 from handeye.options import check_positive
 from handeye.problems.axyb import PROBLEM
 from handeye.se3 import ORTHONORMALITY_TOL, inverse, make_pose, so3_exp
+
+from conftest import SolverPlugin, identity_run
 
 SOLVER = "kron-lstsq"
 
@@ -189,24 +190,10 @@ def test_missing_data_field(data):
 
 # ---------------------------------------------------------------------------- backends
 
-def _fake_run(data, options, backend):
-    return SolverOutput({"X": np.eye(4), "Y": np.eye(4)})
-
-
-class _Plugin:
-    def __init__(self, *specs):
-        self.specs = specs
-
-    @hookimpl
-    def register_solvers(self, register):
-        for spec in self.specs:
-            register(spec)
-
-
 def test_backend_module_not_installed(data, runtime_plugins):
-    spec = SolverSpec("needs-missing", ("axyb",), _fake_run,
+    spec = SolverSpec("needs-missing", ("axyb",), identity_run,
                       backends={"numpy": (), "exotic": ("handeye_no_such_module_xyz",)})
-    runtime_plugins(_Plugin(spec), "test-needs-missing")
+    runtime_plugins(SolverPlugin(spec), "test-needs-missing")
     err = _solve_raises(BackendUnavailableError, "pip install handeye_no_such_module_xyz",
                         data["A"], data["B"], solver="needs-missing", backend="exotic")
     assert "'exotic'" in str(err) and "'needs-missing'" in str(err)
@@ -214,9 +201,9 @@ def test_backend_module_not_installed(data, runtime_plugins):
 
 
 def test_backend_package_name_is_the_pip_name(data, runtime_plugins, monkeypatch):
-    spec = SolverSpec("needs-cv2", ("axyb",), _fake_run, backends={"opencv": ("cv2",)},
+    spec = SolverSpec("needs-cv2", ("axyb",), identity_run, backends={"opencv": ("cv2",)},
                       default_backend="opencv")
-    runtime_plugins(_Plugin(spec), "test-needs-cv2")
+    runtime_plugins(SolverPlugin(spec), "test-needs-cv2")
     real_find_spec = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec",
                         lambda name, *a: None if name == "cv2" else real_find_spec(name, *a))
@@ -225,9 +212,9 @@ def test_backend_package_name_is_the_pip_name(data, runtime_plugins, monkeypatch
 
 
 def test_backend_check_reason(data, runtime_plugins):
-    spec = SolverSpec("needs-feature", ("axyb",), _fake_run,
+    spec = SolverSpec("needs-feature", ("axyb",), identity_run,
                       check=lambda backend: "cv2 lacks calibrateRobotWorldHandEye; upgrade to 4.8")
-    runtime_plugins(_Plugin(spec), "test-needs-feature")
+    runtime_plugins(SolverPlugin(spec), "test-needs-feature")
     _solve_raises(BackendUnavailableError, "upgrade to 4.8", data["A"], data["B"], solver="needs-feature")
 
 
@@ -242,7 +229,7 @@ def test_backend_check_reason(data, runtime_plugins):
 ])
 def test_solver_returning_non_se3_is_a_solver_error(data, runtime_plugins, unknowns, match):
     spec = SolverSpec("broken", ("axyb",), lambda d, o, b: SolverOutput(unknowns))
-    runtime_plugins(_Plugin(spec), "test-broken")
+    runtime_plugins(SolverPlugin(spec), "test-broken")
     _solve_raises(SolverError, match, data["A"], data["B"], solver="broken")
 
 
@@ -254,8 +241,8 @@ def test_options_are_validated(data, runtime_plugins):
         def __post_init__(self):
             check_positive("iterations", self.iterations)
 
-    spec = SolverSpec("with-options", ("axyb",), _fake_run, options=Options)
-    runtime_plugins(_Plugin(spec), "test-with-options")
+    spec = SolverSpec("with-options", ("axyb",), identity_run, options=Options)
+    runtime_plugins(SolverPlugin(spec), "test-with-options")
     _solve_raises(InputError, "iterations=-1 must be a finite number > 0", data["A"], data["B"],
                   solver="with-options", iterations=-1)
     sol = handeye.solve("axyb", solver="with-options", iterations=3, **data)

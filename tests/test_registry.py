@@ -6,30 +6,13 @@ from __future__ import annotations
 import sys
 import tomllib
 
-import numpy as np
 import pytest
 
 import handeye
-from handeye import PluginRegistrationError, SolverOutput, SolverSpec, UnknownPluginError, hookimpl, registry
+from handeye import PluginRegistrationError, SolverSpec, UnknownPluginError, hookimpl, registry
 from handeye.problems.axyb import AXYB
 
-from conftest import ROOT
-
-
-def _run(data, options, backend):
-    return SolverOutput({"X": np.eye(4), "Y": np.eye(4)})
-
-
-class SolverPlugin:
-    """A plugin object registering the given solver specs (each instance is a distinct plugin)."""
-
-    def __init__(self, *specs):
-        self.specs = specs
-
-    @hookimpl
-    def register_solvers(self, register):
-        for spec in self.specs:
-            register(spec)
+from conftest import ROOT, SolverPlugin, identity_run as _run
 
 
 class ProblemPlugin:
