@@ -24,13 +24,40 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .se3 import Array, make_pose, matrix_from_quat, quat_from_matrix, skew
+from .se3 import Array, make_pose, matrix_from_quat
+
+
+#: Q_L(q) = q[_L_IDX] * _L_SIGN and Q_R(q) = q[_R_IDX] * _R_SIGN (entries of eq. 25 written out).
+_L_IDX = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
+_L_SIGN = np.array([[1, -1, -1, -1], [1, 1, -1, 1], [1, 1, 1, -1], [1, -1, 1, 1]], dtype=float)
+_R_IDX = _L_IDX
+_R_SIGN = np.array([[1, -1, -1, -1], [1, 1, 1, -1], [1, -1, 1, 1], [1, 1, -1, 1]], dtype=float)
 
 
 def quat_from_rotation(R: ArrayLike) -> Array:
-    """Unit quaternions (q0, qx, qy, qz) of rotations R: (..., 3, 3) -> (..., 4), sign with q0 >= 0."""
-    xyzw = quat_from_matrix(R)
-    q = np.concatenate([xyzw[..., 3:], xyzw[..., :3]], axis=-1)
+    """Unit quaternions (q0, qx, qy, qz) of rotations R: (..., 3, 3) -> (..., 4), sign with q0 >= 0.
+
+    Shepperd's method, vectorised: of the four expressions 4 q_k^2 (from the trace and the
+    diagonal) the largest is used as the divisor, so no component is taken from a small,
+    cancellation-prone number; the result is normalised (inputs orthonormal only to ~1e-6 give
+    the quaternion of a nearby rotation, as scipy's `from_matrix` does).
+    """
+    R = np.asarray(R, dtype=float)
+    r00, r01, r02 = R[..., 0, 0], R[..., 0, 1], R[..., 0, 2]
+    r10, r11, r12 = R[..., 1, 0], R[..., 1, 1], R[..., 1, 2]
+    r20, r21, r22 = R[..., 2, 0], R[..., 2, 1], R[..., 2, 2]
+    d0, d1, d2 = r21 - r12, r02 - r20, r10 - r01
+    s01, s02, s12 = r01 + r10, r02 + r20, r12 + r21
+    t = np.stack([1 + r00 + r11 + r22, 1 + r00 - r11 - r22, 1 - r00 + r11 - r22, 1 - r00 - r11 + r22], -1)
+    candidates = np.stack([  # row k: 4 q_k q (up to the positive factor), for divisor k
+        np.stack([t[..., 0], d0, d1, d2], -1),
+        np.stack([d0, t[..., 1], s01, s02], -1),
+        np.stack([d1, s01, t[..., 2], s12], -1),
+        np.stack([d2, s02, s12, t[..., 3]], -1),
+    ], -2)
+    k = np.argmax(t, axis=-1)[..., None, None]
+    q = np.take_along_axis(candidates, np.broadcast_to(k, k.shape[:-1] + (4,)), axis=-2)[..., 0, :]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     return np.where(q[..., :1] < 0, -q, q)
 
 
@@ -43,42 +70,22 @@ def rotation_from_quat(q: ArrayLike) -> Array:
 def conjugate(q: ArrayLike) -> Array:
     """q* = (q0, -v): (..., 4) -> (..., 4)."""
     q = np.asarray(q, dtype=float)
-    return np.concatenate([q[..., :1], -q[..., 1:]], axis=-1)
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
 def q_left(q: ArrayLike) -> Array:
     """Q_L(q): (..., 4) -> (..., 4, 4) with q p = Q_L(q) p (eq. 25)."""
-    q = np.asarray(q, dtype=float)
-    out = np.empty(q.shape[:-1] + (4, 4))
-    out[..., 0, 0] = q[..., 0]
-    out[..., 0, 1:] = -q[..., 1:]
-    out[..., 1:, 0] = q[..., 1:]
-    out[..., 1:, 1:] = q[..., 0, None, None] * np.eye(3) + skew(q[..., 1:])
-    return out
+    return np.asarray(q, dtype=float)[..., _L_IDX] * _L_SIGN
 
 
 def q_right(q: ArrayLike) -> Array:
     """Q_R(q): (..., 4) -> (..., 4, 4) with p q = Q_R(q) p (eq. 25)."""
-    q = np.asarray(q, dtype=float)
-    out = np.empty(q.shape[:-1] + (4, 4))
-    out[..., 0, 0] = q[..., 0]
-    out[..., 0, 1:] = -q[..., 1:]
-    out[..., 1:, 0] = q[..., 1:]
-    out[..., 1:, 1:] = q[..., 0, None, None] * np.eye(3) - skew(q[..., 1:])
-    return out
+    return np.asarray(q, dtype=float)[..., _R_IDX] * _R_SIGN
 
 
 def quat_multiply(a: ArrayLike, b: ArrayLike) -> Array:
     """Hamilton product a b: (..., 4) x (..., 4) -> (..., 4) (broadcasting)."""
-    a, b = np.broadcast_arrays(np.asarray(a, dtype=float), np.asarray(b, dtype=float))
-    a0, a1, a2, a3 = np.moveaxis(a, -1, 0)
-    b0, b1, b2, b3 = np.moveaxis(b, -1, 0)
-    out = np.empty(a.shape)
-    out[..., 0] = a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3
-    out[..., 1] = a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2
-    out[..., 2] = a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1
-    out[..., 3] = a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0
-    return out
+    return np.einsum("...ij,...j->...i", q_left(a), np.asarray(b, dtype=float))
 
 
 def dual_quat_from_pose(T: ArrayLike) -> tuple[Array, Array]:

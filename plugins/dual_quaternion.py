@@ -16,7 +16,9 @@ i.e. (real part) a x = y b and (dual part) a x' + a' x = y b' + y' b. With q_1 q
 8m x 16 matrix always has a two-dimensional null space on exact data: the solution Delta* and
 eps Delta* = [0; x; 0; y] (multiplying both unknowns by the dual unit eps solves eq. 22 too).
 So, as in Daniilidis (1999), Delta = mu_1 v_15 + mu_2 v_16 (the last two right singular vectors,
-eq. 26); with real part r(mu) = [x; y] and dual part d(mu) = [x'; y'] (8-vectors):
+eq. 26). The paper's inherent constraints are |x| = |y| = 1 and x . x' = y . y' = 0: four
+equations for two unknowns mu, all satisfiable on exact data but not under noise, so we impose
+their sums. With real part r(mu) = [x; y] and dual part d(mu) = [x'; y'] (8-vectors):
 
 - orthogonality r . d = 0 is a quadratic form mu^T P mu = 0 (P symmetric 2x2). Its two real
   roots (P indefinite) are mu = sqrt(-l_2) e_1 +- sqrt(l_1) e_2 in the eigenbasis of P
@@ -42,11 +44,19 @@ S = diag(s) and N_ij = (b_i . b_j)^2 >= 0 entrywise; by Perron-Frobenius the lea
 of N is positive, so the signs of the leading eigenvector of C are the s_i (up to one global
 sign, which is harmless). C = Psi Psi^T with Psi_i = a_i kron b_i (16 numbers), so this is the
 leading right singular vector u of Psi (a 16 x 16 eigenproblem, O(m), no loop over pairs):
-s_i = sign(Psi_i . u). Rule: fix every a_i with scalar part >= 0, multiply (b_i, b'_i) by s_i.
+s_i = sign(Psi_i . u). Rule: keep every (a_i, a'_i) as given (the conversion returns scalar part
+>= 0, but any signs work, see below) and multiply (b_i, b'_i) by s_i.
 Second pass: after solving, each pair is checked against the estimate, sign(a_i . (y b_i x*));
 pairs that disagree (possible under heavy noise when a pair's rotation is ~180 deg from all the
 others, so that its entry of the eigenvector is small) are flipped and the system solved once
 more. Diagnostics report the sign margin (min |Psi_i . u| / max) and the flips of the second pass.
+
+Why the answer cannot depend on the signs the conversion gave (`solve_dual_quaternions`, tested
+by flipping random input signs): flipping a_i (with a'_i) flips Psi_i, leaves Psi^T Psi and so u
+bit for bit unchanged, and flips p_i and s_i, so pair i's rows of D are all negated -- same null
+space, same least-squares problem. Flipping b_i (with b'_i) flips s_i too, so s_i b_i is
+unchanged. The global sign of u flips every s_i b_i, i.e. y -> -y: the same rotation Y. The
+consistency check of the second pass, sign(a_i . (y s_i b_i x*)), is invariant in the same way.
 
 Option ``normalize`` (default True): translations are divided by the data's RMS translation
 before the dual parts are formed (and the answer scaled back). This balances the rotation rows
@@ -122,20 +132,23 @@ def null_space_solution(v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, bool]
 def triangular_factor(blocks: np.ndarray) -> np.ndarray:
     """R: (c, c) with R^T R = M^T M for the tall matrix M stacked from blocks: (m, r, c).
 
-    Two-level (tall-skinny) QR: the blocks are cut into ~sqrt(m/2) chunks, each chunk reduced by a
-    batched small QR, and the stacked chunk factors reduced once more. Backward stable like a QR
-    of the whole (m r) x c matrix (M and R have the same singular values and right singular
-    vectors to rounding), but without one large LAPACK call: a threaded SVD or lstsq of a tall
-    matrix is slower than the rest of these solvers together and erratic on a loaded machine.
-    Needs m r >= c (R has min(m r, c) rows otherwise).
+    Tree (tall-skinny) QR: the rows are cut into chunks of 8c rows, each chunk reduced to its c x c
+    factor by one batched small QR, and the stacked factors reduced again the same way until one
+    chunk remains. Backward stable like a QR of the whole (m r) x c matrix (M and R have the same
+    singular values and right singular vectors to rounding). The small chunks matter on a shared
+    machine: a LAPACK QR or SVD of a large tall matrix goes multi-threaded, and with busy cores
+    that made it 5 to 80 times slower than single-threaded in our measurements, while
+    chunks of <= 8c rows stay single-threaded. Needs m r >= c (R has min(m r, c) rows otherwise).
     """
-    m, r, c = blocks.shape
-    k = max(1, int(np.sqrt(m / 2)))
-    per = -(-m // k)
-    padded = np.zeros((k * per, r, c))
-    padded[:m] = blocks
-    R = np.linalg.qr(padded.reshape(k, per * r, c), mode="r")
-    return np.linalg.qr(R.reshape(-1, c), mode="r")
+    c = blocks.shape[-1]
+    X = blocks.reshape(-1, c)
+    per = 8 * c
+    while len(X) > per:
+        n = -(-len(X) // per)
+        padded = np.zeros((n * per, c))
+        padded[:len(X)] = X
+        X = np.linalg.qr(padded.reshape(n, per, c), mode="r").reshape(-1, c)
+    return np.linalg.qr(X, mode="r")
 
 
 def solve_dq(a: np.ndarray, ad: np.ndarray, b: np.ndarray, bd: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
@@ -150,11 +163,15 @@ def solve_dq(a: np.ndarray, ad: np.ndarray, b: np.ndarray, bd: np.ndarray) -> tu
     return delta, sigma, real_root
 
 
-def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
-    scale = data.translation_scale if options.normalize else 1.0
-    work = data.scaled(scale) if options.normalize else data
-    a, ad = dual_quat_from_pose(work.A)  # a with scalar part >= 0
-    b, bd = dual_quat_from_pose(work.B)
+def solve_dual_quaternions(a: np.ndarray, ad: np.ndarray, b: np.ndarray, bd: np.ndarray) -> dict:
+    """Eqs. 24-26 from the dual quaternions (a, a') of A_i and (b, b') of B_i: (m, 4) each, any signs.
+
+    The sign of each pair is chosen from the data (`pair_signs`, then one consistency pass; module
+    docstring), so the result does not depend on the sign each input quaternion came with.
+    Returns x, xd, y, yd: (4,) (the dual quaternions of X and Y, |x| = |y| = 1 up to noise),
+    sigma: (16,) singular values of D, real_root, signs: (m,) applied to (b, b'), margin, flips
+    (pairs flipped by the second pass) and wrong (pairs still inconsistent afterwards).
+    """
     signs, margin = pair_signs(a, b)
     flips = 0
     for _ in range(2):  # first pass, then at most one correction of the signs
@@ -167,27 +184,39 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
             break
         flips = int(wrong.sum())
         signs = np.where(wrong, -signs, signs)
-    X = pose_from_dual_quat(delta[0:4], delta[4:8])
-    Y = pose_from_dual_quat(delta[8:12], delta[12:16])
+    return {"x": delta[0:4], "xd": delta[4:8], "y": delta[8:12], "yd": delta[12:16], "sigma": sigma,
+            "real_root": real_root, "signs": signs, "margin": margin, "flips": flips,
+            "wrong": int(wrong.sum())}
+
+
+def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
+    scale = data.translation_scale if options.normalize else 1.0
+    work = data.scaled(scale) if options.normalize else data
+    a, ad = dual_quat_from_pose(work.A)
+    b, bd = dual_quat_from_pose(work.B)
+    sol = solve_dual_quaternions(a, ad, b, bd)
+    X = pose_from_dual_quat(sol["x"], sol["xd"])
+    Y = pose_from_dual_quat(sol["y"], sol["yd"])
     X[:3, 3] *= scale
     Y[:3, 3] *= scale
     warnings = []
-    if wrong.any():
-        warnings.append(f"dual-quaternion: {int(wrong.sum())} pair(s) remain sign-inconsistent with "
+    if sol["wrong"]:
+        warnings.append(f"dual-quaternion: {sol['wrong']} pair(s) remain sign-inconsistent with "
                         "the solution (very noisy data?)")
-    if not real_root:
+    if not sol["real_root"]:
         warnings.append("dual-quaternion: the orthogonality constraint of eq. 26 has no real root "
                         "(noise too large for this method); used the closest approximate root")
+    sigma = sol["sigma"]
     return SolverOutput(
         unknowns={"X": X, "Y": Y},
         status=Status.OPTIMAL,
         diagnostics={
             "singular_values_tail": sigma[-3:].tolist(),
             "sigma_max": float(sigma[0]),
-            "sign_margin": margin,
-            "sign_flips_second_pass": flips,
-            "sign_inconsistent_pairs": int(wrong.sum()),
-            "orthogonality_real_root": real_root,
+            "sign_margin": sol["margin"],
+            "sign_flips_second_pass": sol["flips"],
+            "sign_inconsistent_pairs": sol["wrong"],
+            "orthogonality_real_root": sol["real_root"],
             "normalize": options.normalize,
             "warnings": warnings,
         },

@@ -1,1 +1,444 @@
-"""Placeholder: being written (must be replaced or deleted before commit)."""
+"""`lmi-sdp`: the paper's method (Pan et al., IEEE T-ASE 2022, Sec. III.A, eqs. 5-14).
+
+Method, as the paper has it:
+
+1. Eqs. 5-8: A_i X = Y B_i written per pair as H_i beta = w_i (Kronecker product, column-major
+   vec), stacked into H beta = w with beta = [vec R_X; vec R_Y; t_X; t_Y] (24,).
+2. Eqs. 9-12: with the QR factorisation H = [Q1 Q2] [R1; 0] (eq. 10) the error of eq. 9 is
+   |eps|^2 = |R1 beta - q1|^2 + rest, q1 = Q1^T w, rest = |Q2^T w|^2 (eq. 12). R1: (24, 24)
+   upper triangular, computed once per data set in O(m) by `AXYBData.kronecker_system` (as the
+   Cholesky factor of H^T H, equal to the R of the QR up to row signs: the same eq. 12).
+3. Eqs. 13-14: with the bound u >= |eps|^2 (the paper writes u >= |eps|, but eq. 13 bounds the
+   SQUARED norm, so u is the squared error), the Schur complement turns eq. 13 into the LMI
+
+       minimise u  over (u, beta)  subject to  [[u - rest, (R1 beta - q1)^T],
+                                                [R1 beta - q1,   I_24     ]]  >= 0      (eq. 14)
+
+   a 25 x 25 linear matrix inequality. `rest` enters only as the constant subtracted from u in
+   the top-left entry: it shifts the optimal u (u* = rest + |R1 beta* - q1|^2) and does not
+   affect beta.
+4. After eq. 14, the rotation blocks M_X = unvec beta[0:9], M_Y = unvec beta[9:18] are made
+   rotations by Schmidt orthogonalisation (`handeye.se3.gram_schmidt`, columns in order).
+   Translations are taken from beta (beta[18:24]) as they are: the paper re-solves them
+   (eqs. 20-21) only in its iterative method (Sec. III.B), not in this one.
+
+What the SDP computes: eq. 14 has no constraint beyond the Schur complement, which is exactly
+u - rest >= |R1 beta - q1|^2. Its optimum is therefore u* = rest and beta* = R1^-1 q1, the
+ordinary least-squares solution of eq. 8 (the same beta as `kron-lstsq`, and as OpenCV's
+CALIB_ROBOT_WORLD_HAND_EYE_LI before its rotation normalisation). The SDP adds no information;
+the method differs from `kron-lstsq` only in the Gram-Schmidt step and in keeping the
+translations of beta. tests/test_lmi_sdp.py checks beta of every SDP backend against
+`KroneckerSystem.least_squares`.
+
+Numerics (the feasible set and the optimum are unchanged; docs/solvers/lmi-sdp.md has numbers):
+- beta = D gamma with D = diag(1 / column norms of R1) (a change of variables), and the LMI
+  multiplied by diag(1/c, I) on both sides (a congruence, which preserves >= 0) with
+  c = max(sqrt(rest), 1e-6 |q1|), so that the optimal scaled u is 1 (or 0 for noise-free data);
+  u is multiplied back by c^2. For Clarabel c is capped at 1 (small problems are enlarged, large
+  ones left alone: its criteria are absolute below 1 and relative above). Measured with every
+  translation multiplied by 1e-6 ... 1e6, noisy and noise-free: beta equals the least squares
+  to <= 2e-12 relative on Clarabel and on CVXOPT (picos). Without the cap Clarabel lost 1e-7 at
+  1e6; with the cap CVXOPT (picos) failed (status unknown) at 1e3; dividing by |q1| instead lost up to 8e-4 on
+  Clarabel; no scaling (c = 1) lost 9e-6 at 1e-6.
+- On the central path of an interior-point method, min u - mu log det(LMI) =
+  u - mu log(u - rest - |R1 beta - q1|^2) is minimised in beta at R1 beta = q1 for every mu, so
+  interior-point solvers return beta to ~1e-15 relative even though u is only as accurate as
+  their tolerance (Clarabel: gap tolerances tightened to 1e-12, still 7-8 iterations).
+
+Backends:
+- ``cvxpy`` (default): solver ``cvxpy_solver`` (default Clarabel; any installed cvxpy solver that
+  handles PSD constraints). The problem is built ONCE per cvxpy solver with R, q, rest as
+  Parameters (DPP: after the first solve cvxpy skips canonicalisation and only re-applies the
+  parameters) and cached at module level; a lock per cached problem serialises its solves.
+- ``picos``: the same LMI through PICOS and CVXOPT. PICOS has no parameters for general
+  constants, so its problem is rebuilt per call (13-20 ms per solve, ~10 ms of it CVXOPT).
+- ``casadi``: NOT this LMI, the issue-4 extension: the eq. 8 cost under exact SO(3)
+  constraints, solved by IPOPT (`handeye.plugins.lmi_sdp_casadi.solve_casadi`); its options
+  ``multistart``, ``seed``, ``ipopt_options`` apply to it alone, ``cvxpy_solver`` to cvxpy alone
+  (InputError otherwise). Its rotations are exactly in SO(3), so ``orthogonalize`` leaves them
+  unchanged, and its translations are already the least squares given its rotations, so
+  ``translations="resolve"`` gives the same.
+
+Options: ``orthogonalize="gram-schmidt"`` (the paper's) or ``"svd"`` (nearest rotation,
+`project_to_so3`); ``translations="beta"`` (the paper's) or ``"resolve"`` (eqs. 20-21 given the
+orthogonalised rotations); ``normalize=False`` (the paper works in the data's units; the answer
+then depends on the length unit, so the solver declares ``unit_invariant=False``). With
+``normalize=True`` translations are divided by the data's RMS translation before eq. 8 is built
+and multiplied back afterwards: the answer is unit invariant (tested to 1e-9). With
+``normalize=True`` the translations in beta are poorly determined (the rotation rows dominate);
+combine it with ``translations="resolve"``.
+
+Statuses: solver optimal -> optimal; optimal_inaccurate (Clarabel's AlmostSolved) ->
+optimal_inaccurate; anything else (infeasible, unbounded, iteration limit, solver error) raises
+`SolverError` naming the status.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import threading
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye.errors import InputError, SolverError
+from handeye.options import check_choice
+from handeye.problems.axyb import AXYBData, KroneckerSystem, solve_translations, split_beta
+from handeye.se3 import gram_schmidt, make_pose, project_to_so3
+
+ORTHOGONALIZERS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "gram-schmidt": gram_schmidt,
+    "svd": project_to_so3,
+}
+TRANSLATIONS = ("beta", "resolve")
+#: option -> the backends it applies to (given with another backend it is an InputError)
+BACKEND_ONLY_OPTIONS: dict[str, tuple[str, ...]] = {
+    "cvxpy_solver": ("cvxpy",),
+    "multistart": ("casadi",),
+    "seed": ("casadi",),
+    "ipopt_options": ("casadi",),
+}
+DEFAULT_CVXPY_SOLVER = "CLARABEL"
+#: Settings per cvxpy solver (others run with their defaults). Clarabel: gap and feasibility
+#: tolerances 1e-12 give u to ~1e-13 relative for 2 more iterations (beta is exact either way);
+#: merge_method "none" keeps the chordal decomposition of the arrow-shaped LMI into 2x2 cliques
+#: (1.5 ms instead of 2.5 ms per solve at the same accuracy; without decomposition: 40 ms).
+CVXPY_SETTINGS: dict[str, dict[str, Any]] = {
+    "CLARABEL": {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12,
+                 "tol_ktratio": 1e-10, "chordal_decomposition_merge_method": "none"},
+    "SCS": {"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iters": 100_000},
+    "CVXOPT": {"abstol": 1e-10, "reltol": 1e-10},
+}
+#: cvxpy solver -> cap on the congruence scale c (`ScaledLMI.of`); others uncapped.
+CVXPY_MAX_C: dict[str, float] = {"CLARABEL": 1.0}
+#: CVXOPT through PICOS: gap tolerances 1e-10 (6 iterations); feasibility tolerances at their
+#: defaults (at 1e-11 the dual residual stalls near 1e-9 and CVXOPT wanders). The iteration
+#: limit matters: PICOS runs CVXOPT with its "chol" KKT solver and, when that ends with status
+#: unknown, again with "ldl". On noise-free data in km (translations * 1e-6) "chol" never
+#: converges, and with PICOS's default limit (10^6 iterations) it ran for minutes; with 50 the
+#: "ldl" retry solves it in 6. Forcing "ldl" throughout fails on data in micrometres.
+PICOS_SETTINGS: dict[str, Any] = {"abs_ipm_opt_tol": 1e-10, "rel_ipm_opt_tol": 1e-10,
+                                  "max_iterations": 50}
+
+
+@dataclasses.dataclass(frozen=True)
+class Options:
+    """orthogonalize: "gram-schmidt" | "svd"; translations: "beta" | "resolve";
+    normalize: divide translations by the RMS translation first (unit invariance);
+    cvxpy_solver: cvxpy only (default Clarabel); multistart, seed, ipopt_options: casadi only
+    (see `handeye.plugins.lmi_sdp_casadi.solve_casadi`)."""
+
+    orthogonalize: str = "gram-schmidt"
+    normalize: bool = False
+    translations: str = "beta"
+    cvxpy_solver: str | None = None
+    multistart: int | None = None
+    seed: int | None = None
+    ipopt_options: Mapping[str, Any] | None = None
+
+    def __post_init__(self) -> None:
+        check_choice("orthogonalize", self.orthogonalize, tuple(ORTHOGONALIZERS))
+        check_choice("translations", self.translations, TRANSLATIONS)
+        if not isinstance(self.normalize, (bool, np.bool_)):
+            raise InputError(f"option normalize={self.normalize!r} must be True or False")
+        if self.cvxpy_solver is not None and not isinstance(self.cvxpy_solver, str):
+            raise InputError(f"option cvxpy_solver={self.cvxpy_solver!r} must be a cvxpy solver name (str)")
+        if self.multistart is not None and (isinstance(self.multistart, bool)
+                                            or not isinstance(self.multistart, (int, np.integer))
+                                            or self.multistart < 0):
+            raise InputError(f"option multistart={self.multistart!r} must be an integer >= 0")
+        if self.seed is not None and (isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer))):
+            raise InputError(f"option seed={self.seed!r} must be an integer")
+        if self.ipopt_options is not None and not isinstance(self.ipopt_options, Mapping):
+            raise InputError(f"option ipopt_options={self.ipopt_options!r} must be a dict of IPOPT options")
+
+
+def check_backend_options(options: Options, backend: str) -> None:
+    """Raise InputError when an option of one backend is given with another."""
+    for name, backends in BACKEND_ONLY_OPTIONS.items():
+        if getattr(options, name) is not None and backend not in backends:
+            raise InputError(
+                f"lmi-sdp: option {name} applies only to backend(s) {', '.join(backends)}, "
+                f"not to backend {backend!r}; drop it or choose backend={backends[0]!r}"
+            )
+
+
+# --------------------------------------------------------------------------------------------
+# eq. 14, scaled
+
+
+@dataclasses.dataclass(frozen=True)
+class ScaledLMI:
+    """Eq. 14 in gamma = D^-1 beta, congruence diag(1/c, I) (module docstring, Numerics):
+
+    [[u' - rest', (R gamma - q)^T], [R gamma - q, I]] >= 0 with R = R1 D / c: (24, 24),
+    q = q1 / c: (24,), rest' = rest / c^2, u = c^2 u'; d: (24,) the diagonal of D.
+    """
+
+    R: np.ndarray
+    q: np.ndarray
+    rest: float
+    d: np.ndarray
+    c: float
+
+    @classmethod
+    def of(cls, system: KroneckerSystem, max_c: float = np.inf) -> ScaledLMI:
+        """Scale eq. 14 of `system`: c = min(max_c, max(sqrt(rest), 1e-6 |q1|)) (or 1 if 0)."""
+        norms = np.linalg.norm(system.R1, axis=0)
+        d = 1.0 / np.where(norms > 0, norms, 1.0)
+        c = min(max_c, max(float(np.sqrt(system.rest)), 1e-6 * float(np.linalg.norm(system.q1))))
+        c = c if c > 0 else 1.0
+        return cls(R=system.R1 * d / c, q=system.q1 / c, rest=system.rest / c**2, d=d, c=c)
+
+
+@dataclasses.dataclass(frozen=True)
+class SDPResult:
+    gamma: np.ndarray  # (24,), scaled beta
+    u: float  # scaled u
+    status: Status
+    solver_status: str
+    backend_solver: str
+    iterations: int | None
+
+
+def _status(solver_status: str, optimal: set[str], inaccurate: set[str], where: str) -> Status:
+    if solver_status in optimal:
+        return Status.OPTIMAL
+    if solver_status in inaccurate:
+        return Status.OPTIMAL_INACCURATE
+    raise SolverError(f"lmi-sdp: {where} returned status {solver_status!r} for the LMI of eq. 14; "
+                      "no solution is returned")
+
+
+# --------------------------------------------------------------------------------------------
+# backend cvxpy: one DPP problem per cvxpy solver, compiled on its first solve, then reused
+
+
+@dataclasses.dataclass
+class CvxpyLMI:
+    """The cached cvxpy problem of eq. 14 (parameters R, q, rest; variables gamma, u)."""
+
+    problem: Any
+    R: Any
+    q: Any
+    rest: Any
+    gamma: Any
+    u: Any
+    lock: threading.Lock
+
+
+_CVXPY_PROBLEMS: dict[str, CvxpyLMI] = {}
+_CVXPY_BUILD_LOCK = threading.Lock()
+#: How many cvxpy problems were built in this process (one per cvxpy solver used).
+cvxpy_builds = 0
+
+
+@functools.cache
+def sdp_cvxpy_solvers() -> tuple[str, ...]:
+    """Installed cvxpy solvers that accept PSD constraints (the possible ``cvxpy_solver``).
+
+    Cached: `cvxpy.installed_solvers` looks every solver module up (~5 ms, as long as a solve)."""
+    import cvxpy as cp
+    from cvxpy.constraints import PSD
+    from cvxpy.constraints.psd import SvecPSD
+    from cvxpy.reductions.solvers.defines import SOLVER_MAP_CONIC
+
+    return tuple(sorted(name for name in cp.installed_solvers()
+                  if name in SOLVER_MAP_CONIC
+                  and any(c in (PSD, SvecPSD) for c in SOLVER_MAP_CONIC[name].SUPPORTED_CONSTRAINTS)))
+
+
+def resolve_cvxpy_solver(name: str | None) -> str:
+    """The cvxpy solver name for option ``cvxpy_solver`` (case-insensitive); InputError listing
+    the installed SDP-capable solvers when it is unknown, not installed or cannot do SDPs."""
+    if name is None:
+        name = DEFAULT_CVXPY_SOLVER
+    usable = sdp_cvxpy_solvers()
+    if name.upper() in usable:
+        return name.upper()
+    import cvxpy as cp
+
+    if name.upper() in cp.installed_solvers():
+        why = "is installed but cannot solve semidefinite programs"
+    else:
+        why = "is not an installed cvxpy solver"
+    raise InputError(f"lmi-sdp: cvxpy_solver={name!r} {why}; installed cvxpy solvers that can "
+                     f"solve the LMI: {', '.join(usable) or '(none)'}")
+
+
+def cvxpy_problem(solver: str) -> CvxpyLMI:
+    """Eq. 14 as a DPP cvxpy problem for cvxpy solver `solver`, built once and cached."""
+    global cvxpy_builds
+    with _CVXPY_BUILD_LOCK:
+        cached = _CVXPY_PROBLEMS.get(solver)
+        if cached is not None:
+            return cached
+        import cvxpy as cp
+
+        R = cp.Parameter((24, 24), name="R")
+        q = cp.Parameter(24, name="q")
+        rest = cp.Parameter(nonneg=True, name="rest")
+        gamma = cp.Variable(24, name="gamma")
+        u = cp.Variable(name="u")
+        e = R @ gamma - q  # R1 beta - q1, scaled
+        lmi = cp.bmat([
+            [cp.reshape(u - rest, (1, 1), order="F"), cp.reshape(e, (1, 24), order="F")],
+            [cp.reshape(e, (24, 1), order="F"), np.eye(24)],
+        ])
+        problem = cp.Problem(cp.Minimize(u), [lmi >> 0])
+        if not problem.is_dpp():  # pragma: no cover - a cvxpy change would break the cache
+            raise SolverError("lmi-sdp: the cvxpy formulation of eq. 14 is not DPP")
+        cached = CvxpyLMI(problem, R, q, rest, gamma, u, threading.Lock())
+        _CVXPY_PROBLEMS[solver] = cached
+        cvxpy_builds += 1
+        return cached
+
+
+def _solve_cvxpy(lmi: ScaledLMI, solver: str) -> SDPResult:
+    import cvxpy as cp
+
+    cached = cvxpy_problem(solver)
+    with cached.lock:
+        cached.R.value = lmi.R
+        cached.q.value = lmi.q
+        cached.rest.value = lmi.rest
+        try:
+            cached.problem.solve(solver=solver, warm_start=True, **CVXPY_SETTINGS.get(solver, {}))
+        except cp.error.SolverError as exc:
+            raise SolverError(f"lmi-sdp: cvxpy/{solver} failed on the LMI of eq. 14: {exc}") from None
+        status = str(cached.problem.status)
+        gamma, u = cached.gamma.value, cached.u.value
+        iterations = cached.problem.solver_stats.num_iters
+    result_status = _status(status, {cp.OPTIMAL}, {cp.OPTIMAL_INACCURATE}, f"cvxpy/{solver}")
+    if gamma is None or u is None:
+        raise SolverError(f"lmi-sdp: cvxpy/{solver} reported {status!r} but gave no solution")
+    return SDPResult(np.array(gamma, dtype=float), float(u), result_status, status, solver,
+                     None if iterations is None else int(iterations))
+
+
+# --------------------------------------------------------------------------------------------
+# backend picos (CVXOPT): built per call
+
+
+def _solve_picos(lmi: ScaledLMI) -> SDPResult:
+    import picos
+
+    P = picos.Problem()
+    gamma = picos.RealVariable("gamma", 24)
+    u = picos.RealVariable("u")
+    e = picos.Constant("R", lmi.R) * gamma - picos.Constant("q", lmi.q)
+    P.add_constraint(picos.block([[u - lmi.rest, e.T], [e, "I"]]) >> 0)
+    P.set_objective("min", u)
+    try:
+        solution = P.solve(solver="cvxopt", primals=None, duals=False, **PICOS_SETTINGS)
+    except picos.SolutionFailure as exc:
+        raise SolverError(f"lmi-sdp: picos/cvxopt failed on the LMI of eq. 14: {exc}") from None
+    status = str(solution.claimedStatus)
+    result_status = _status(status, {picos.modeling.solution.SS_OPTIMAL}, set(), "picos/cvxopt")
+    if gamma.value is None or u.value is None:
+        raise SolverError(f"lmi-sdp: picos/cvxopt reported {status!r} but gave no solution")
+    raw = solution.info.get("cvxopt_sol", {}) if isinstance(solution.info, Mapping) else {}
+    iterations = raw.get("iterations")
+    return SDPResult(np.array(gamma.value, dtype=float).ravel(), float(u.value), result_status,
+                     status, "cvxopt", None if iterations is None else int(iterations))
+
+
+# --------------------------------------------------------------------------------------------
+
+
+def solve_lmi(system: KroneckerSystem, backend: str, options: Options) -> tuple[np.ndarray, float, SDPResult]:
+    """Solve eq. 14 for `system` on SDP backend "cvxpy" or "picos": (beta (24,), u, raw result)."""
+    if backend == "cvxpy":
+        solver = resolve_cvxpy_solver(options.cvxpy_solver)
+        lmi = ScaledLMI.of(system, CVXPY_MAX_C.get(solver, np.inf))
+        result = _solve_cvxpy(lmi, solver)
+    elif backend == "picos":
+        lmi = ScaledLMI.of(system)
+        result = _solve_picos(lmi)
+    else:
+        raise ValueError(f"lmi-sdp: {backend!r} is not an SDP backend")
+    beta = lmi.d * result.gamma
+    if not np.all(np.isfinite(beta)):
+        raise SolverError(f"lmi-sdp: {backend}/{result.backend_solver} returned a non-finite beta "
+                          f"(status {result.solver_status!r})")
+    return beta, result.u * lmi.c**2, result
+
+
+def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
+    """The paper's method on `data` (A, B: (m, 4, 4)); see the module docstring."""
+    check_backend_options(options, backend)
+    if backend == "casadi":
+        return _run_casadi(data, options)
+    scale = data.translation_scale if options.normalize else 1.0
+    system = (data.scaled(scale) if options.normalize else data).kronecker_system
+    beta, u, result = solve_lmi(system, backend, options)
+    MX, MY, tX, tY = split_beta(beta)
+    orthogonalize = ORTHOGONALIZERS[options.orthogonalize]
+    RX, RY = orthogonalize(MX), orthogonalize(MY)
+    if options.translations == "resolve":
+        tX, tY = solve_translations(data, RX, RY)
+    else:
+        tX, tY = tX * scale, tY * scale
+    e = system.R1 @ beta - system.q1
+    beta_out = beta.copy()
+    beta_out[18:] *= scale
+    beta_out.flags.writeable = False
+    return SolverOutput(
+        unknowns={"X": make_pose(RX, tX), "Y": make_pose(RY, tY)},
+        status=result.status,
+        diagnostics={
+            "u": u,
+            "rest": system.rest,
+            "cost": float(e @ e + system.rest),
+            "schur_complement": float(u - system.rest - e @ e),
+            "solver_status": result.solver_status,
+            "backend_solver": result.backend_solver,
+            "iterations": result.iterations,
+            "sigma_min_R1": system.smallest_singular_value(),
+            "beta": beta_out,
+            "orthogonalize": options.orthogonalize,
+            "translations": options.translations,
+            "normalized": bool(options.normalize),
+            "translation_scale": scale,
+        },
+    )
+
+
+def _run_casadi(data: AXYBData, options: Options) -> SolverOutput:
+    from handeye.plugins.lmi_sdp_casadi import solve_casadi
+
+    out = solve_casadi(data, normalize=bool(options.normalize), multistart=options.multistart or 0,
+                       seed=options.seed, ipopt_options=options.ipopt_options)
+    orthogonalize = ORTHOGONALIZERS[options.orthogonalize]
+    RX, RY = orthogonalize(out.unknowns["X"][:3, :3]), orthogonalize(out.unknowns["Y"][:3, :3])
+    if options.translations == "resolve":
+        tX, tY = solve_translations(data, RX, RY)
+    else:
+        tX, tY = out.unknowns["X"][:3, 3], out.unknowns["Y"][:3, 3]
+    diagnostics = dict(out.diagnostics)
+    diagnostics.update(orthogonalize=options.orthogonalize, translations=options.translations)
+    return SolverOutput(unknowns={"X": make_pose(RX, tX), "Y": make_pose(RY, tY)},
+                        status=out.status, diagnostics=diagnostics)
+
+
+SPEC = SolverSpec(
+    name="lmi-sdp",
+    problems=("axyb",),
+    run=run,
+    backends={"cvxpy": ("cvxpy", "clarabel"), "picos": ("picos", "cvxopt"), "casadi": ("casadi",)},
+    default_backend="cvxpy",
+    options=Options,
+    summary="the paper's LMI-SDP (eqs. 9-14; optimum = least squares of eq. 8), Gram-Schmidt; "
+            "casadi: eq. 8 under exact SO(3)",
+    citation="Pan et al., Toward Simultaneous Coordinate Calibrations of AX=YB Problem by the "
+             "LMI-SDP Optimization, IEEE T-ASE 2022, eqs. 5-14",
+    unit_invariant=False,
+)
+
+
+@hookimpl
+def register_solvers(register):
+    register(SPEC)

@@ -166,7 +166,8 @@ def solve_casadi(data: AXYBData, *, normalize: bool, multistart: int = 0, seed: 
     ``cost`` (eq. 8, |H beta - w|^2 of the normalised data when normalize), ``start_cost`` (the
     same cost at the kron-lstsq point), ``starts_tried``, ``best_start`` (0 = kron-lstsq),
     ``start_statuses``, ``start_costs``, ``constraint_violation`` (before the final projection),
-    ``translation_scale``, ``warnings``. Raises SolverError when no start gave an iterate.
+    ``translation_scale``, ``sigma_min_R1`` (of R1 of eq. 10, normalised data when normalize),
+    ``warnings``. Raises SolverError when no start gave an iterate.
     """
     if isinstance(multistart, bool) or not isinstance(multistart, (int, np.integer)) or multistart < 0:
         raise InputError(f"option multistart={multistart!r} must be an integer >= 0")
@@ -252,6 +253,7 @@ def solve_casadi(data: AXYBData, *, normalize: bool, multistart: int = 0, seed: 
             "constraint_violation": _constraint_violation(r_raw),
             "orthonormality_error": float(max(orthonormality_error(RX), orthonormality_error(RY))),
             "translation_scale": scale,
+            "sigma_min_R1": system.smallest_singular_value(),
             "normalized": bool(normalize),
             "warnings": warnings,
         },

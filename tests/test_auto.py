@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import numpy as np
-import pytest
+import dataclasses
 
 import handeye
+import numpy as np
+import pytest
 from handeye.errors import InputError
 from handeye.noise import NoiseModel
 from handeye.plugins import auto, refine
@@ -54,30 +55,39 @@ def test_auto_falls_back_to_kron_lstsq_when_so3_sdp_is_unavailable(noisy, monkey
 
 
 def test_uncertified_start_triggers_a_second_start(noisy, monkeypatch):
-    """When the so3-sdp start is not certified, refine also runs from kron-lstsq; the lower cost wins."""
+    """When the so3-sdp start is not certified, refine also runs from kron-lstsq; the lower cost
+    wins. The so3-sdp start is faked: uncertified, far away, and its refinement cut to one
+    iteration, so that it ends worse and the selection is visible."""
     if "so3-sdp" not in handeye.list_solvers("axyb"):
         pytest.skip("so3-sdp not registered")
     data, truth = noisy
-    real = refine.run_init
+    real_init, real_refine = refine.run_init, refine.refine
+    from handeye.se3 import make_pose, so3_exp
 
     def uncertified(name, d):
-        X, Y, status, diag = real(name, d)
-        if name == "so3-sdp":  # pretend the relaxation was not tight, and start far away
-            from handeye.se3 import make_pose, so3_exp
-
+        X, Y, status, diag = real_init(name, d)
+        if name == "so3-sdp":
             X = make_pose(X[:3, :3] @ so3_exp([2.5, 0.0, 0.0]), X[:3, 3] + 500.0)
             return X, Y, Status.UNCERTIFIED, {**diag, "certified": False}
         return X, Y, status, diag
 
+    def truncated(d, X0, Y0, options):
+        if np.abs(X0[:3, 3] - truth["X"][:3, 3]).max() > 100.0:  # the faked far start
+            options = dataclasses.replace(options, max_iter=1)
+        return real_refine(d, X0, Y0, options)
+
     monkeypatch.setattr(refine, "run_init", uncertified)
+    monkeypatch.setattr(refine, "refine", truncated)
     monkeypatch.setattr(refine, "default_init", lambda: "so3-sdp")
     sol = handeye.solve("axyb", **data)
     d = sol.diagnostics
     assert d["pipeline"] == ["so3-sdp | kron-lstsq", "refine", "best"]
     assert [s["init"] for s in d["starts"]] == ["so3-sdp", "kron-lstsq"]
     assert d["init_status"] == "uncertified" and not d["init_certified"]
-    costs = [s["cost_under_common_weights"] for s in d["starts"]]
-    assert d["init"] == ("kron-lstsq" if costs[1] < costs[0] else "so3-sdp")
+    costs = [s["compared_cost"] for s in d["starts"]]
+    assert costs[1] < costs[0]
+    assert d["init"] == "kron-lstsq" and sol.status == Status.OPTIMAL
+    np.testing.assert_allclose(sol.X, handeye.solve("axyb", solver="refine", init="kron-lstsq", **data).X, atol=1e-9)
     err = PROBLEM.errors(sol.unknowns, truth)
     assert err["X"]["rotation"] < 0.01 and err["Y"]["rotation"] < 0.01
 
@@ -102,3 +112,23 @@ def test_auto_rejects_bad_options(noisy, bad):
 def test_auto_declares_unit_invariance():
     assert handeye.get_registry().solver("auto", "axyb").unit_invariant
     assert auto.SPEC.unit_invariant
+
+
+def test_a_failing_start_falls_back_to_kron_lstsq(noisy, monkeypatch):
+    from handeye.errors import SolverError
+
+    data, _ = noisy
+    real = refine.run_init
+
+    def failing(name, d):
+        if name == "so3-sdp":
+            raise SolverError("so3-sdp: Clarabel returned status 'infeasible' for the relaxation")
+        return real(name, d)
+
+    monkeypatch.setattr(refine, "run_init", failing)
+    monkeypatch.setattr(refine, "default_init", lambda: "so3-sdp")
+    sol = handeye.solve("axyb", **data)
+    assert sol.diagnostics["pipeline"] == ["kron-lstsq", "refine"] and sol.status == Status.OPTIMAL
+    assert any("so3-sdp" in w and "kron-lstsq" in w for w in sol.warnings)
+    with pytest.raises(SolverError):  # a start the user asked for is not replaced
+        handeye.solve("axyb", init="so3-sdp", **data)

@@ -19,9 +19,9 @@ from handeye.dualquat import (
     rotation_from_quat,
 )
 from handeye.noise import NoiseModel
-from handeye.plugins.dual_quaternion import dq_matrix, pair_signs
+from handeye.plugins.dual_quaternion import dq_matrix, pair_signs, solve_dual_quaternions, triangular_factor
 from handeye.problems.axyb import PROBLEM, random_truth
-from handeye.se3 import random_poses, random_rotations
+from handeye.se3 import quat_from_matrix, random_poses, random_rotations, so3_exp
 
 finite = st.floats(-10, 10, allow_nan=False, allow_infinity=False)
 quaternion = st.lists(finite, min_size=4, max_size=4).map(np.array)
@@ -54,6 +54,18 @@ def test_quaternion_product_is_rotation_product():
     Q = quat_from_rotation(R1)
     np.testing.assert_allclose(q_left(Q) @ np.swapaxes(q_left(Q), 1, 2), np.broadcast_to(np.eye(4), (20, 4, 4)), atol=1e-12)
     np.testing.assert_allclose(quat_multiply(Q, conjugate(Q)), np.tile([1.0, 0, 0, 0], (20, 1)), atol=1e-12)
+
+
+def test_quat_from_rotation_matches_scipy_including_half_turns():
+    rng = np.random.default_rng(3)
+    half_turns = so3_exp(np.pi * np.array([[1.0, 0, 0], [0, 1, 0], [0, 0, 1], [0.6, 0.8, 0], [0, -0.6, 0.8]]))
+    R = np.concatenate([random_rotations(200, rng), half_turns, np.eye(3)[None]])
+    q = quat_from_rotation(R)
+    ref = quat_from_matrix(R)[:, [3, 0, 1, 2]]
+    np.testing.assert_allclose(np.abs(np.sum(q * ref, axis=1)), 1.0, atol=1e-14)  # same up to sign
+    np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-15)
+    np.testing.assert_allclose(rotation_from_quat(q), R, atol=1e-14)
+    assert np.all(q[:, 0] >= 0)
 
 
 def test_dual_quaternion_of_pose_products_and_round_trip():
@@ -170,3 +182,61 @@ def test_second_pass_corrects_wrong_first_pass_signs(monkeypatch, wrong):
     assert d["sign_flips_second_pass"] == len(wrong) and d["sign_inconsistent_pairs"] == 0
     errors = PROBLEM.errors(sol.unknowns, truth)
     assert errors["X"]["rotation"] < 1e-9 and errors["Y"]["rotation"] < 1e-9
+
+
+def _poses(sol):
+    return pose_from_dual_quat(sol["x"], sol["xd"]), pose_from_dual_quat(sol["y"], sol["yd"])
+
+
+@pytest.mark.parametrize("noise", [None, NoiseModel.on(("A", "B"), 0.02, 2.0)])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_answer_does_not_depend_on_the_input_quaternion_signs(seed, noise):
+    """Flipping the sign of any a_i (with a'_i) or b_i (with b'_i) leaves X and Y unchanged."""
+    truth = random_truth(np.random.default_rng(seed))
+    data, _ = PROBLEM.simulate(pairs=15, seed=seed, X=truth["X"], Y=truth["Y"], noise=noise)
+    work = PROBLEM.validate(**data)
+    work = work.scaled(work.translation_scale)
+    a, ad = dual_quat_from_pose(work.A)
+    b, bd = dual_quat_from_pose(work.B)
+    X0, Y0 = _poses(solve_dual_quaternions(a, ad, b, bd))
+    rng = np.random.default_rng(100 + seed)
+    for _ in range(4):
+        fa, fb = rng.choice([-1.0, 1.0], size=(2, len(a), 1))
+        sol = solve_dual_quaternions(fa * a, fa * ad, fb * b, fb * bd)
+        X, Y = _poses(sol)
+        np.testing.assert_allclose(X, X0, atol=1e-11)
+        np.testing.assert_allclose(Y, Y0, atol=1e-11)
+        assert sol["wrong"] == 0
+
+
+def test_solver_is_invariant_to_the_sign_the_conversion_gives(monkeypatch):
+    """End to end: a conversion that returns arbitrary signs gives the same solution."""
+    from handeye.plugins import dual_quaternion
+
+    data, _ = PROBLEM.simulate(pairs=20, seed=6, noise=NoiseModel.on("B", 0.005, 0.5))
+    reference = handeye.solve("axyb", solver="dual-quaternion", **data)
+    rng = np.random.default_rng(6)
+    original = dual_quaternion.dual_quat_from_pose
+
+    def random_signs(T):
+        q, qd = original(T)
+        f = rng.choice([-1.0, 1.0], size=(len(q), 1))
+        return f * q, f * qd
+
+    monkeypatch.setattr(dual_quaternion, "dual_quat_from_pose", random_signs)
+    for _ in range(3):
+        sol = handeye.solve("axyb", solver="dual-quaternion", **data)
+        for name in ("X", "Y"):
+            np.testing.assert_allclose(sol.unknowns[name], reference.unknowns[name], atol=1e-9)
+
+
+@pytest.mark.parametrize(("m", "r", "c"), [(2, 8, 16), (3, 12, 25), (17, 8, 16), (301, 8, 16), (1000, 12, 25)])
+def test_tree_qr_factor_equals_the_qr_of_the_whole_stack(m, r, c):
+    """One, two and three levels of chunks: R^T R = M^T M, and R equals numpy's R up to row signs."""
+    blocks = np.random.default_rng(m).standard_normal((m, r, c)) * np.logspace(0, 3, c)
+    R = triangular_factor(blocks)
+    M = blocks.reshape(-1, c)
+    R_ref = np.linalg.qr(M, mode="r")
+    assert R.shape == (c, c)
+    np.testing.assert_allclose(np.abs(R), np.abs(R_ref), rtol=1e-10, atol=1e-10 * np.abs(R_ref).max())
+    np.testing.assert_allclose(np.linalg.svd(R, compute_uv=False), np.linalg.svd(M, compute_uv=False), rtol=1e-11)

@@ -9,15 +9,19 @@ from typing import Any
 
 import numpy as np
 import pytest
-
-from handeye import SolverOutput, SolverSpec, hookimpl
+from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import InputError, UnknownPluginError
 from handeye.harness import (
+    PAPER_CONTRAST,
+    PAPER_METHODS,
     Spec,
     Study,
     Sweep,
+    default_specs,
     error_table,
     load_study,
+    missing_paper_methods,
+    paper_study,
     parse_floats,
     parse_specs,
     read_csv,
@@ -25,18 +29,19 @@ from handeye.harness import (
     time_table,
     write_report,
 )
+from handeye.harness.report import band
 from handeye.noise import NoiseModel
-from handeye.registry import register_plugin, unregister_plugin
+from handeye.registry import list_solvers, register_plugin, unregister_plugin
 
 ERROR_COLUMNS = ["err_rot_X", "err_trans_X", "err_rot_Y", "err_trans_Y"]
 RESIDUAL_COLUMNS = ["res_rot_mean", "res_rot_median", "res_trans_mean", "res_trans_median"]
 
 
 def tiny_study(**changes: Any) -> Study:
-    """2 specs x 2 noise levels x 1 pair count x 2 trials = 8 records."""
+    """2 solvers x 2 noise levels x 1 pair count x 2 trials = 8 records."""
     study = Study(
         name="tiny",
-        specs=(Spec("kron-lstsq"), Spec("kron-lstsq", options={"normalize": False}, label="kron-raw")),
+        specs=(Spec("kron-lstsq"), Spec("shah")),
         noise=NoiseModel({"A": (0.0005, 0.05), "B": (0.005, 0.5)}),
         sweeps=(Sweep("noise", levels=(0.0, 1.0), pairs=(8,)),),
         trials=2, seed=7, warmup=False,
@@ -66,10 +71,25 @@ def _return_init(data, options, backend):
     return SolverOutput(unknowns={k: np.asarray(v) for k, v in options.init.items()})
 
 
+def _give_up(data, options, backend):
+    return SolverOutput(unknowns={"X": np.eye(4), "Y": np.eye(4)}, status=Status.NOT_CONVERGED,
+                        diagnostics={"warnings": ["harness test: gave up   after 0 iterations"]})
+
+
+def _hang(data, options, backend):
+    import time
+
+    time.sleep(30)  # interrupted by the study's time limit
+    raise AssertionError("the time limit did not stop this solve")
+
+
 class HarnessTestPlugin:
     @hookimpl
     def register_solvers(self, register):
         register(SolverSpec(name="harness-test-fail", problems=("axyb",), run=_raise, summary="always raises"))
+        register(SolverSpec(name="harness-test-hang", problems=("axyb",), run=_hang, summary="sleeps"))
+        register(SolverSpec(name="harness-test-unsure", problems=("axyb",), run=_give_up,
+                            summary="returns the identity, not converged"))
         register(SolverSpec(name="harness-test-truth", problems=("axyb",), run=_return_init,
                             options=TruthOptions, summary="returns its init option"))
 
@@ -88,18 +108,19 @@ def test_plugin():
 def test_records_one_per_cell_trial_spec(serial_result):
     rows = serial_result.records
     assert len(rows) == 2 * 1 * 2 * 2
-    assert [r["label"] for r in rows[:2]] == ["kron-lstsq", "kron-raw"]
+    assert [r["label"] for r in rows[:2]] == ["kron-lstsq", "shah"]
     for column in ["study", "sweep", "level", "pairs", "trial", "seed", "label", "solver", "backend",
                    "status", "error", "seconds", *ERROR_COLUMNS, *RESIDUAL_COLUMNS,
                    "sigma_rot_A", "sigma_trans_A", "sigma_rot_B", "sigma_trans_B"]:
         assert column in rows[0], column
     assert all(r["status"] == "optimal" and r["error"] == "" for r in rows)
-    # every solver of a unit sees the same data; different units get different data
+    # every solver of a unit sees the same data; trials differ; the levels of a trial share the
+    # seed (common random numbers: same poses, same standard-normal noise scaled by the level)
     seeds = {(r["level"], r["trial"]): set() for r in rows}
     for r in rows:
         seeds[(r["level"], r["trial"])].add(r["seed"])
     assert all(len(s) == 1 for s in seeds.values())
-    assert len({next(iter(s)) for s in seeds.values()}) == 4
+    assert seeds[(0.0, 0)] == seeds[(1.0, 0)] != seeds[(0.0, 1)] == seeds[(1.0, 1)]
     noise_free = [r for r in rows if r["level"] == 0.0]
     assert max(r[c] for r in noise_free for c in ERROR_COLUMNS + RESIDUAL_COLUMNS) < 1e-6
     noisy = [r for r in rows if r["level"] == 1.0]
@@ -114,6 +135,21 @@ def test_results_identical_whatever_the_job_count(serial_result):
         assert (a["label"], a["level"], a["trial"], a["seed"]) == (b["label"], b["level"], b["trial"], b["seed"])
         for column in ERROR_COLUMNS + RESIDUAL_COLUMNS:
             assert a[column] == b[column], column
+
+
+def test_levels_of_a_trial_see_the_same_poses_with_scaled_noise():
+    from handeye.harness import data_seed
+    from handeye.harness.runner import simulate
+
+    study = tiny_study(sweeps=(Sweep("noise", levels=(0.0, 1.0, 2.0), pairs=(8,)),))
+    cells = list(study.cells())
+    (clean, _, s0), (one, _, s1), (two, _, s2) = (simulate(study, c, 1) for c in cells)
+    assert s0 == s1 == s2 == data_seed(study, cells[0], 1) != data_seed(study, cells[0], 0)
+    for name in ("A", "B"):
+        delta1 = one[name][:, :3, 3] - clean[name][:, :3, 3]
+        delta2 = two[name][:, :3, 3] - clean[name][:, :3, 3]
+        assert np.abs(delta1).max() > 0.01
+        np.testing.assert_allclose(delta2, 2 * delta1, rtol=1e-9, atol=1e-9)
 
 
 def test_seed_changes_the_data(serial_result):
@@ -153,6 +189,35 @@ def test_failing_solver_is_recorded_and_the_study_goes_on(test_plugin, jobs):
     assert "| harness-test-fail | numpy | - | - | 4 | 4 |" in time_table(result)
 
 
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_a_hanging_solver_is_stopped_by_the_time_limit(test_plugin, jobs):
+    study = tiny_study(specs=(Spec("harness-test-hang"), Spec("kron-lstsq")), timeout=0.2,
+                       sweeps=(Sweep("noise", levels=(1.0,), pairs=(8,)),))
+    result = run_study(study, jobs=jobs, progress=False)
+    hung, ok = result.select(label="harness-test-hang"), result.select(label="kron-lstsq")
+    assert len(hung) == len(ok) == 2
+    for row in hung:
+        assert row["status"] == "failed"
+        assert row["error"] == "SolveTimeout: no answer within 0.2 s (the study's time limit per solve)"
+    assert all(r["status"] == "optimal" for r in ok)
+
+
+def test_non_optimal_answers_are_kept_with_their_warnings(test_plugin):
+    result = run_study(tiny_study(specs=(Spec("harness-test-unsure"),)), jobs=1, progress=False)
+    for row in result.records:
+        assert row["status"] == "not_converged" and row["error"] == ""
+        assert row["warnings"] == 1 and row["notes"] == "harness test: gave up after 0 iterations"
+        assert np.isfinite(row["err_rot_X"]) and row["err_rot_X"] > 1.0  # identity vs the paper's X
+    assert [e["not_optimal"] for e in result.summary()] == [2, 2]
+
+
+def test_default_specs_include_run_time_plugins(test_plugin):
+    specs = default_specs("axyb")
+    assert {"harness-test-fail", "harness-test-hang", "harness-test-unsure", "harness-test-truth",
+            "kron-lstsq"} <= {s.solver for s in specs}
+    assert Study(specs=()).resolved_specs() == specs
+
+
 def test_init_from_truth_passes_the_truth_in_the_data_units(test_plugin):
     study = tiny_study(units="m", truth="random", specs=(
         Spec("harness-test-truth", label="oracle", init_from_truth=True),
@@ -178,16 +243,17 @@ def test_write_report_writes_csv_json_figures_and_tables(serial_result, tmp_path
     assert [float(r["err_rot_X"]) for r in rows] == [r["err_rot_X"] for r in serial_result.records]
     doc = json.loads(paths["json"].read_text())
     assert doc["study"]["trials"] == 2 and doc["run"]["records"] == 8
+    assert doc["run"]["seconds"] > 0 and doc["run"]["cpu_seconds"] > 0
     assert len(doc["summary"]) == 2 * 2  # cells x specs
     entry = doc["summary"][-1]
-    assert entry["n"] == 2 and entry["label"] == "kron-raw" and entry["level"] == 1.0
+    assert entry["n"] == 2 and entry["label"] == "shah" and entry["level"] == 1.0
     assert entry["err_rot_X_median"] == pytest.approx(
-        float(np.median([r["err_rot_X"] for r in serial_result.select(label="kron-raw", level=1.0)])))
+        float(np.median([r["err_rot_X"] for r in serial_result.select(label="shah", level=1.0)])))
     assert [p.name for p in paths["figures"]] == ["tiny_noise_vs_noise_m8.png"]
     assert paths["figures"][0].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     times = paths["times"].read_text()
-    assert "| kron-lstsq | numpy |" in times and "| kron-raw | numpy |" in times
-    assert "| noise | 1 | 8 | kron-raw |" in paths["errors"].read_text()
+    assert "| kron-lstsq | numpy |" in times and "| shah | numpy |" in times
+    assert "| noise | 1 | 8 | shah |" in paths["errors"].read_text()
 
 
 # --- study definitions -----------------------------------------------------------------------
@@ -199,6 +265,8 @@ name = "mine"
 trials = 3
 seed = 11
 units = "m"
+center = "mean"
+timeout = 0
 [noise]
 B = [0.002, 0.5]
 [[sweep]]
@@ -217,7 +285,8 @@ label = "raw"
 options = { normalize = false }
 """)
     study = load_study(path)
-    assert (study.name, study.trials, study.seed, study.units) == ("mine", 3, 11, "m")
+    assert (study.name, study.trials, study.seed, study.units, study.center) == ("mine", 3, 11, "m", "mean")
+    assert study.timeout is None and Study().timeout == 30.0
     assert study.noise.sigmas == {"B": (0.002, 0.5)}
     assert [s.name for s in study.sweeps] == ["noise", "pairs"]
     assert study.sweeps[1].levels == (1.0,) and study.sweeps[1].noise.sigmas["A"] == (0.0002, 0.05)
@@ -254,7 +323,56 @@ def test_parse_specs_and_levels():
         parse_floats("a,b", "x")
 
 
+def test_paper_study_is_the_papers_protocol():
+    study = paper_study()
+    cells = list(study.cells())
+    noise = [c for c in cells if c.sweep == "noise"]
+    assert [c.level for c in noise] == [round(0.01 * i, 2) for i in range(11)]  # Fig. 3
+    assert {c.pairs for c in noise} == {16}
+    pairs = [c for c in cells if c.sweep == "pairs"]
+    assert [c.pairs for c in pairs] == list(range(10, 101, 10)) and {c.level for c in pairs} == {0.05}  # Fig. 4
+    assert pairs[0].noise.sigmas == {"A": (0.05, 0.05), "B": (0.05, 0.05)}  # sigma_N rad and mm on A and B
+    assert (study.trials, study.truth, study.units, study.center) == (5, "paper", "mm", "mean")
+    registered = set(list_solvers("axyb"))
+    expected = [n for n in PAPER_METHODS + PAPER_CONTRAST if n in registered]
+    assert list(dict.fromkeys(s.solver for s in study.specs)) == expected
+    for spec in study.specs:  # the paper's dual quaternions work on the data in mm, not normalised
+        assert spec.options == ({"normalize": False} if spec.solver == "dual-quaternion" else {})
+    assert missing_paper_methods() == [n for n in PAPER_METHODS if n not in registered]
+    custom = paper_study(trials=2, pairs=20, specs=(Spec("kron-lstsq"),))
+    assert custom.trials == 2 and [s.label for s in custom.specs] == ["kron-lstsq"]
+    assert {c.pairs for c in custom.cells() if c.sweep == "noise"} == {20}
+
+
+def test_bands_median_iqr_or_mean_std():
+    stats = [{"mean": 2.0, "median": 1.5, "std": 3.0, "q25": 1.0, "q75": 2.5}]
+    assert [v.tolist() for v in band(stats, "median")] == [[1.5], [1.0], [2.5]]
+    assert [v.tolist() for v in band(stats, "mean")] == [[2.0], [0.0], [5.0]]  # lower edge clipped at 0
+    with pytest.raises(InputError, match="center"):
+        Study(center="mode")
+    with pytest.raises(InputError, match="timeout"):
+        Study(timeout=0)
+
+
 # --- CLI and dask ----------------------------------------------------------------------------
+
+def test_compare_paper_writes_csv_json_figures_and_time_table(tmp_path, capsys):
+    from handeye.cli import main
+
+    out = tmp_path / "paper"
+    code = main(["compare", "--paper", str(out), "--solvers", "kron-lstsq,shah", "--trials", "1",
+                 "--jobs", "2", "--no-progress"])
+    text = capsys.readouterr().out
+    assert code == 0, text
+    assert "42 runs (0 failed) of 2 solver(s)" in text  # (11 + 10 cells) x 1 trial x 2 solvers
+    assert len(read_csv(out / "paper.csv")) == 42
+    doc = json.loads((out / "paper_summary.json").read_text())
+    assert len(doc["summary"]) == 42 and doc["study"]["center"] == "mean"
+    assert sorted(p.name for p in out.glob("*.png")) == ["paper_noise_vs_noise_m16.png",
+                                                         "paper_pairs_vs_pairs_level0.05.png"]
+    times = (out / "paper_times.md").read_text()
+    assert "| solver | backend | mean [ms] (noise) | mean [ms] (pairs) |" in times
+    assert "| kron-lstsq | numpy |" in times and "| shah | numpy |" in times
 
 def test_compare_command(tmp_path, capsys):
     from handeye.cli import main
@@ -269,12 +387,38 @@ def test_compare_command(tmp_path, capsys):
     assert main(["compare", "--paper", str(tmp_path), "--pairs", "8"]) == 2  # a grid flag with --paper
 
 
-def test_dask_executor_on_a_local_cluster(serial_result):
+def test_dask_executor_on_a_local_cluster(serial_result, tmp_path, capsys):
     distributed = pytest.importorskip("distributed")
+    from handeye.cli import main
+
+    # in-process workers (threads): fast to start; the scheduler is reached by its address, as
+    # `handeye compare --executor dask --scheduler ADDRESS` does with a remote cluster
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
-                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
-        result = run_study(tiny_study(), progress=False, executor="dask", scheduler=client)
+                                  dashboard_address=None) as cluster:
+        result = run_study(tiny_study(), progress=False, executor="dask", scheduler=cluster.scheduler_address)
+        code = main(["compare", "--solvers", "kron-lstsq", "--noise-levels", "0,0.01", "--pairs", "8",
+                     "--trials", "2", "--no-progress", "--name", "dask", "-o", str(tmp_path),
+                     "--executor", "dask", "--scheduler", cluster.scheduler_address])
     assert result.executor == "dask"
+    assert len(result.records) == len(serial_result.records)
     for a, b in zip(serial_result.records, result.records):
-        assert (a["label"], a["seed"]) == (b["label"], b["seed"])
-        assert all(a[c] == b[c] for c in ERROR_COLUMNS)
+        assert (a["label"], a["level"], a["trial"], a["seed"]) == (b["label"], b["level"], b["trial"], b["seed"])
+        assert all(a[c] == b[c] for c in ERROR_COLUMNS + RESIDUAL_COLUMNS)
+    out = capsys.readouterr().out
+    assert code == 0 and "[dask]" in out, out
+    assert len(read_csv(tmp_path / "dask.csv")) == 4
+
+
+def test_dask_executor_without_dask_says_how_to_install(monkeypatch):
+    import builtins
+
+    real_import = builtins.__import__
+
+    def no_distributed(name, *args, **kwargs):
+        if name == "distributed" or name.startswith("distributed."):
+            raise ImportError("No module named 'distributed'")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_distributed)
+    with pytest.raises(InputError, match=r"handeye\[dask\]"):
+        run_study(tiny_study(), progress=False, executor="dask", scheduler="tcp://127.0.0.1:1")

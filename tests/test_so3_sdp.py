@@ -6,10 +6,9 @@ solver suite (tests/test_solvers.py).
 
 from __future__ import annotations
 
+import handeye
 import numpy as np
 import pytest
-
-import handeye
 from handeye import InputError, Status
 from handeye.noise import NoiseModel
 from handeye.plugins import so3_sdp

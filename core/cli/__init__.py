@@ -17,10 +17,10 @@ from collections.abc import Sequence
 
 from .. import __version__
 from ..errors import HandEyeError, SolverError
-from . import compare, list_cmd, simulate_cmd, solve_cmd
+from . import bench_cmd, compare, list_cmd, simulate_cmd, solve_cmd
 
 #: the subcommand modules, in the order ``handeye --help`` shows them
-COMMANDS = [list_cmd, simulate_cmd, solve_cmd, compare]
+COMMANDS = [list_cmd, simulate_cmd, solve_cmd, compare, bench_cmd]
 
 EXIT_OK, EXIT_SOLVER_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 

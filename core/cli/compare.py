@@ -37,7 +37,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--problem", default="axyb", help="problem (default axyb)")
     parser.add_argument("--solvers", metavar="LIST",
                         help="comma-separated: name, name/backend, name/* (every backend) or all "
-                             "(default: every registered solver, every lmi-sdp backend)")
+                             "(default: every registered solver, every lmi-sdp backend; with --paper: "
+                             "lmi-sdp (every backend), iterative, dual-quaternion (normalize=false), kron-lstsq, "
+                             "so3-sdp, auto)")
     parser.add_argument("--noise-levels", metavar="LEVELS",
                         help=f"multipliers of the base noise, '0,0.01' or start:stop:step (default "
                              f"{DEFAULT_LEVELS} with the paper's base noise, 1 with --noise-rot/--noise-trans)")
@@ -55,6 +57,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--truth", choices=("paper", "random"), help="X, Y: the paper's or random per trial")
     parser.add_argument("--name", help="study name (file prefix; default study)")
     parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
+    parser.add_argument("--timeout", type=float, metavar="SECONDS",
+                        help="stop a solve after this long and record it as failed (default 30, --paper 10; "
+                             "0: no limit)")
     parser.add_argument("--executor", choices=("process", "dask"), default="process",
                         help="process pool (default) or a dask.distributed cluster (pip install handeye[dask])")
     parser.add_argument("--scheduler", metavar="ADDRESS",
@@ -66,8 +71,18 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
     """The study and the output directory the arguments describe."""
-    from ..harness import (Study, Sweep, accuracy_study, load_study, paper_noise, paper_study,
-                           parse_floats, parse_ints, parse_specs)
+    from ..harness import (
+        Study,
+        Sweep,
+        accuracy_study,
+        load_study,
+        missing_paper_methods,
+        paper_noise,
+        paper_study,
+        parse_floats,
+        parse_ints,
+        parse_specs,
+    )
 
     grid_flags = [f for f in ("noise_levels", "pairs", "noise_rot", "noise_trans", "noise_on") if getattr(args, f) is not None]
     builtin = args.paper or args.accuracy or args.study
@@ -85,6 +100,10 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
     if args.paper:
         study = paper_study(specs=specs, **({"pairs": args.paper_pairs} if args.paper_pairs else {}))
         outdir = args.paper
+        missing = missing_paper_methods(args.problem) if not specs else []
+        if missing:
+            print(f"note: the paper's method(s) {', '.join(missing)} are not registered here; "
+                  "the study runs without them", file=sys.stderr)
     elif args.accuracy:
         study = accuracy_study(specs=specs)
         outdir = args.accuracy
@@ -103,11 +122,13 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
                       sweeps=(Sweep("grid", levels, pairs),))
         outdir = args.output
     changes: dict[str, Any] = {}
-    if specs:
+    if specs and not args.accuracy:  # accuracy_study got them already (and adds the oracle)
         changes["specs"] = specs
     for name in ("trials", "seed", "units", "truth", "name"):
         if getattr(args, name) is not None:
             changes[name] = getattr(args, name)
+    if args.timeout is not None:
+        changes["timeout"] = args.timeout if args.timeout > 0 else None
     if args.problem != "axyb" and builtin:
         changes["problem"] = args.problem
     return (study.replace(**changes) if changes else study), Path(outdir)
@@ -137,7 +158,8 @@ def run(args: argparse.Namespace) -> int:
     paths = write_report(result, outdir)
     failed = sum(r["status"] == "failed" for r in result.records)
     print(f"study {study.name!r}: {len(result.records)} runs ({failed} failed) of {len(result.specs)} "
-          f"solver(s) in {result.seconds:.1f} s with {result.jobs} job(s) [{result.executor}]")
+          f"solver(s) in {result.seconds:.1f} s (CPU {result.cpu_seconds:.1f} s) with {result.jobs} job(s) "
+          f"[{result.executor}]")
     print()
     print(time_table(result), end="")
     print()

@@ -10,8 +10,8 @@ and are left out of the statistics; runs that returned an answer with a non-opti
 from __future__ import annotations
 
 import csv
-import importlib.metadata
 import dataclasses
+import importlib.metadata
 import json
 import math
 import platform
@@ -42,6 +42,7 @@ class StudyResult:
     seconds: float = math.nan
     jobs: int = 1
     executor: str = "process"
+    cpu_seconds: float = math.nan
 
     @property
     def labels(self) -> list[str]:
@@ -107,7 +108,8 @@ class StudyResult:
         doc = {
             "study": self.study.to_dict(),
             "specs": [s.to_dict() for s in self.specs],
-            "run": {"seconds": self.seconds, "jobs": self.jobs, "executor": self.executor,
+            "run": {"seconds": self.seconds, "cpu_seconds": self.cpu_seconds, "jobs": self.jobs,
+                    "executor": self.executor,
                     "records": len(self.records), "environment": environment()},
             "summary": self.summary(),
         }

@@ -3,9 +3,12 @@
 One work unit is one (cell, trial): it simulates the data once and runs every spec on them, so
 every solver of a cell sees the same data and process overhead is paid once per unit, not per
 solve. The data seed of a unit comes from the master seed and the unit's indices,
-``SeedSequence(seed, spawn_key=(sweep, level, pairs, trial))`` (the same as spawning children of
-the master sequence), never from the order in which units run: results are the same for any job
-count and executor. Units run in-process (``jobs=1``), in a `ProcessPoolExecutor` (fork start
+``SeedSequence(seed, spawn_key=(sweep, pairs, trial))`` (the same as spawning children of the
+master sequence), never from the order in which units run: results are the same for any job
+count and executor. The noise level is not in the key: trial k of every level of a sweep draws
+the same poses and the same standard-normal noise, scaled by the level (common random numbers),
+so error-vs-noise curves compare levels on paired data instead of adding the scatter of new
+poses at every level. Units run in-process (``jobs=1``), in a `ProcessPoolExecutor` (fork start
 method where available, so run-time plugins registered with `handeye.registry.register_plugin`
 are inherited; elsewhere workers re-register them) or on a dask.distributed cluster.
 
@@ -13,20 +16,24 @@ Each record (one per trial x spec) holds: where it comes from (study, sweep, lev
 trial, data seed, noise sigmas), what ran (label, solver, backend, options), how it went (status,
 error, seconds = `Solution.seconds`), errors against the truth (eqs. 30-31, ``err_rot_<U>`` rad,
 ``err_trans_<U>`` mm for every unknown U) and residual summaries (eqs. 32-33, ``res_rot_mean``,
-``res_rot_median`` rad, ``res_trans_mean``, ``res_trans_median`` mm). Translations are always
+``res_rot_median`` rad, ``res_trans_mean``, ``res_trans_median`` mm), and the solution's warnings
+(``warnings``: how many, ``notes``: their text, e.g. why a run did not converge). Translations are always
 reported in mm, the simulator's unit, whatever `Study.units` the solvers were given.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
 import multiprocessing
 import os
+import signal
 import sys
+import threading
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any
 
@@ -34,7 +41,9 @@ import numpy as np
 
 from ..api import solve
 from ..errors import InputError
-from ..registry import _extra as _runtime_plugins  # run-time plugins, re-registered in workers
+from ..registry import (
+    _extra as _runtime_plugins,  # run-time plugins, re-registered in workers
+)
 from ..registry import get_registry, register_plugin
 from ..se3 import random_poses
 from ..solution import Status
@@ -58,8 +67,9 @@ class Unit:
 
 
 def data_seed(study: Study, cell: Cell, trial: int) -> int:
-    """The 63-bit simulation seed of a unit, from the master seed and the unit's indices only."""
-    seq = np.random.SeedSequence(study.seed, spawn_key=(cell.sweep_index, cell.level_index, cell.pairs_index, trial))
+    """The 63-bit simulation seed of a unit, from the master seed and the unit's sweep, pair-count
+    and trial indices only (the same at every noise level of the sweep)."""
+    seq = np.random.SeedSequence(study.seed, spawn_key=(cell.sweep_index, cell.pairs_index, trial))
     return int(seq.generate_state(1, np.uint64)[0] >> np.uint64(1))
 
 
@@ -96,6 +106,37 @@ def _in_units(poses: dict[str, np.ndarray], divisor: float) -> dict[str, np.ndar
 
 
 _warmed: set[tuple[str, str]] = set()
+#: the warm-up solve (imports, compilation) may take this many times `Study.timeout`
+WARMUP_TIMEOUT_FACTOR = 4.0
+
+
+class SolveTimeout(Exception):
+    """A solve ran past `Study.timeout`; recorded as a failure of that run."""
+
+
+@contextlib.contextmanager
+def time_limit(seconds: float | None) -> Iterator[None]:
+    """Raise `SolveTimeout` in the block after `seconds` (SIGALRM interval timer).
+
+    Enforced only where signals can be: POSIX, the main thread of the process (this process with
+    ``jobs=1``, every process-pool worker). A signal interrupts Python code, so a solver looping
+    in Python (an interior-point loop, a sleep) is stopped; a single C call that never returns is
+    not. Dask runs tasks in worker threads: no limit there.
+    """
+    if not seconds or not hasattr(signal, "setitimer") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def expire(signum: int, frame: Any) -> None:
+        raise SolveTimeout(f"no answer within {seconds:g} s (the study's time limit per solve)")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
 
 
 def run_unit(unit: Unit) -> tuple[int, list[dict[str, Any]]]:
@@ -116,7 +157,7 @@ def run_unit(unit: Unit) -> tuple[int, list[dict[str, Any]]]:
         base["seed"] = seed
         data, truth = _in_units(data_mm, divisor), _in_units(truth_mm, divisor)
         validated = problem.validate(**data)
-    except Exception as exc:  # the data themselves could not be made: every spec fails alike
+    except Exception as exc:  # noqa: BLE001 - the data could not be made: every spec fails alike
         reason = f"simulation: {type(exc).__name__}: {exc}"
         return unit.index, [_failed(base, spec, reason, problem.unknowns) for spec in unit.specs]
     records = []
@@ -128,12 +169,14 @@ def run_unit(unit: Unit) -> tuple[int, list[dict[str, Any]]]:
         if study.warmup and key not in _warmed:
             _warmed.add(key)
             try:  # one-off costs (imports, compiled-problem caches) stay out of the timings
-                solve(study.problem, solver=spec.solver, backend=spec.backend, **data, **options)
-            except Exception:
+                with time_limit(None if study.timeout is None else WARMUP_TIMEOUT_FACTOR * study.timeout):
+                    solve(study.problem, solver=spec.solver, backend=spec.backend, **data, **options)
+            except Exception:  # noqa: BLE001, S110 - the timed solve below records any failure
                 pass
         try:
-            sol = solve(study.problem, solver=spec.solver, backend=spec.backend, **data, **options)
-        except Exception as exc:
+            with time_limit(study.timeout):
+                sol = solve(study.problem, solver=spec.solver, backend=spec.backend, **data, **options)
+        except Exception as exc:  # noqa: BLE001 - any solver failure is a record, the study goes on
             records.append(_failed(base, spec, f"{type(exc).__name__}: {exc}", problem.unknowns))
             continue
         row = _row(base, spec, sol.backend)
@@ -150,6 +193,7 @@ def run_unit(unit: Unit) -> tuple[int, list[dict[str, Any]]]:
         row["res_trans_mean"] = float(np.mean(res["translation"])) * divisor
         row["res_trans_median"] = float(np.median(res["translation"])) * divisor
         row["warnings"] = len(sol.warnings)
+        row["notes"] = " | ".join(" ".join(str(w).split()) for w in sol.warnings)
         records.append(row)
     return unit.index, records
 
@@ -172,6 +216,7 @@ def _failed(base: dict[str, Any], spec: Spec, reason: str, unknowns: Iterable[st
     for key in ("res_rot_mean", "res_rot_median", "res_trans_mean", "res_trans_median"):
         row[key] = math.nan
     row["warnings"] = 0
+    row["notes"] = ""
     return row
 
 
@@ -227,7 +272,8 @@ def _run_processes(units: list[Unit], jobs: int, tick: Callable[[], None]) -> di
 
 def _run_dask(units: list[Unit], scheduler: Any, jobs: int, tick: Callable[[], None]) -> dict[int, list[dict[str, Any]]]:
     try:
-        from distributed import Client, as_completed as dask_completed
+        from distributed import Client
+        from distributed import as_completed as dask_completed
     except ImportError:
         raise InputError('executor "dask" needs dask.distributed: pip install "handeye[dask]"') from None
     own = not isinstance(scheduler, Client)
@@ -248,23 +294,45 @@ def _run_dask(units: list[Unit], scheduler: Any, jobs: int, tick: Callable[[], N
     return out
 
 
+def cpu_seconds() -> float:
+    """CPU time (user + system) of this process and of its finished child processes, i.e. the
+    process-pool workers once the pool is shut down; the time of dask workers is not in it."""
+    try:
+        import resource
+    except ImportError:  # not POSIX
+        return time.process_time()
+    total = 0.0
+    for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN):
+        usage = resource.getrusage(who)
+        total += usage.ru_utime + usage.ru_stime
+    return total
+
+
+def available_cores() -> int:
+    """Cores this process may run on (its CPU affinity where the OS tells it, else the count)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
 def run_study(study: Study, jobs: int | None = None, progress: bool = True, *,
               executor: str = "process", scheduler: Any = None) -> StudyResult:
     """Run every (cell, trial) unit of `study` and collect the records.
 
-    jobs: worker processes (default: all cores; 1 runs in this process). progress: show a tqdm
+    jobs: worker processes (default: all cores, `available_cores`; 1 runs in this process). progress: show a tqdm
     bar on stderr. executor: ``"process"`` or ``"dask"``; scheduler: for dask, a scheduler
     address (``"tcp://host:8786"``), a `distributed.Client`, or None for a local cluster of
     `jobs` workers. Returns a `StudyResult` whose records are in unit order, then spec order.
     """
     if executor not in EXECUTORS:
         raise InputError(f"executor must be one of {EXECUTORS}, got {executor!r}")
-    jobs = (os.cpu_count() or 1) if jobs is None else int(jobs)
+    jobs = available_cores() if jobs is None else int(jobs)
     if jobs < 1:
         raise InputError(f"jobs must be >= 1, got {jobs}")
     specs = study.resolved_specs()
     units = units_of(study, specs)
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), cpu_seconds()
     bar = _progress(len(units), study.name, progress)
     try:
         if executor == "dask":
@@ -277,4 +345,4 @@ def run_study(study: Study, jobs: int | None = None, progress: bool = True, *,
         bar.close()
     records = [row for index in sorted(by_index) for row in by_index[index]]
     return StudyResult(study=study, specs=specs, records=records, seconds=time.perf_counter() - start,
-                       jobs=jobs, executor=executor)
+                       jobs=jobs, executor=executor, cpu_seconds=cpu_seconds() - cpu_start)

@@ -30,6 +30,9 @@ from ..registry import get_registry
 #: `Study.units = "m"` divides every translation (data and truth) by 1000 before solving.
 UNITS = {"mm": 1.0, "m": 1000.0}
 TRUTHS = ("paper", "random")
+#: what the figures draw over the trials of a cell: the median with the interquartile range, or
+#: the mean with +- one standard deviation (the paper plots means over its five trials)
+CENTERS = ("median", "mean")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,7 +101,7 @@ class Sweep:
 
 @dataclasses.dataclass(frozen=True)
 class Cell:
-    """One (sweep, level, pairs) point with its indices (the indices seed its trials)."""
+    """One (sweep, level, pairs) point with its indices (sweep, pairs and trial seed the data)."""
 
     sweep: str
     sweep_index: int
@@ -120,6 +123,9 @@ class Study:
     warmup: solve once per spec and worker process (on the first unit's data, answer thrown
         away) before timing, so that one-off costs (imports, compiled-problem caches) do not land
         in the first trial's time. level_label: x-axis label of the error-vs-noise figures.
+        center: ``"median"`` (figures: median and interquartile band) or ``"mean"`` (mean +- std).
+    timeout: seconds one solve may take before it is stopped and recorded as failed
+        (`handeye.harness.runner.time_limit`: process workers and ``jobs=1``, not dask); None: no limit.
     """
 
     name: str = "study"
@@ -133,6 +139,8 @@ class Study:
     units: str = "mm"
     warmup: bool = True
     level_label: str = "noise level (multiplier of the base noise)"
+    center: str = "median"
+    timeout: float | None = 30.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "specs", tuple(self.specs))
@@ -145,6 +153,11 @@ class Study:
             raise InputError(f"truth must be one of {TRUTHS}, got {self.truth!r}")
         if self.units not in UNITS:
             raise InputError(f"units must be one of {sorted(UNITS)}, got {self.units!r}")
+        if self.center not in CENTERS:
+            raise InputError(f"center must be one of {CENTERS}, got {self.center!r}")
+        if self.timeout is not None and (isinstance(self.timeout, bool) or not isinstance(self.timeout, (int, float))
+                                         or not self.timeout > 0 or not math.isfinite(self.timeout)):
+            raise InputError(f"timeout must be a number of seconds > 0 (or none), got {self.timeout!r}")
         if not self.sweeps:
             raise InputError("a study needs at least one sweep")
         names = [s.name for s in self.sweeps]
@@ -184,6 +197,7 @@ class Study:
         return {
             "name": self.name, "problem": self.problem, "trials": self.trials, "seed": self.seed,
             "truth": self.truth, "units": self.units, "warmup": self.warmup, "level_label": self.level_label,
+            "center": self.center, "timeout": self.timeout,
             "noise": _noise_dict(self.noise),
             "sweeps": [{"name": s.name, "levels": list(s.levels), "pairs": list(s.pairs),
                         **({"noise": _noise_dict(s.noise)} if s.noise is not None else {})}
@@ -235,18 +249,67 @@ def default_specs(problem: str = "axyb") -> tuple[Spec, ...]:
     return tuple(specs)
 
 
+#: the three methods the paper compares (Sec. III-IV): LMI-SDP (eq. 14), iterative (eqs. 15-21),
+#: dual quaternions (eqs. 22-26)
+PAPER_METHODS = ("lmi-sdp", "iterative", "dual-quaternion")
+#: our solvers shown beside them in the paper study: least squares on eq. 8 in closed form (what
+#: eq. 14 computes), eq. 8 under exact SO(3) constraints (certified SDP), and the default pipeline
+PAPER_CONTRAST = ("kron-lstsq", "so3-sdp", "auto")
+
+
+#: options that make a paper method run as the paper has it: the dual-quaternion SVD on the data
+#: in their own units (mm), without our translation normalisation
+PAPER_OPTIONS: dict[str, dict[str, Any]] = {"dual-quaternion": {"normalize": False}}
+
+
+def paper_specs(problem: str = "axyb") -> tuple[Spec, ...]:
+    """The default contenders of `paper_study`: `PAPER_METHODS` as the paper runs them (every
+    available backend of ``lmi-sdp``; `PAPER_OPTIONS`, label suffix ``(raw)``) then
+    `PAPER_CONTRAST` with their defaults, those registered here. `missing_paper_methods` tells
+    which of the paper's methods are not."""
+    registry = get_registry()
+    known = set(registry.solver_names(problem))
+    specs = []
+    for name in PAPER_METHODS + PAPER_CONTRAST:
+        if name not in known:
+            continue
+        solver = registry.solvers[name]
+        backends = sorted(solver.backends, key=lambda b: b != solver.default_backend) if name == "lmi-sdp" \
+            else [solver.default_backend]
+        fields = {f.name for f in dataclasses.fields(solver.options)} if dataclasses.is_dataclass(solver.options) else set()
+        options = PAPER_OPTIONS.get(name, {}) if name in PAPER_METHODS else {}
+        options = {k: v for k, v in options.items() if k in fields}  # a replacement plugin may lack them
+        for backend in backends:
+            if solver.unavailable_reason(backend) is None:
+                label = f"{name}/{backend}" if name == "lmi-sdp" and len(solver.backends) > 1 else name
+                specs.append(Spec(name, backend, options, label=label + (" (raw)" if options else "")))
+    return tuple(specs)
+
+
+def missing_paper_methods(problem: str = "axyb") -> list[str]:
+    """The paper's methods (`PAPER_METHODS`) that no installed plugin registers."""
+    known = set(get_registry().solver_names(problem))
+    return [name for name in PAPER_METHODS if name not in known]
+
+
 def paper_study(*, trials: int = 5, seed: int = 0, pairs: int = PAPER_PAIRS,
                 mm_per_rad: float = PAPER_MM_PER_RAD, specs: Sequence[Spec] = ()) -> Study:
     """Sec. IV-A: sigma_N = 0, 0.01, ..., 0.1 at m = `pairs` (Fig. 3) and m = 10, 20, ..., 100 at
-    sigma_N = 0.05 (Fig. 4), `trials` trials per cell (the paper: 5), the paper's X and Y, mm."""
+    sigma_N = 0.05 (Fig. 4), `trials` trials per cell (the paper: 5), the paper's X and Y, mm.
+    specs: default `paper_specs()` (the paper's three methods and ours for contrast)."""
     return Study(
-        name="paper", specs=tuple(specs), noise=paper_noise(1.0, mm_per_rad),
+        name="paper", specs=tuple(specs) or paper_specs(), noise=paper_noise(1.0, mm_per_rad),
         sweeps=(Sweep("noise", tuple(round(0.01 * i, 2) for i in range(11)), (pairs,)),
                 Sweep("pairs", (0.05,), tuple(range(10, 101, 10)))),
-        trials=trials, seed=seed,
-        level_label=f"sigma_N  (rotations: sigma_N rad; translations: {mm_per_rad:g} sigma_N mm; on A and B)",
+        trials=trials, seed=seed, center="mean", timeout=PAPER_TIMEOUT,
+        level_label=("sigma_N  (rotations: sigma_N rad, translations: "
+                     f"{'' if mm_per_rad == 1 else f'{mm_per_rad:g} '}sigma_N mm)"),
     )
 
+
+#: seconds one solve of the paper study may take (solves take ~1-100 ms here, the paper's slowest
+#: 0.5 s); a solver stuck past it is recorded as failed and the study goes on
+PAPER_TIMEOUT = 10.0
 
 #: issue 4: realistic noise, camera (B) ten times noisier than the robot (A); rad and mm
 ACCURACY_NOISE = NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)})
@@ -309,7 +372,7 @@ def parse_floats(text: str, what: str) -> tuple[float, ...]:
             start, stop, step = (float(v) for v in text.split(":"))
             if step <= 0:
                 raise ValueError
-            n = int(math.floor((stop - start) / step + 1e-9)) + 1
+            n = math.floor((stop - start) / step + 1e-9) + 1
             return tuple(round(start + i * step, 12) for i in range(n))
         return tuple(float(v) for v in text.split(",") if v.strip())
     except ValueError:
@@ -323,7 +386,7 @@ def parse_ints(text: str, what: str) -> tuple[int, ...]:
     return tuple(int(v) for v in values)
 
 
-_STUDY_KEYS = {"name", "problem", "trials", "seed", "truth", "units", "warmup", "level_label", "noise", "levels",
+_STUDY_KEYS = {"name", "problem", "trials", "seed", "truth", "units", "warmup", "level_label", "center", "timeout", "noise", "levels",
                "pairs", "sweep", "solver"}
 _SWEEP_KEYS = {"name", "levels", "pairs", "noise"}
 _SOLVER_KEYS = {"name", "backend", "options", "label", "init_from_truth", "truth_option"}
@@ -343,8 +406,10 @@ def load_study(path: str | Path) -> Study:
 def study_from_dict(doc: Mapping[str, Any], source: str = "study") -> Study:
     """A `Study` from the parsed TOML structure (see docs/harness.md)."""
     _check_keys(doc, _STUDY_KEYS, source)
-    kwargs: dict[str, Any] = {k: doc[k] for k in ("name", "problem", "trials", "seed", "truth", "units", "warmup", "level_label")
+    kwargs: dict[str, Any] = {k: doc[k] for k in ("name", "problem", "trials", "seed", "truth", "units", "warmup", "level_label", "center", "timeout")
                               if k in doc}
+    if kwargs.get("timeout") == 0:  # TOML has no null: 0 means no time limit
+        kwargs["timeout"] = None
     if "noise" in doc:
         kwargs["noise"] = _noise_from(doc["noise"], f"{source}: [noise]")
     sweeps = []

@@ -1,0 +1,31 @@
+"""Speed benchmark of every registered ``axyb`` solver/backend against OpenCV SHAH and LI.
+
+    python bench/speed.py [--pairs 10,16,100,1000,10000] [--repeats 7] [--solvers kron-lstsq,lmi-sdp/cvxpy]
+
+The same as ``handeye bench`` (the code is `handeye.cli.bench_cmd`, whose docstring says what is
+timed and how); bench/README.md holds figures measured with it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from handeye.cli import bench_cmd
+from handeye.errors import HandEyeError
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="bench/speed.py", description=bench_cmd.__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    bench_cmd.add_arguments(parser)
+    args = parser.parse_args(argv)
+    try:
+        return bench_cmd.run(args)
+    except HandEyeError as exc:
+        print(f"bench/speed.py: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
