@@ -10,6 +10,8 @@ says otherwise.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
@@ -109,11 +111,19 @@ def gram_schmidt(M: ArrayLike) -> Array:
     return np.stack([c1, c2, c3], axis=-1)
 
 
+def gram(R: ArrayLike) -> Array:
+    """R^T R for R: (..., 3, 3), from the six distinct dot products of the columns (a batched
+    3x3 matmul is 2-3x slower on large stacks, where this dominates validating the data)."""
+    R = np.asarray(R, dtype=float)
+    c0, c1, c2 = R[..., 0], R[..., 1], R[..., 2]
+    dot = functools.partial(np.einsum, "...i,...i->...")
+    d00, d11, d22, d01, d02, d12 = dot(c0, c0), dot(c1, c1), dot(c2, c2), dot(c0, c1), dot(c0, c2), dot(c1, c2)
+    return np.stack([d00, d01, d02, d01, d11, d12, d02, d12, d22], axis=-1).reshape(R.shape)
+
+
 def orthonormality_error(R: ArrayLike) -> Array:
     """Max abs entry of R^T R - I for R: (..., 3, 3) -> (...)."""
-    R = np.asarray(R, dtype=float)
-    E = np.swapaxes(R, -1, -2) @ R - np.eye(3)
-    return np.max(np.abs(E), axis=(-2, -1))
+    return np.max(np.abs(gram(R) - np.eye(3)), axis=(-2, -1))
 
 
 def random_rotations(n: int, rng: np.random.Generator) -> Array:

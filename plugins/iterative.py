@@ -119,7 +119,7 @@ class RotationSums:
 
 def kron_rotations(data: AXYBData) -> tuple[np.ndarray, np.ndarray]:
     """R_X, R_Y: (3, 3) of the closed-form least squares on eq. 8 (normalised, SVD-projected)."""
-    MX, MY, _, _ = split_beta(data.scaled(data.translation_scale).kronecker_system.least_squares())
+    MX, MY, _, _ = split_beta(data.kronecker(data.translation_scale).least_squares())
     RX, RY = project_to_so3(np.stack([MX, MY]))
     return RX, RY
 

@@ -22,7 +22,7 @@ class Options:
 
 
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
-    system = (data.scaled(data.translation_scale) if options.normalize else data).kronecker_system
+    system = data.kronecker(data.translation_scale if options.normalize else 1.0)
     MX, MY, _, _ = split_beta(system.least_squares())
     RX, RY = project_to_so3(MX), project_to_so3(MY)
     tX, tY = solve_translations(data, RX, RY)

@@ -373,7 +373,7 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     if backend == "casadi":
         return _run_casadi(data, options)
     scale = data.translation_scale if options.normalize else 1.0
-    system = (data.scaled(scale) if options.normalize else data).kronecker_system
+    system = data.kronecker(scale)
     beta, u, result = solve_lmi(system, backend, options)
     MX, MY, tX, tY = split_beta(beta)
     orthogonalize = ORTHOGONALIZERS[options.orthogonalize]

@@ -172,7 +172,7 @@ def solve_casadi(data: AXYBData, *, normalize: bool, multistart: int = 0, seed: 
     if isinstance(multistart, bool) or not isinstance(multistart, (int, np.integer)) or multistart < 0:
         raise InputError(f"option multistart={multistart!r} must be an integer >= 0")
     scale = data.translation_scale if normalize else 1.0
-    system = (data.scaled(scale) if normalize else data).kronecker_system
+    system = data.kronecker(scale)
     red = eliminate_translations(system)
     S, s = red["S"], red["s"]
     weight = float(np.linalg.norm(S, 2)) ** 2  # sigma_max(S)^2: the NLP's Hessian is of order 1

@@ -48,10 +48,7 @@ def normalize_rotation(M: np.ndarray) -> np.ndarray:
 
 def kron_rotations(data: AXYBData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(R_X, R_Y, singular values of S / m) from the leading singular pair of S = sum_i R_Bi kron R_Ai."""
-    RA = np.ascontiguousarray(data.A[:, :3, :3])
-    RB = np.ascontiguousarray(data.B[:, :3, :3])
-    S = np.einsum("nij,nkl->ikjl", RB, RA).reshape(9, 9)  # sum_i kron(R_Bi, R_Ai)
-    U, sigma, Vt = np.linalg.svd(S)
+    U, sigma, Vt = np.linalg.svd(data.rotation_sum)  # S = sum_i kron(R_Bi, R_Ai)
     RX = normalize_rotation(Vt[0].reshape(3, 3, order="F"))
     RY = normalize_rotation(U[:, 0].reshape(3, 3, order="F"))
     return RX, RY, sigma / data.m

@@ -388,8 +388,7 @@ def certificate(M: np.ndarray, y: np.ndarray, nu: np.ndarray, redundant: bool) -
 
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     scale = data.translation_scale if options.normalize else 1.0
-    work = data.scaled(scale) if options.normalize else data
-    cost = eliminate_translations(work.kronecker_system)
+    cost = eliminate_translations(data.kronecker(scale))
     M = cost.matrix
     norm = float(np.linalg.norm(M))
     if not np.isfinite(norm) or norm == 0.0:

@@ -27,7 +27,7 @@ from handeye.errors import DegenerateDataError, InputError
 from handeye.kinematics import random_flange_poses
 from handeye.noise import NoiseModel
 from handeye.problem import ErrorTable, Problem
-from handeye.se3 import inverse, make_pose, project_to_so3, random_rotations, rotation_angle
+from handeye.se3 import gram, inverse, make_pose, project_to_so3, random_rotations, rotation_angle
 from handeye.validation import pose_stack, same_length
 
 #: Ground truth of the paper's simulation (Sec. IV-A), projected onto SO(3): the printed 4-digit
@@ -73,9 +73,45 @@ class AXYBData:
         return AXYBData(A, B)
 
     @functools.cached_property
+    def rotation_sum(self) -> np.ndarray:
+        """S = sum_i R_Bi kron R_Ai: (9, 9), the rotation block of eq. 8's normal matrix (computed
+        once; shared by the excitation check, the normal equations and Shah's method)."""
+        return _kron_sum(np.ascontiguousarray(self.B[:, :3, :3]), np.ascontiguousarray(self.A[:, :3, :3]))
+
+    @functools.cached_property
+    def rotation_excitation(self) -> float:
+        """How well the rotations determine R_X, R_Y, in [0, 1]: 1 - sigma_2(S) / m.
+
+        With K_i = R_Bi kron R_Ai (orthogonal 9x9), the normal matrix of the rotation rows of eq. 8
+        is [[m I, -S^T], [-S, m I]] with S = sum_i K_i (`rotation_sum`), whose eigenvalues are
+        m -+ sigma_j(S). Noise-free data make sigma_1(S) = m (the solution); sigma_2(S) = m means a
+        second null direction, i.e. undetermined rotations (all equal, or all about one axis).
+        """
+        sigma = np.linalg.svd(self.rotation_sum, compute_uv=False)
+        return float(max(0.0, 1.0 - sigma[1] / self.m))
+
+    @functools.cached_property
+    def translation_sums(self) -> TranslationSums:
+        """The O(m) sums behind the translation rows of eq. 8 (computed once)."""
+        return TranslationSums.of(self.A, self.B)
+
+    @functools.cached_property
     def kronecker_system(self) -> KroneckerSystem:
-        """The reduced system of eqs. 8-12 for these data (computed once)."""
-        return reduce_system(self.A, self.B)
+        """The reduced system of eqs. 8-12 for these data, in their units (computed once)."""
+        return self.kronecker(1.0)
+
+    def kronecker(self, scale: float) -> KroneckerSystem:
+        """The reduced system of eqs. 8-12 with every translation divided by `scale` (cached per
+        scale). Built from sums over the pairs taken once, so that a solver normalising the units
+        (scale = `translation_scale`) copies no data and repeats no O(m) work."""
+        systems = self._kronecker_systems
+        if scale not in systems:
+            systems[scale] = reduce_normal_equations(*normal_equations(self, scale))
+        return systems[scale]
+
+    @functools.cached_property
+    def _kronecker_systems(self) -> dict[float, KroneckerSystem]:
+        return {}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,40 +158,72 @@ def _kron_sum(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
     return M.reshape(3, 3, 3, 3).transpose(0, 2, 1, 3).reshape(9, 9)
 
 
-def normal_equations(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """N = H^T H (24x24), g = H^T w (24), w^T w of eq. 8, summed in closed form over pairs.
+@dataclasses.dataclass(frozen=True)
+class TranslationSums:
+    """Sums over the pairs (all O(m), each one BLAS product) that the translation rows of eq. 8
+    and eqs. 20-21 need: G_A = sum R_A^T R_A, sum R_A, C = sum t_B kron R_A (as (3, 3, 3):
+    C[j, a, b] = sum t_Bj R_A,ab), sum t_B, sum R_A^T t_A, sum t_A, sum t_B t_A^T, sum |t_A|^2,
+    T_B = sum t_B t_B^T, and m."""
+
+    GA: np.ndarray
+    sum_RA: np.ndarray
+    C: np.ndarray
+    sum_tB: np.ndarray
+    RAt_tA: np.ndarray
+    sum_tA: np.ndarray
+    tB_tA: np.ndarray
+    tA_tA: float
+    TB: np.ndarray
+    m: int
+
+    @classmethod
+    def of(cls, A: np.ndarray, B: np.ndarray) -> TranslationSums:
+        m = len(A)
+        RA = np.ascontiguousarray(A[:, :3, :3])
+        tA, tB = np.ascontiguousarray(A[:, :3, 3]), np.ascontiguousarray(B[:, :3, 3])
+        RA3 = RA.reshape(3 * m, 3)
+        return cls(GA=RA3.T @ RA3, sum_RA=RA.sum(axis=0), C=(tB.T @ RA.reshape(m, 9)).reshape(3, 3, 3),
+                   sum_tB=tB.sum(axis=0), RAt_tA=RA3.T @ tA.reshape(3 * m),
+                   sum_tA=tA.sum(axis=0), tB_tA=tB.T @ tA, tA_tA=float(np.sum(tA * tA)), TB=tB.T @ tB, m=m)
+
+
+def normal_equations(data: AXYBData, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
+    """N = H^T H (24x24), g = H^T w (24), w^T w of eq. 8 with every translation divided by
+    `scale`, from sums over the pairs (no (12m, 24) matrix; O(1) once the sums exist).
 
     The blocks of H_i (eq. 8) give, with K_i = R_Bi kron R_Ai and T_i = t_Bi^T kron I:
-    K^T K = (R_B^T R_B) kron (R_A^T R_A), T^T T = (t_B t_B^T) kron I, T^T R_A = t_B kron R_A, so
-    every block is a sum of small products: O(m) work with a tiny constant and no (12m, 24) matrix.
+    K^T K = (R_B^T R_B) kron (R_A^T R_A), T^T T = (t_B t_B^T) kron I, T^T R_A = t_B kron R_A.
+    Dividing the translations by s divides the blocks linear in them by s, quadratic by s^2.
     """
-    m = len(A)
-    RA, RB = np.ascontiguousarray(A[:, :3, :3]), np.ascontiguousarray(B[:, :3, :3])
-    tA, tB = np.ascontiguousarray(A[:, :3, 3]), np.ascontiguousarray(B[:, :3, 3])
+    m, s = data.m, float(scale)
+    sums = data.translation_sums
     I3 = np.eye(3)
-    RAtRA = np.swapaxes(RA, 1, 2) @ RA
     N = np.zeros((24, 24))
-    N[:9, :9] = _kron_sum(np.swapaxes(RB, 1, 2) @ RB, RAtRA)
-    S = _kron_sum(RB, RA)
+    N[:9, :9] = _kron_sum(gram(data.B[:, :3, :3]), gram(data.A[:, :3, :3]))
+    S = data.rotation_sum
     N[:9, 9:18], N[9:18, :9] = -S.T, -S
-    N[9:18, 9:18] = m * np.eye(9) + np.kron(tB.T @ tB, I3)
-    C = (tB.T @ RA.reshape(m, 9)).reshape(9, 3)  # sum_i t_Bi kron R_Ai
+    N[9:18, 9:18] = m * np.eye(9) + np.kron(sums.TB, I3) / s**2
+    C = sums.C.reshape(9, 3) / s
     N[9:18, 18:21], N[18:21, 9:18] = -C, -C.T
-    E = np.kron(tB.sum(axis=0)[:, None], I3)  # sum_i t_Bi kron I
+    E = np.kron(sums.sum_tB[:, None], I3) / s  # sum_i t_Bi kron I
     N[9:18, 21:24], N[21:24, 9:18] = E, E.T
-    N[18:21, 18:21] = RAtRA.sum(axis=0)
-    sum_RA = RA.sum(axis=0)
-    N[18:21, 21:24], N[21:24, 18:21] = -sum_RA.T, -sum_RA
+    N[18:21, 18:21] = sums.GA
+    N[18:21, 21:24], N[21:24, 18:21] = -sums.sum_RA.T, -sums.sum_RA
     N[21:24, 21:24] = m * I3
     g = np.zeros(24)
-    g[9:18] = (tB.T @ tA).reshape(9)  # sum_i t_Bi kron t_Ai
-    g[18:21] = -np.einsum("nji,nj->i", RA, tA)
-    g[21:24] = tA.sum(axis=0)
-    return N, g, float(np.sum(tA * tA))
+    g[9:18] = sums.tB_tA.reshape(9) / s**2  # sum_i t_Bi kron t_Ai
+    g[18:21] = -sums.RAt_tA / s
+    g[21:24] = sums.sum_tA / s
+    return N, g, sums.tA_tA / s**2
 
 
 def reduce_system(A: np.ndarray, B: np.ndarray) -> KroneckerSystem:
-    """Reduce eq. 8 to the triangular form of eqs. 10-12 in O(m).
+    """Reduce eq. 8 of the pose stacks A, B: (m, 4, 4) to the triangular form of eqs. 10-12."""
+    return reduce_normal_equations(*normal_equations(AXYBData(A, B)))
+
+
+def reduce_normal_equations(N: np.ndarray, g: np.ndarray, ww: float) -> KroneckerSystem:
+    """Eq. 8's normal equations -> the triangular form of eqs. 10-12.
 
     R1 is the Cholesky factor of the column-equilibrated normal matrix (R1^T R1 = H^T H; equal to
     the R of H = QR up to row signs), q1 = R1^-T H^T w and rest = w^T w - |q1|^2. Equilibration
@@ -165,7 +233,6 @@ def reduce_system(A: np.ndarray, B: np.ndarray) -> KroneckerSystem:
     """
     from scipy.linalg import cholesky, solve_triangular
 
-    N, g, ww = normal_equations(A, B)
     d = np.sqrt(np.diag(N))
     try:
         R1 = cholesky(N / np.outer(d, d), lower=False) * d[None, :]
@@ -186,11 +253,26 @@ def split_beta(beta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np
 
 
 def solve_translations(data: AXYBData, RX: np.ndarray, RY: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """t_X, t_Y by least squares given rotations (eqs. 20-21): [R_Ai, -I] [t_X; t_Y] = R_Y t_Bi - t_Ai."""
-    RA, tA, tB = data.A[:, :3, :3], data.A[:, :3, 3], data.B[:, :3, 3]
-    J = np.concatenate([RA, np.broadcast_to(-np.eye(3), RA.shape)], axis=2).reshape(-1, 6)
-    p = (tB @ RY.T - tA).reshape(-1)
-    t, *_ = np.linalg.lstsq(J, p, rcond=None)
+    """t_X, t_Y by least squares given rotations (eqs. 20-21): [R_Ai, -I] [t_X; t_Y] = R_Y t_Bi - t_Ai.
+
+    Solved by its 6x6 normal equations, whose entries are sums over the pairs taken once
+    (`AXYBData.translation_sums`): with p_i = R_Y t_Bi - t_Ai,
+    [[sum R_A^T R_A, -sum R_A^T], [-sum R_A, m I]] [t_X; t_Y] = [sum R_A^T p_i; -sum p_i].
+    The matrix is well conditioned whenever the rotations of A vary (which validation demands).
+    """
+    from scipy.linalg import LinAlgError, solve
+
+    sums = data.translation_sums
+    RAt_p = np.einsum("aj,jab->b", RY, sums.C) - sums.RAt_tA  # sum R_A^T (R_Y t_B - t_A)
+    sum_p = RY @ sums.sum_tB - sums.sum_tA
+    N = np.block([[sums.GA, -sums.sum_RA.T], [-sums.sum_RA, sums.m * np.eye(3)]])
+    try:
+        t = solve(N, np.concatenate([RAt_p, -sum_p]), assume_a="pos")
+    except LinAlgError:
+        raise DegenerateDataError(
+            "the translations are undetermined given the rotations (eqs. 20-21): the rotations of A "
+            "must vary about at least two axes"
+        ) from None
     return t[:3], t[3:]
 
 
@@ -217,7 +299,7 @@ class AXYB(Problem):
         A, B = pose_stack(data["A"], "A"), pose_stack(data["B"], "B")
         same_length({"A": A, "B": B}, self.min_pairs)
         out = AXYBData(A, B)
-        excitation = rotation_excitation(out)
+        excitation = out.rotation_excitation
         if excitation < DEGENERATE_EXCITATION:
             raise DegenerateDataError(
                 f"the rotations of A and B do not determine R_X and R_Y (relative excitation "
@@ -227,7 +309,7 @@ class AXYB(Problem):
         return out
 
     def diagnose(self, data: AXYBData) -> dict[str, Any]:
-        excitation = rotation_excitation(data)
+        excitation = data.rotation_excitation
         warnings = []
         if excitation < WEAK_EXCITATION:
             warnings.append(
@@ -286,19 +368,6 @@ def pose_errors(unknowns: Mapping[str, np.ndarray], truth: Mapping[str, np.ndarr
             "translation": float(np.linalg.norm(cal[:3, 3] - true[:3, 3])),
         }
     return table
-
-
-def rotation_excitation(data: AXYBData) -> float:
-    """How well the rotations determine R_X, R_Y, in [0, 1]: 1 - sigma_2(S) / m.
-
-    With K_i = R_Bi kron R_Ai (orthogonal 9x9), the normal matrix of the rotation rows of eq. 8 is
-    [[m I, -S^T], [-S, m I]] with S = sum_i K_i, whose eigenvalues are m -+ sigma_j(S). Noise-free
-    data make sigma_1(S) = m (the solution); sigma_2(S) = m means a second null direction, i.e.
-    undetermined rotations (all rotations equal, or all about one axis).
-    """
-    S = _kron_sum(np.ascontiguousarray(data.B[:, :3, :3]), np.ascontiguousarray(data.A[:, :3, :3]))
-    sigma = np.linalg.svd(S, compute_uv=False)
-    return float(max(0.0, 1.0 - sigma[1] / data.m))
 
 
 PROBLEM = AXYB()

@@ -17,7 +17,6 @@ from handeye.problems.axyb import (
     reduce_system,
     regression_blocks,
     random_truth,
-    rotation_excitation,
     solve_translations,
     split_beta,
 )
@@ -103,6 +102,28 @@ def test_solve_translations_given_true_rotations(exact):
     tX, tY = solve_translations(data, truth["X"][:3, :3], truth["Y"][:3, :3])
     np.testing.assert_allclose(tX, truth["X"][:3, 3], atol=1e-9 * data.translation_scale)
     np.testing.assert_allclose(tY, truth["Y"][:3, 3], atol=1e-9 * data.translation_scale)
+
+
+def test_solve_translations_equals_lstsq_on_the_explicit_rows(noisy):
+    """Eqs. 20-21 solved from sums over the pairs = dense least squares on the stacked rows."""
+    data, truth = noisy
+    RX, RY = truth["X"][:3, :3], truth["Y"][:3, :3]
+    RA, tA, tB = data.A[:, :3, :3], data.A[:, :3, 3], data.B[:, :3, 3]
+    J = np.concatenate([RA, np.broadcast_to(-np.eye(3), RA.shape)], axis=2).reshape(-1, 6)
+    reference, *_ = np.linalg.lstsq(J, (tB @ RY.T - tA).reshape(-1), rcond=None)
+    np.testing.assert_allclose(np.concatenate(solve_translations(data, RX, RY)), reference,
+                               rtol=0, atol=1e-10 * data.translation_scale)
+
+
+def test_kronecker_at_a_scale_equals_the_system_of_scaled_data(noisy):
+    """data.kronecker(s) (from sums taken once) = the system of the data with translations / s."""
+    data, _ = noisy
+    for s in (1.0, 250.0, 1e-3):
+        direct, reference = data.kronecker(s), data.scaled(s).kronecker_system
+        np.testing.assert_allclose(direct.R1, reference.R1, rtol=1e-12, atol=1e-12 * np.abs(reference.R1).max())
+        np.testing.assert_allclose(direct.q1, reference.q1, rtol=1e-10, atol=1e-12 * np.abs(reference.q1).max())
+        assert direct.rest == pytest.approx(reference.rest, rel=1e-8)
+    assert data.kronecker(250.0) is data.kronecker(250.0)  # cached per scale
 
 
 def test_residuals_zero_on_noise_free_data(exact):
@@ -209,7 +230,7 @@ def test_validated_data_is_a_read_only_copy(noisy):
 
 def test_rotation_excitation_diagnostic(noisy):
     data, _ = noisy
-    assert 0.05 < rotation_excitation(data) <= 1.0
+    assert 0.05 < data.rotation_excitation <= 1.0
     assert PROBLEM.diagnose(data)["warnings"] == []
     sol = handeye.solve("axyb", solver="kron-lstsq", A=data.A, B=data.B)
     assert sol.warnings == [] and sol.diagnostics["data"]["rotation_excitation"] > WEAK_EXCITATION
@@ -221,7 +242,7 @@ def test_rotation_excitation_diagnostic(noisy):
     A = make_pose(so3_exp(np.outer(rng.uniform(-2, 2, m), [0, 0, 1.0])) @ wobble, 300 * rng.standard_normal((m, 3)))
     B = inverse(PAPER_Y) @ A @ PAPER_X
     weak = PROBLEM.validate(A=A, B=B)
-    excitation = rotation_excitation(weak)
+    excitation = weak.rotation_excitation
     assert 0 < excitation < WEAK_EXCITATION
     warnings = PROBLEM.diagnose(weak)["warnings"]
     assert len(warnings) == 1 and "weak rotation excitation" in warnings[0]
