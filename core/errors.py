@@ -44,3 +44,7 @@ class BackendUnavailableError(HandEyeError):
 
 class PluginRegistrationError(HandEyeError):
     """A plugin registered something invalid, e.g. a name another plugin already holds."""
+
+
+class PluginLoadWarning(UserWarning):
+    """A third-party plugin failed to load (its module raised on import) and was skipped."""

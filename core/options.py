@@ -1,7 +1,8 @@
 """Solver options: each solver declares a frozen dataclass; unknown keys are errors.
 
 `parse_options` builds that dataclass from keyword arguments and names the known options when a
-key is wrong; `check_choice` / `check_positive` are small validators for ``__post_init__``.
+key is wrong; `check_choice` / `check_positive` / `check_bool` are small validators for
+``__post_init__``.
 """
 
 from __future__ import annotations
@@ -9,6 +10,8 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Collection, Mapping
 from typing import Any, TypeVar
+
+import numpy as np
 
 from .errors import InputError, UnknownPluginError
 
@@ -48,3 +51,15 @@ def check_positive(name: str, value: Any, *, allow_zero: bool = False) -> None:
     if not ok or value != value or value in (float("inf"),):
         bound = ">= 0" if allow_zero else "> 0"
         raise InputError(f"option {name}={value!r} must be a finite number {bound}")
+
+
+def check_bool(name: str, value: Any) -> None:
+    """Raise InputError unless `value` is a bool (``True``/``False``, or a numpy bool).
+
+    Strings are refused rather than interpreted: ``"False"`` is truthy, so accepting it would
+    silently mean True. The command line turns ``true``/``false`` (any case) into bools itself.
+    """
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputError(
+            f"option {name}={value!r} must be True or False (a bool), not a {type(value).__name__}"
+        )

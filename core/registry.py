@@ -3,6 +3,13 @@
 Plugins are loaded from the entry-point group ``handeye``. Setting the environment variable
 ``HANDEYE_DISABLE_PLUGIN_AUTOLOAD`` (to anything non-empty) loads only the entry points of the
 handeye distribution itself, i.e. the built-in problems and solvers.
+
+A third-party plugin whose module raises on import (a missing dependency, a bug) is skipped: the
+other plugins load, a `PluginLoadWarning` names it, its distribution and the error, the registry
+keeps it in `Registry.failed` (shown by ``handeye list``), and an unknown problem or solver name
+mentions it, since the name may be one the broken plugin would have registered. A built-in
+plugin (one of handeye's own entry points) failing to import still raises: that is a bug in
+handeye, not in the user's environment, and hiding it would turn it into a missing solver.
 """
 
 from __future__ import annotations
@@ -11,13 +18,14 @@ import dataclasses
 import importlib.metadata
 import os
 import threading
+import warnings
 from collections.abc import Iterable
 from typing import Any
 
 import pluggy
 
 from . import hookspecs
-from .errors import PluginRegistrationError, UnknownPluginError
+from .errors import PluginLoadWarning, PluginRegistrationError, UnknownPluginError
 from .problem import Problem
 from .solver import SolverSpec
 
@@ -35,12 +43,28 @@ class PluginInfo:
     version: str
 
 
-class Registry:
-    """Problems and solvers registered by every loaded plugin."""
+@dataclasses.dataclass(frozen=True)
+class FailedPlugin:
+    """A third-party entry point that could not be loaded: where it came from and why."""
 
-    def __init__(self, plugin_manager: pluggy.PluginManager, plugins: dict[str, PluginInfo]) -> None:
+    name: str
+    distribution: str
+    version: str
+    error: str  # "ExceptionType: message"
+
+    def describe(self) -> str:
+        return f"{self.name!r} (from {self.distribution} {self.version}: {self.error})"
+
+
+class Registry:
+    """Problems and solvers registered by every loaded plugin; `failed`: the third-party plugins
+    that could not be loaded (name -> `FailedPlugin`)."""
+
+    def __init__(self, plugin_manager: pluggy.PluginManager, plugins: dict[str, PluginInfo],
+                 failed: dict[str, FailedPlugin] | None = None) -> None:
         self.plugin_manager = plugin_manager
         self.plugins = plugins
+        self.failed = dict(failed or {})
         self.problems: dict[str, Problem] = {}
         self.solvers: dict[str, SolverSpec] = {}
         self._problem_owner: dict[str, str] = {}
@@ -90,14 +114,15 @@ class Registry:
         try:
             return self.problems[name]
         except KeyError:
-            raise UnknownPluginError("problem", name, self.problems) from None
+            raise UnknownPluginError("problem", name, self.problems, self._failed_hint()) from None
 
     def solver(self, name: str, problem: str | None = None) -> SolverSpec:
         known = self.solver_names(problem)
         if name not in known:
-            hint = ""
             if name in self.solvers and problem is not None:
                 hint = f"solver {name!r} exists but solves only {list(self.solvers[name].problems)}"
+            else:
+                hint = self._failed_hint()
             raise UnknownPluginError(
                 "solver" if problem is None else f"solver for problem {problem!r}", name, known, hint
             )
@@ -107,6 +132,14 @@ class Registry:
         if problem is not None:
             self.problem(problem)
         return sorted(n for n, s in self.solvers.items() if problem is None or problem in s.problems)
+
+    def _failed_hint(self) -> str:
+        """For unknown-name errors: the plugins that failed to load (one may hold the name)."""
+        if not self.failed:
+            return ""
+        listing = "; ".join(f.describe() for f in self.failed.values())
+        return (f"Plugin(s) that failed to load, which may provide it: {listing}; fix or "
+                "reinstall the distribution (see handeye list)")
 
     def provider(self, solver: str) -> PluginInfo:
         """The plugin (and distribution) that registered `solver`."""
@@ -140,15 +173,22 @@ def _build(extra_plugins: Iterable[tuple[str, Any]]) -> Registry:
     pm = pluggy.PluginManager(ENTRY_POINT_GROUP)
     pm.add_hookspecs(hookspecs)
     plugins: dict[str, PluginInfo] = {}
+    failed: dict[str, FailedPlugin] = {}
     autoload = not os.environ.get(AUTOLOAD_ENV)
     for ep in _entry_points(include_third_party=autoload):
         if pm.get_plugin(ep.name) is not None:
             continue
-        pm.register(ep.load(), name=ep.name)
         dist = ep.dist
-        plugins[ep.name] = PluginInfo(
-            ep.name, dist.name if dist else "?", dist.version if dist else "?"
-        )
+        info = PluginInfo(ep.name, dist.name if dist else "?", dist.version if dist else "?")
+        try:
+            plugin = ep.load()
+        except Exception as exc:
+            if _normalise(info.distribution) == OWN_DISTRIBUTION:
+                raise  # a built-in plugin: our bug, not the user's environment (module docstring)
+            failed[ep.name] = _skip_broken(info, exc)
+            continue
+        pm.register(plugin, name=ep.name)
+        plugins[ep.name] = info
     for name, plugin in extra_plugins:
         if pm.get_plugin(name) is not None:
             raise PluginRegistrationError(
@@ -157,7 +197,21 @@ def _build(extra_plugins: Iterable[tuple[str, Any]]) -> Registry:
             )
         pm.register(plugin, name=name)
         plugins[name] = PluginInfo(name, "(registered at run time)", "")
-    return Registry(pm, plugins)
+    return Registry(pm, plugins, failed)
+
+
+def _skip_broken(info: PluginInfo, exc: Exception) -> FailedPlugin:
+    """Record a third-party plugin whose entry point raised on loading, and warn about it."""
+    failed = FailedPlugin(info.name, info.distribution, info.version,
+                          f"{type(exc).__name__}: {' '.join(str(exc).split())}")
+    warnings.warn(
+        f"handeye plugin {failed.describe()} failed to load and is skipped; the other plugins "
+        f"work. Fix or reinstall {info.distribution}, or set {AUTOLOAD_ENV}=1 to load only the "
+        "built-in plugins",
+        PluginLoadWarning,
+        stacklevel=2,
+    )
+    return failed
 
 
 _lock = threading.Lock()

@@ -12,7 +12,7 @@ import importlib.util
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from .options import NoOptions
+from .options import NoOptions, parse_options
 from .solution import SolverOutput
 
 #: run(validated problem data, options dataclass instance, backend name) -> SolverOutput
@@ -34,7 +34,10 @@ class SolverSpec:
     citation: the method's reference.
     summary: one line shown by ``handeye list``.
     unit_invariant: True when scaling every translation by s scales the translations of the
-        answer by s and leaves rotations unchanged (tested for every solver declaring it).
+        answer by s and leaves rotations unchanged; or, when that depends on the options (e.g. a
+        ``normalize`` option), a callable ``(options instance) -> bool``. Read it through
+        `is_unit_invariant`. The shared suite checks both ways: invariance where declared, a
+        change of the answer where not.
     exact: True when noise-free data are recovered to machine precision; False for numerical
         solvers whose accuracy is bounded by their tolerance (the tests read this).
     check: optional ``check(backend) -> reason or None``, called lazily for availability
@@ -49,7 +52,7 @@ class SolverSpec:
     options: type = NoOptions
     citation: str = ""
     summary: str = ""
-    unit_invariant: bool = False
+    unit_invariant: bool | Callable[[Any], bool] = False
     exact: bool = True
     check: Callable[[str], str | None] | None = None
 
@@ -61,6 +64,23 @@ class SolverSpec:
             )
         if not dataclasses.is_dataclass(self.options):
             raise ValueError(f"solver {self.name!r}: options must be a dataclass type")
+        if not (isinstance(self.unit_invariant, bool) or callable(self.unit_invariant)):
+            raise ValueError(f"solver {self.name!r}: unit_invariant must be a bool or a callable "
+                             f"(options) -> bool, got {self.unit_invariant!r}")
+
+    def is_unit_invariant(self, options: Any = None) -> bool:
+        """Whether the answer is unit invariant (see `unit_invariant`) with these options.
+
+        options: an instance of the `options` dataclass, a mapping of option keywords (as given
+        to `handeye.solve`; validated the same way), or None for the defaults.
+        """
+        if not callable(self.unit_invariant):
+            return self.unit_invariant
+        if options is None:
+            options = self.options()
+        elif isinstance(options, Mapping):
+            options = parse_options(self.options, options, self.name)
+        return bool(self.unit_invariant(options))
 
     def unavailable_reason(self, backend: str) -> str | None:
         """Why `backend` cannot run here (missing module, ...), or None when it can."""

@@ -26,7 +26,8 @@ their sums. With real part r(mu) = [x; y] and dual part d(mu) = [x'; y'] (8-vect
   solution, so we keep the root with the larger |r(mu)|^2 (Daniilidis' rule);
 - unit norm: |x| = |y| = 1, i.e. |r(mu)|^2 = 2, fixes the scale.
 If noise makes P definite (no real root) the eigenvector of P with the smaller |eigenvalue| is
-used and a warning is returned. X and Y are read from (x, x') and (y, y') with t = 2 x' x*
+used, and the status is ``optimal_inaccurate`` (not ``optimal``) with a warning: the answer does
+not satisfy the method's own constraint. X and Y are read from (x, x') and (y, y') with t = 2 x' x*
 (vector part) after normalising x, y.
 
 Sign of each pair's dual quaternions (the paper's published code picks them with the ground
@@ -49,7 +50,8 @@ s_i = sign(Psi_i . u). Rule: keep every (a_i, a'_i) as given (the conversion ret
 Second pass: after solving, each pair is checked against the estimate, sign(a_i . (y b_i x*));
 pairs that disagree (possible under heavy noise when a pair's rotation is ~180 deg from all the
 others, so that its entry of the eigenvector is small) are flipped and the system solved once
-more. Diagnostics report the sign margin (min |Psi_i . u| / max) and the flips of the second pass.
+more. Diagnostics report the sign margin (min |Psi_i . u| / max) and the flips of the second pass;
+pairs still inconsistent after it make the status ``optimal_inaccurate``, with a warning.
 
 Why the answer cannot depend on the signs the conversion gave (`solve_dual_quaternions`, tested
 by flipping random input signs): flipping a_i (with a'_i) flips Psi_i, leaves Psi^T Psi and so u
@@ -73,12 +75,18 @@ import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.dualquat import conjugate, dual_quat_from_pose, pose_from_dual_quat, q_left, q_right, quat_multiply
 from handeye.errors import SolverError
+from handeye.options import check_bool
 from handeye.problems.axyb import AXYBData
 
 
 @dataclasses.dataclass(frozen=True)
 class Options:
+    """normalize: divide translations by the data's RMS translation first (see module docstring)."""
+
     normalize: bool = True
+
+    def __post_init__(self) -> None:
+        check_bool("normalize", self.normalize)
 
 
 def pair_signs(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:
@@ -209,7 +217,7 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     sigma = sol["sigma"]
     return SolverOutput(
         unknowns={"X": X, "Y": Y},
-        status=Status.OPTIMAL,
+        status=Status.OPTIMAL_INACCURATE if warnings else Status.OPTIMAL,
         diagnostics={
             "singular_values_tail": sigma[-3:].tolist(),
             "sigma_max": float(sigma[0]),
@@ -230,7 +238,7 @@ SPEC = SolverSpec(
     options=Options,
     summary="dual quaternions: SVD of the 8m x 16 system (eq. 24), two-vector null space (eq. 26)",
     citation="Pan et al., IEEE T-ASE 2022, Sec. III.C; Daniilidis, IJRR 18(3), 1999",
-    unit_invariant=True,
+    unit_invariant=lambda options: options.normalize,  # not with normalize=False (module docstring)
 )
 
 

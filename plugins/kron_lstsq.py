@@ -12,13 +12,19 @@ from __future__ import annotations
 import dataclasses
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye.options import check_bool
 from handeye.problems.axyb import AXYBData, solve_translations, split_beta
 from handeye.se3 import make_pose, project_to_so3
 
 
 @dataclasses.dataclass(frozen=True)
 class Options:
+    """normalize: divide translations by the data's RMS translation first (see module docstring)."""
+
     normalize: bool = True
+
+    def __post_init__(self) -> None:
+        check_bool("normalize", self.normalize)
 
 
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
@@ -40,7 +46,7 @@ SPEC = SolverSpec(
     options=Options,
     summary="closed-form least squares on the Kronecker system (eq. 8), SVD projection",
     citation="Pan et al., IEEE T-ASE 2022, eq. 8; cf. Li, Wang, Wu, Int. J. Phys. Sci. 2010",
-    unit_invariant=True,
+    unit_invariant=lambda options: options.normalize,  # not with normalize=False (module docstring)
 )
 
 

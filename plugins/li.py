@@ -43,6 +43,7 @@ from scipy.linalg import solve_triangular
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import DegenerateDataError
+from handeye.options import check_bool
 from handeye.plugins.dual_quaternion import triangular_factor
 from handeye.plugins.shah import normalize_rotation
 from handeye.problems.axyb import AXYBData, regression_blocks, split_beta
@@ -51,7 +52,12 @@ from handeye.se3 import make_pose
 
 @dataclasses.dataclass(frozen=True)
 class Options:
+    """normalize: divide translations by the data's RMS translation first (see module docstring)."""
+
     normalize: bool = True
+
+    def __post_init__(self) -> None:
+        check_bool("normalize", self.normalize)
 
 
 #: Largest relative size of the correction step for which the corrected semi-normal solution is
@@ -127,7 +133,7 @@ SPEC = SolverSpec(
     options=Options,
     summary="Li et al.'s Kronecker method: rotations and translations by one least squares, then orthogonalised",
     citation="A. Li, L. Wang, D. Wu, Int. J. Physical Sciences 5(10), 1530-1536, 2010",
-    unit_invariant=True,
+    unit_invariant=lambda options: options.normalize,  # not with normalize=False (module docstring)
 )
 
 

@@ -62,7 +62,7 @@ Backends:
 Options: ``orthogonalize="gram-schmidt"`` (the paper's) or ``"svd"`` (nearest rotation,
 `project_to_so3`); ``translations="beta"`` (the paper's) or ``"resolve"`` (eqs. 20-21 given the
 orthogonalised rotations); ``normalize=False`` (the paper works in the data's units; the answer
-then depends on the length unit, so the solver declares ``unit_invariant=False``). With
+then depends on the length unit, so `unit_invariant` says False for it). With
 ``normalize=True`` translations are divided by the data's RMS translation before eq. 8 is built
 and multiplied back afterwards: the answer is unit invariant (tested to 1e-9). With
 ``normalize=True`` the translations in beta are poorly determined (the rotation rows dominate);
@@ -76,7 +76,6 @@ optimal_inaccurate; anything else (infeasible, unbounded, iteration limit, solve
 from __future__ import annotations
 
 import dataclasses
-import functools
 import threading
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -85,7 +84,8 @@ import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import InputError, SolverError
-from handeye.options import check_choice
+from handeye.options import check_bool, check_choice
+from handeye.plugins._cvxpy_solvers import resolve_cvxpy_solver, sdp_cvxpy_solvers  # noqa: F401 (re-exported)
 from handeye.problems.axyb import AXYBData, KroneckerSystem, solve_translations, split_beta
 from handeye.se3 import gram_schmidt, make_pose, project_to_so3
 
@@ -101,7 +101,6 @@ BACKEND_ONLY_OPTIONS: dict[str, tuple[str, ...]] = {
     "seed": ("casadi",),
     "ipopt_options": ("casadi",),
 }
-DEFAULT_CVXPY_SOLVER = "CLARABEL"
 #: Settings per cvxpy solver (others run with their defaults). Clarabel: gap and feasibility
 #: tolerances 1e-12 give u to ~1e-13 relative for 2 more iterations (beta is exact either way);
 #: merge_method "none" keeps the chordal decomposition of the arrow-shaped LMI into 2x2 cliques
@@ -142,8 +141,7 @@ class Options:
     def __post_init__(self) -> None:
         check_choice("orthogonalize", self.orthogonalize, tuple(ORTHOGONALIZERS))
         check_choice("translations", self.translations, TRANSLATIONS)
-        if not isinstance(self.normalize, (bool, np.bool_)):
-            raise InputError(f"option normalize={self.normalize!r} must be True or False")
+        check_bool("normalize", self.normalize)
         if self.cvxpy_solver is not None and not isinstance(self.cvxpy_solver, str):
             raise InputError(f"option cvxpy_solver={self.cvxpy_solver!r} must be a cvxpy solver name (str)")
         if self.multistart is not None and (isinstance(self.multistart, bool)
@@ -234,39 +232,6 @@ _CVXPY_PROBLEMS: dict[str, CvxpyLMI] = {}
 _CVXPY_BUILD_LOCK = threading.Lock()
 #: How many cvxpy problems were built in this process (one per cvxpy solver used).
 cvxpy_builds = 0
-
-
-@functools.cache
-def sdp_cvxpy_solvers() -> tuple[str, ...]:
-    """Installed cvxpy solvers that accept PSD constraints (the possible ``cvxpy_solver``).
-
-    Cached: `cvxpy.installed_solvers` looks every solver module up (~5 ms, as long as a solve)."""
-    import cvxpy as cp
-    from cvxpy.constraints import PSD
-    from cvxpy.constraints.psd import SvecPSD
-    from cvxpy.reductions.solvers.defines import SOLVER_MAP_CONIC
-
-    return tuple(sorted(name for name in cp.installed_solvers()
-                  if name in SOLVER_MAP_CONIC
-                  and any(c in (PSD, SvecPSD) for c in SOLVER_MAP_CONIC[name].SUPPORTED_CONSTRAINTS)))
-
-
-def resolve_cvxpy_solver(name: str | None) -> str:
-    """The cvxpy solver name for option ``cvxpy_solver`` (case-insensitive); InputError listing
-    the installed SDP-capable solvers when it is unknown, not installed or cannot do SDPs."""
-    if name is None:
-        name = DEFAULT_CVXPY_SOLVER
-    usable = sdp_cvxpy_solvers()
-    if name.upper() in usable:
-        return name.upper()
-    import cvxpy as cp
-
-    if name.upper() in cp.installed_solvers():
-        why = "is installed but cannot solve semidefinite programs"
-    else:
-        why = "is not an installed cvxpy solver"
-    raise InputError(f"lmi-sdp: cvxpy_solver={name!r} {why}; installed cvxpy solvers that can "
-                     f"solve the LMI: {', '.join(usable) or '(none)'}")
 
 
 def cvxpy_problem(solver: str) -> CvxpyLMI:
@@ -435,7 +400,7 @@ SPEC = SolverSpec(
             "casadi: eq. 8 under exact SO(3)",
     citation="Pan et al., Toward Simultaneous Coordinate Calibrations of AX=YB Problem by the "
              "LMI-SDP Optimization, IEEE T-ASE 2022, eqs. 5-14",
-    unit_invariant=False,
+    unit_invariant=lambda options: options.normalize,  # the paper-faithful default is not (docstring)
 )
 
 

@@ -2,7 +2,7 @@
 as a CasADi NLP solved by IPOPT (issue 4, item 1). A helper module, not an entry point: the
 `lmi-sdp` plugin calls `solve_casadi` for ``backend="casadi"``.
 
-Formulation (docs/solvers/lmi-sdp-casadi.md has the details and the measurements):
+Formulation (measurements: docs/solvers/lmi-sdp.md, backend casadi):
 
 1. Cost. Eq. 8 reduced by QR (eqs. 10-12): |H beta - w|^2 = |R1 beta - q1|^2 + rest, with
    beta = [r; t], r = [vec R_X; vec R_Y] (18, column-major vec), t = [t_X; t_Y] (6). A second QR

@@ -13,9 +13,10 @@ Formulation (docs/solvers/so3-sdp.md has the details and the measurements):
    R^T R = h^2 I, R R^T = h^2 I (redundant), c_i x c_j = h c_k for the columns (cyclic; fixes
    det = +1), and h^2 = 1. The Shor relaxation: minimise <M, Z> over Z (19 x 19) PSD with
    <A_k, Z> = b_k. `redundant=False` keeps only R^T R = I and h^2 = 1 (a weaker relaxation, for
-   studying tightness). Backends: `cvxpy` (Clarabel) poses its Lagrangian dual, max b^T nu with
-   M - sum_k nu_k A_k PSD (41 unknowns, one PSD cone; Z is the cone's dual), built once with M a
-   Parameter and cached; `picos` (cvxopt) the primal. Neither depends on m.
+   studying tightness). Backends: `cvxpy` (Clarabel, or option ``cvxpy_solver``) poses its
+   Lagrangian dual, max b^T nu with M - sum_k nu_k A_k PSD (41 unknowns, one PSD cone; Z is the
+   cone's dual), built once per cvxpy solver with M a Parameter and cached; `picos` (cvxopt) the
+   primal. Neither depends on m.
 3. Extraction: the dominant eigenvector of Z scaled to h = 1, rotations projected onto SO(3), then
    (`polish=True`) Gauss-Newton on SO(3) x SO(3) for the same cost: this only removes the SDP
    solver's tolerance (~1e-7) from a point already in the basin of the global minimum.
@@ -25,7 +26,8 @@ Formulation (docs/solvers/so3-sdp.md has the details and the measurements):
    a lower bound on the global minimum that does not rely on the SDP solver's accuracy. The answer
    is `optimal` only when the eigenvalue ratio lambda_2 / lambda_1 of Z and the relative gap
    between the answer's cost and that bound are both below the thresholds below; otherwise it is
-   `uncertified`, with the same numbers.
+   `uncertified`, with the same numbers. Whichever SDP solver ran (a less accurate one such as
+   SCS included), the status is decided by these numbers, never by the solver's own claim.
 
 Normalisation (`normalize=True`, default): translations are divided by the data's RMS translation
 first, which balances rotation and translation rows and makes the answer independent of the unit.
@@ -36,12 +38,16 @@ from __future__ import annotations
 import dataclasses
 import functools
 import threading
+import types
 import warnings
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import InputError, SolverError
+from handeye.options import check_bool
+from handeye.plugins._cvxpy_solvers import check_backend_options, resolve_cvxpy_solver
 from handeye.problems.axyb import AXYBData, KroneckerSystem
 from handeye.se3 import make_pose, project_to_so3, rotation_angle, skew, so3_exp
 
@@ -76,31 +82,44 @@ POLISH_SMALL_STEP = 1e-9
 #: iterative refinement off and the dense "faer" factorisation (Clarabel >= 0.10; dropped
 #: automatically when the installed Clarabel rejects it) each cut the time by about a third
 #: (docs/solvers/so3-sdp.md) and cost nothing here, since the answer is polished and the
-#: certificate is recomputed from the multipliers in float64.
-CLARABEL_SETTINGS = {
+#: certificate is recomputed from the multipliers in float64. Read-only: a solve copies what it
+#: passes, so no solve changes what the next one does.
+CLARABEL_SETTINGS: Mapping[str, Any] = types.MappingProxyType({
     "chordal_decomposition_enable": False,
     "presolve_enable": False,
     "max_threads": 1,
     "iterative_refinement_enable": False,
     "direct_solve_method": "faer",
-}
+})
+#: Settings per cvxpy solver (others run with their defaults). SCS (first order): at its default
+#: eps 1e-4 only the polished answer is certified; at 1e-9 its own answer is too, for about twice
+#: Clarabel's time (docs/solvers/so3-sdp.md, "Other cvxpy solvers").
+CVXPY_SETTINGS: Mapping[str, Mapping[str, Any]] = types.MappingProxyType({
+    "CLARABEL": CLARABEL_SETTINGS,
+    "SCS": types.MappingProxyType({"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iters": 100_000}),
+})
+#: option -> the backends it applies to (given with another backend it is an InputError)
+BACKEND_ONLY_OPTIONS: dict[str, tuple[str, ...]] = {"cvxpy_solver": ("cvxpy",)}
 
 
 @dataclasses.dataclass(frozen=True)
 class Options:
     """normalize: divide translations by their RMS first (unit invariance);
     redundant: add the redundant constraints (R R^T = I, column cross products) that make the
-    relaxation tight; polish: Gauss-Newton on SO(3) after extraction to remove the SDP tolerance."""
+    relaxation tight; polish: Gauss-Newton on SO(3) after extraction to remove the SDP tolerance;
+    cvxpy_solver: backend cvxpy only, an installed cvxpy solver that handles PSD cones (default
+    Clarabel)."""
 
     normalize: bool = True
     redundant: bool = True
     polish: bool = True
+    cvxpy_solver: str | None = None
 
     def __post_init__(self) -> None:
-        for field in dataclasses.fields(self):
-            value = getattr(self, field.name)
-            if not isinstance(value, (bool, np.bool_)):
-                raise InputError(f"option {field.name}={value!r} of solver 'so3-sdp' must be True or False")
+        for name in ("normalize", "redundant", "polish"):
+            check_bool(name, getattr(self, name))
+        if self.cvxpy_solver is not None and not isinstance(self.cvxpy_solver, str):
+            raise InputError(f"option cvxpy_solver={self.cvxpy_solver!r} must be a cvxpy solver name (str)")
 
 
 # --------------------------------------------------------------------------------------------
@@ -222,23 +241,26 @@ class _CvxpyProblem:
     lock: threading.Lock
 
 
-_CVXPY_PROBLEMS: dict[bool, _CvxpyProblem] = {}
+_CVXPY_PROBLEMS: dict[tuple[bool, str], _CvxpyProblem] = {}
 _CVXPY_BUILD_LOCK = threading.Lock()
-#: How many times a cvxpy problem was built (once per constraint set per process).
+#: How many times a cvxpy problem was built (once per constraint set and cvxpy solver per process).
 cvxpy_builds = 0
 
 
-def cvxpy_problem(redundant: bool) -> _CvxpyProblem:
-    """The relaxation as a cvxpy problem with M a Parameter (DPP), built once and cached.
+def cvxpy_problem(redundant: bool, solver: str) -> _CvxpyProblem:
+    """The relaxation as a cvxpy problem with M a Parameter (DPP), built once per cvxpy `solver`
+    and cached (cvxpy keeps one compiled program per problem, so a problem shared by two solvers
+    would be recompiled at every switch).
 
     Posed in its dual (Lagrangian) form, max b^T nu s.t. M - sum_k nu_k A_k >= 0 (PSD), whose
     conic form has K = 41 variables and one 19 x 19 PSD cone instead of the 190 entries of Z plus
     41 equalities: about half the time per interior-point iteration. The Shor relaxation's Z is
-    the dual variable of the PSD constraint (Clarabel is primal-dual, both come out of one solve).
+    the dual variable of the PSD constraint (Clarabel and SCS are primal-dual: both come out of
+    one solve).
     """
     global cvxpy_builds
     with _CVXPY_BUILD_LOCK:
-        cached = _CVXPY_PROBLEMS.get(redundant)
+        cached = _CVXPY_PROBLEMS.get((redundant, solver))
         if cached is not None:
             return cached
         import cvxpy as cp
@@ -251,36 +273,47 @@ def cvxpy_problem(redundant: bool) -> _CvxpyProblem:
         problem = cp.Problem(cp.Maximize(b @ nu), [slack])
         assert problem.is_dpp()
         cached = _CvxpyProblem(problem, M, nu, slack, threading.Lock())
-        _CVXPY_PROBLEMS[redundant] = cached
+        _CVXPY_PROBLEMS[(redundant, solver)] = cached
         cvxpy_builds += 1
         return cached
 
 
-def _solve_cvxpy(M: np.ndarray, redundant: bool) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+def _solve_with_settings(problem: Any, solver: str) -> None:
+    """problem.solve with `solver` and a copy of its CVXPY_SETTINGS made for this call. An older
+    Clarabel without the faer factorisation rejects the settings ("Bad settings: ...
+    direct_solve_method"); this call then retries without that one setting. Nothing is
+    remembered: every solve starts from the same settings, and without a warm start (cvxpy's
+    default would start SCS from the previous solve's point, making an answer depend on what
+    was solved before)."""
+    settings = dict(CVXPY_SETTINGS.get(solver, {}))
+    try:
+        problem.solve(solver=solver, warm_start=False, **settings)
+    except Exception as exc:
+        if "direct_solve_method" not in str(exc) or settings.pop("direct_solve_method", None) is None:
+            raise
+        problem.solve(solver=solver, warm_start=False, **settings)
+
+
+def _solve_cvxpy(M: np.ndarray, redundant: bool,
+                 solver: str) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     import cvxpy as cp
 
-    cached = cvxpy_problem(redundant)
+    cached = cvxpy_problem(redundant, solver)
     with cached.lock, warnings.catch_warnings():
         # "solution may be inaccurate" is reported as sdp_status; the certificate decides
         warnings.simplefilter("ignore", UserWarning)
         cached.M.value = 0.5 * (M + M.T)
         try:
-            try:
-                cached.problem.solve(solver=cp.CLARABEL, **CLARABEL_SETTINGS)
-            except Exception as exc:  # an older Clarabel without faer: "Bad settings"
-                if "direct_solve_method" not in str(exc) or "direct_solve_method" not in CLARABEL_SETTINGS:
-                    raise
-                del CLARABEL_SETTINGS["direct_solve_method"]
-                cached.problem.solve(solver=cp.CLARABEL, **CLARABEL_SETTINGS)
+            _solve_with_settings(cached.problem, solver)
         except cp.error.SolverError as exc:
-            raise SolverError(f"so3-sdp: Clarabel failed on the relaxation: {exc}") from exc
+            raise SolverError(f"so3-sdp: cvxpy/{solver} failed on the relaxation: {exc}") from exc
         status = cached.problem.status
         Z = cached.slack.dual_value
         if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or Z is None or cached.nu.value is None:
-            raise SolverError(f"so3-sdp: Clarabel returned status {status!r} for the relaxation")
+            raise SolverError(f"so3-sdp: cvxpy/{solver} returned status {status!r} for the relaxation")
         Z = np.array(Z, dtype=float)
         nu = np.array(cached.nu.value, dtype=float)
-        info = {"sdp_status": status, "sdp_objective": float(cached.problem.value),
+        info = {"sdp_solver": solver, "sdp_status": status, "sdp_objective": float(cached.problem.value),
                 "sdp_iterations": cached.problem.solver_stats.num_iters}
     return Z, nu, info
 
@@ -304,11 +337,9 @@ def _solve_picos(M: np.ndarray, redundant: bool) -> tuple[np.ndarray, np.ndarray
     Zv = np.array(Z.value, dtype=float)
     # picos: the dual of an equality constraint is the multiplier with S = M - sum nu_k A_k
     nu = np.array(equality.dual, dtype=float).ravel()
-    info = {"sdp_status": str(solution.claimedStatus), "sdp_objective": float(P.value)}
+    info = {"sdp_solver": "cvxopt", "sdp_status": str(solution.claimedStatus),
+            "sdp_objective": float(P.value)}
     return Zv, nu, info
-
-
-_BACKENDS = {"cvxpy": _solve_cvxpy, "picos": _solve_picos}
 
 
 # --------------------------------------------------------------------------------------------
@@ -387,6 +418,8 @@ def certificate(M: np.ndarray, y: np.ndarray, nu: np.ndarray, redundant: bool) -
 
 
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
+    check_backend_options("so3-sdp", options, backend, BACKEND_ONLY_OPTIONS)
+    solver = resolve_cvxpy_solver(options.cvxpy_solver) if backend == "cvxpy" else None
     scale = data.translation_scale if options.normalize else 1.0
     cost = eliminate_translations(data.kronecker(scale))
     M = cost.matrix
@@ -394,7 +427,10 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     if not np.isfinite(norm) or norm == 0.0:
         raise SolverError("so3-sdp: the cost matrix of eq. 8 is zero or not finite")
 
-    Z, nu, info = _BACKENDS[backend](M / norm, options.redundant)
+    if solver is not None:
+        Z, nu, info = _solve_cvxpy(M / norm, options.redundant, solver)
+    else:
+        Z, nu, info = _solve_picos(M / norm, options.redundant)
     RX, RY, eig = extract_rotations(Z)
     ratio = float(eig[1] / eig[0])
     RX0, RY0 = RX, RY
@@ -451,7 +487,7 @@ SPEC = SolverSpec(
     summary="eq. 8 under exact SO(3) constraints: tight SDP relaxation with optimality certificate",
     citation="Pan et al., IEEE T-ASE 2022, eq. 8; relaxation and certificate as in Briales & "
              "Gonzalez-Jimenez, CVPR 2017, and Rosen et al., IJRR 2019",
-    unit_invariant=True,
+    unit_invariant=lambda options: options.normalize,  # "Units" in docs/solvers/so3-sdp.md
 )
 
 

@@ -47,6 +47,27 @@ DEGENERATE_EXCITATION = 1e-10
 WEAK_EXCITATION = 1e-4
 
 
+def overflow_error(where: str) -> InputError:
+    """The error for data whose sums over the pairs overflow float64 (huge translations)."""
+    return InputError(
+        f"the translations of A and B are too large: {where} overflow float64 (translations of "
+        "order 1e150 or more). Express the translations in a larger unit (e.g. m instead of um) "
+        "and solve again"
+    )
+
+
+def check_translation_range(A: np.ndarray, B: np.ndarray) -> None:
+    """Raise InputError when the sum of squared translations of A, B: (m, 4, 4) overflows float64.
+
+    Every solver needs sums of that order (eq. 8's normal equations, the RMS translation used
+    to normalise units), so data beyond it are refused for all of them alike.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = float(np.sum(A[:, :3, 3] ** 2) + np.sum(B[:, :3, 3] ** 2))
+    if not np.isfinite(total):
+        raise overflow_error("the sums of squared translations")
+
+
 @dataclasses.dataclass(frozen=True)
 class AXYBData:
     """Validated data of A_i X = Y B_i: read-only float64 stacks A, B of shape (m, 4, 4)."""
@@ -230,9 +251,12 @@ def reduce_normal_equations(N: np.ndarray, g: np.ndarray, ww: float) -> Kronecke
     (scaling columns to unit norm before factorising) keeps the accuracy close to a QR of H even
     when translations in mm make the columns differ by orders of magnitude: on noise-free data
     beta is recovered to ~1e-11 relative, against 1e-13 for a dense QR that is ~5x slower.
+    Raises InputError when N, g or ww are not finite (translations so large their sums overflow).
     """
     from scipy.linalg import cholesky, solve_triangular
 
+    if not (np.all(np.isfinite(N)) and np.all(np.isfinite(g)) and np.isfinite(ww)):
+        raise overflow_error("the normal equations of eq. 8")
     d = np.sqrt(np.diag(N))
     try:
         R1 = cholesky(N / np.outer(d, d), lower=False) * d[None, :]
@@ -298,6 +322,7 @@ class AXYB(Problem):
             raise InputError(f"problem 'axyb' takes data {list(self.data_fields)}, not {sorted(unexpected)}")
         A, B = pose_stack(data["A"], "A"), pose_stack(data["B"], "B")
         same_length({"A": A, "B": B}, self.min_pairs)
+        check_translation_range(A, B)
         out = AXYBData(A, B)
         excitation = out.rotation_excitation
         if excitation < DEGENERATE_EXCITATION:

@@ -248,3 +248,35 @@ def test_rotation_excitation_diagnostic(noisy):
     assert len(warnings) == 1 and "weak rotation excitation" in warnings[0]
     sol = handeye.solve("axyb", solver="kron-lstsq", A=A, B=B)
     assert any("weak rotation excitation" in w for w in sol.warnings)
+
+
+def _huge(factor: float = 1e160) -> dict[str, np.ndarray]:
+    """Finite SE(3) data whose translations (paper simulation, mm, times `factor`) are so large
+    that their squares overflow float64."""
+    data, _ = PROBLEM.simulate(pairs=10, seed=1)
+    A, B = data["A"].copy(), data["B"].copy()
+    A[:, :3, 3] *= factor
+    B[:, :3, 3] *= factor
+    return {"A": A, "B": B}
+
+
+def test_huge_translations_raise_input_error_in_every_solver(solver_case):
+    """Translations ~1e160 overflow eq. 8's sums: every solver reports it as bad input (ours),
+    never as a bare numpy/scipy ValueError, FloatingPointError or LinAlgError."""
+    with pytest.raises(handeye.InputError, match="overflow float64.*larger unit"):
+        handeye.solve("axyb", solver=solver_case.name, backend=solver_case.backend, **_huge())
+
+
+def test_large_but_summable_translations_still_solve():
+    data = _huge(1e140)
+    sol = handeye.solve("axyb", solver="kron-lstsq", **data)
+    errors = PROBLEM.errors(sol.unknowns, {"X": PAPER_X, "Y": PAPER_Y})
+    assert errors["X"]["rotation"] < 1e-8 and errors["Y"]["rotation"] < 1e-8
+
+
+def test_reduce_normal_equations_refuses_overflowed_sums():
+    """Below validation too (reduce_system takes raw stacks): non-finite normal equations are an
+    InputError naming the overflow, not scipy's "array must not contain infs or NaNs"."""
+    data = _huge()
+    with np.errstate(over="ignore", invalid="ignore"), pytest.raises(handeye.InputError, match="normal equations of eq. 8 overflow"):
+        reduce_system(data["A"], data["B"])

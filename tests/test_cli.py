@@ -58,6 +58,22 @@ def test_list_markdown_table_has_a_row_per_solver(capsys):
     assert [r.split("|")[1].strip(" `") for r in rows[2:]] == sorted(get_registry().solvers)
 
 
+def test_readme_solver_table_is_the_registry_table(capsys):
+    """README's solver table is `handeye list --markdown` for handeye's own solvers: regenerate
+    it with that command when a solver changes (third-party rows are left out of the comparison)."""
+    from pathlib import Path
+
+    code, out, _ = run_cli(capsys, "list", "--json")
+    ours = {s["name"] for s in json.loads(out)["solvers"] if s["distribution"] == "handeye"}
+    code, out, _ = run_cli(capsys, "list", "--markdown")
+    rows = out.strip().splitlines()
+    expected = rows[:2] + [r for r in rows[2:] if r.split("|")[1].strip(" `") in ours]
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8").splitlines()
+    start = readme.index(expected[0])
+    assert readme[start:start + len(expected)] == expected
+    assert not readme[start + len(expected)].startswith("|")  # no stale extra rows
+
+
 def test_version_and_help_exit_0(capsys):
     import handeye
 
@@ -203,3 +219,77 @@ def test_console_script_exit_codes(tmp_path):
     bad = subprocess.run([*cmd, "solve", str(tmp_path / "missing.json")], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2
     assert bad.stderr.startswith("handeye: error:") and "Traceback" not in bad.stderr
+
+
+@pytest.mark.parametrize("text, value", [("False", False), ("false", False), ("FALSE", False),
+                                         ("True", True), ("true", True), (" tRuE ", True)])
+def test_option_true_false_in_any_case_is_a_bool(text, value):
+    from handeye.cli._common import parse_key_values
+
+    assert parse_key_values([f"normalize={text}", "tol=1e-8", "init=identity"]) == {
+        "normalize": value, "tol": 1e-8, "init": "identity"}
+
+
+def test_option_normalize_False_reaches_the_solver_as_false(capsys):
+    """``--option normalize=False`` (Python spelling) is the bool False, not the truthy "False"."""
+    code, out, err = run_cli(capsys, "solve", "--example", "simulated", "--solver", "li",
+                             "--option", "normalize=False", "--json")
+    assert code == 0, err
+    report = json.loads(out)
+    assert report["options"] == {"normalize": False} and report["diagnostics"]["normalize"] is False
+
+
+def test_unexpected_exception_is_one_line_internal_error(capsys, monkeypatch):
+    from handeye.cli import list_cmd
+
+    def broken(args):
+        raise RuntimeError("boom\nsecond line")
+
+    monkeypatch.setattr(list_cmd, "run", broken)
+    code, out, err = run_cli(capsys, "list")
+    assert code == 1 and out == ""
+    assert err == "handeye: internal error: RuntimeError: boom second line (please report)\n"
+
+
+def test_keyboard_interrupt_still_exits_130(capsys, monkeypatch):
+    from handeye.cli import list_cmd
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(list_cmd, "run", interrupted)
+    code, _, err = run_cli(capsys, "list")
+    assert code == 130 and err == "handeye: error: interrupted\n"
+
+
+def test_not_converged_solution_is_printed_and_exits_1(capsys, tmp_path):
+    """iterative from R = I with 2 iterations on general data (tests/test_iterative.py) stops
+    with status not_converged: the result is shown, with the warning, and the exit code is 1."""
+    from handeye.problems.axyb import PROBLEM, random_truth
+
+    truth = random_truth(np.random.default_rng(0))
+    data, truth = PROBLEM.simulate(pairs=12, seed=0, X=truth["X"], Y=truth["Y"])
+    path = save_data(tmp_path / "general.json", data, truth)
+    argv = ["solve", "--solver", "iterative", "--option", "init=identity", "--option", "max_iter=2", str(path)]
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 1
+    assert "status not_converged" in out and "X =" in out and "do not use X, Y" in out
+    assert err.startswith("handeye: error: solver 'iterative' ended with status not_converged")
+    assert err.count("\n") == 1
+    code, out, _ = run_cli(capsys, *argv, "--json")
+    assert code == 1 and json.loads(out)["status"] == "not_converged"
+
+
+@pytest.mark.parametrize("status, exit_code", [("optimal", 0), ("optimal_inaccurate", 0), ("uncertified", 0),
+                                               ("not_converged", 1), ("failed", 1)])
+def test_solve_exit_code_follows_the_status(capsys, monkeypatch, status, exit_code):
+    spec = get_registry().solvers["kron-lstsq"]
+
+    def with_status(data, options, backend):
+        return dataclasses.replace(spec.run(data, options, backend), status=status)
+
+    monkeypatch.setitem(get_registry().solvers, "kron-lstsq", dataclasses.replace(spec, run=with_status))
+    code, out, err = run_cli(capsys, "solve", "--example", "--solver", "kron-lstsq")
+    assert code == exit_code and f"status {status}," in out
+    assert (err == "") == (exit_code == 0)
+    assert ("could not prove it globally optimal" in out) == (status == "uncertified")

@@ -240,3 +240,41 @@ def test_tree_qr_factor_equals_the_qr_of_the_whole_stack(m, r, c):
     assert R.shape == (c, c)
     np.testing.assert_allclose(np.abs(R), np.abs(R_ref), rtol=1e-10, atol=1e-10 * np.abs(R_ref).max())
     np.testing.assert_allclose(np.linalg.svd(R, compute_uv=False), np.linalg.svd(M, compute_uv=False), rtol=1e-11)
+
+
+def _first_seed(make_data, condition, seeds=range(500)):
+    """(seed, solution) of the first seed whose data make `condition(solution)` true."""
+    for seed in seeds:
+        sol = handeye.solve("axyb", solver="dual-quaternion", **make_data(seed))
+        if condition(sol):
+            return seed, sol
+    pytest.fail("no seed in range gave the case under test")
+
+
+def test_no_real_root_of_eq26_is_not_optimal():
+    """Heavy noise on few pairs can make the quadratic of eq. 26 definite (no real root): the
+    answer is an approximation, so status optimal_inaccurate, with the warning."""
+    noise = NoiseModel.on(("A", "B"), 1.0, 50.0)
+    seed, sol = _first_seed(lambda s: PROBLEM.simulate(pairs=3, seed=s, noise=noise)[0],
+                            lambda sol: not sol.diagnostics["orthogonality_real_root"])
+    assert sol.status is handeye.Status.OPTIMAL_INACCURATE, seed
+    assert any("has no real root" in w for w in sol.warnings)
+
+
+def test_sign_inconsistent_pairs_are_not_optimal():
+    """Unrelated A and B (pure noise) leave pairs sign-inconsistent after the second pass."""
+    def unrelated(seed):
+        rng = np.random.default_rng(seed)
+        return {"A": random_poses(8, rng, 100.0), "B": random_poses(8, rng, 100.0)}
+
+    seed, sol = _first_seed(unrelated, lambda sol: sol.diagnostics["sign_inconsistent_pairs"] > 0
+                            and sol.diagnostics["orthogonality_real_root"])
+    assert sol.status is handeye.Status.OPTIMAL_INACCURATE, seed
+    assert any("sign-inconsistent" in w for w in sol.warnings)
+
+
+def test_clean_data_stay_optimal_without_warning():
+    data, _ = PROBLEM.simulate(pairs=10, seed=4, noise=NoiseModel.on("B", 0.001, 0.1))
+    sol = handeye.solve("axyb", solver="dual-quaternion", **data)
+    assert sol.status is handeye.Status.OPTIMAL
+    assert not any(w.startswith("dual-quaternion") for w in sol.warnings)

@@ -123,7 +123,8 @@ def test_default_is_not_unit_invariant(noisy):
         T[:, :3, 3] *= 1e-3
     a, b = _solve(raw), _solve(scaled)
     assert rotation_angle(b.X[:3, :3] @ a.X[:3, :3].T) > 1e-6  # hence unit_invariant=False
-    assert handeye.get_registry().solvers["lmi-sdp"].unit_invariant is False
+    spec = handeye.get_registry().solvers["lmi-sdp"]
+    assert spec.is_unit_invariant() is False and spec.is_unit_invariant({"normalize": True}) is True
 
 
 def test_cvxpy_problem_compiled_once_and_reused(noisy):

@@ -136,7 +136,7 @@ def test_rotation_reprojected_only_when_off_so3(monkeypatch):
 
 
 def test_shah_is_unit_invariant_li_is_not():
-    """Why `unit_invariant=True` is declared for the default method only (module docstring)."""
+    """Why unit invariance is declared for method "shah" only (module docstring)."""
     data, _ = noisy_case()
     small = {k: np.array(v) for k, v in data.items()}
     for T in small.values():
@@ -146,3 +146,4 @@ def test_shah_is_unit_invariant_li_is_not():
         b = handeye.solve("axyb", solver="opencv", method=method, **small)
         angle = float(rotation_angle(a.X[:3, :3] @ b.X[:3, :3].T))
         assert (angle < 1e-12) is invariant, (method, angle)
+        assert handeye.get_registry().solvers["opencv"].is_unit_invariant({"method": method}) is invariant

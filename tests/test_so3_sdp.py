@@ -6,6 +6,8 @@ solver suite (tests/test_solvers.py).
 
 from __future__ import annotations
 
+import importlib
+
 import handeye
 import numpy as np
 import pytest
@@ -145,10 +147,10 @@ def test_compiled_problem_reused():
     data, _ = simulate(4, seed=5)
     handeye.solve("axyb", solver="so3-sdp", **data)
     builds = so3_sdp.cvxpy_builds
-    problem = so3_sdp.cvxpy_problem(True)
+    problem = so3_sdp.cvxpy_problem(True, "CLARABEL")
     handeye.solve("axyb", solver="so3-sdp", **simulate(9, seed=6)[0])
     assert so3_sdp.cvxpy_builds == builds
-    assert so3_sdp.cvxpy_problem(True) is problem
+    assert so3_sdp.cvxpy_problem(True, "CLARABEL") is problem
 
 
 def test_noise_free_recovery_and_unit_invariance():
@@ -173,3 +175,84 @@ def test_options_are_validated():
     data, _ = simulate(4, seed=9)
     with pytest.raises(InputError):
         handeye.solve("axyb", solver="so3-sdp", redundant="no", **data)
+
+
+def test_solves_leave_settings_alone_and_repeat_exactly(monkeypatch):
+    """A solve, through the fallback for a Clarabel without faer or not, changes no module state:
+    CLARABEL_SETTINGS stays as it was and the same data give bit-identical answers."""
+    data, _ = simulate(8, seed=10)
+    settings = dict(so3_sdp.CLARABEL_SETTINGS)
+
+    def solve_twice():
+        a, b = (handeye.solve("axyb", solver="so3-sdp", **data) for _ in range(2))
+        for name in ("X", "Y"):
+            np.testing.assert_array_equal(a.unknowns[name], b.unknowns[name])
+        assert dict(so3_sdp.CLARABEL_SETTINGS) == settings
+        return a
+
+    faer = solve_twice()
+    problem = so3_sdp.cvxpy_problem(True, "CLARABEL").problem
+    real_solve, calls = problem.solve, []
+
+    def old_clarabel(**kwargs):  # what Clarabel < 0.10 says to direct_solve_method="faer"
+        calls.append(sorted(kwargs))
+        if "direct_solve_method" in kwargs:
+            raise Exception('Bad settings: Bad value for field "direct_solve_method"')
+        return real_solve(**kwargs)
+
+    monkeypatch.setattr(problem, "solve", old_clarabel)
+    fallback = solve_twice()
+    assert len(calls) == 4  # each solve: rejected with faer, then solved without it
+    assert "direct_solve_method" in calls[2] and "direct_solve_method" not in calls[3]
+    assert fallback.status is Status.OPTIMAL
+    for name in ("X", "Y"):  # another factorisation, the same polished answer
+        np.testing.assert_allclose(fallback.unknowns[name], faer.unknowns[name], rtol=0, atol=1e-9)
+    monkeypatch.undo()
+    again = solve_twice()
+    for name in ("X", "Y"):
+        np.testing.assert_array_equal(again.unknowns[name], faer.unknowns[name])
+    with pytest.raises(TypeError):
+        so3_sdp.CLARABEL_SETTINGS["max_threads"] = 2  # read-only
+
+
+def test_cvxpy_solver_scs_is_certified_only_when_its_numbers_say_so(monkeypatch):
+    data, truth = simulate(12, seed=11, noise=None)
+    sol = handeye.solve("axyb", solver="so3-sdp", cvxpy_solver="scs", polish=False, **data)  # any case
+    d = sol.diagnostics
+    assert d["sdp_solver"] == "SCS" and d["sdp_status"] == "optimal"
+    # SCS at eps 1e-9 (CVXPY_SETTINGS): certified (gap 1.1e-8), its own answer (no polish)
+    # right to 4.5e-8 rad, polished to machine precision
+    assert sol.status is Status.OPTIMAL and d["relative_gap"] < so3_sdp.GAP_THRESHOLD
+    errors = PROBLEM.errors(sol.unknowns, truth)
+    assert 1e-12 < max(errors["X"]["rotation"], errors["Y"]["rotation"]) < 1e-6
+    polished = handeye.solve("axyb", solver="so3-sdp", cvxpy_solver="SCS", **data)
+    errors = PROBLEM.errors(polished.unknowns, truth)
+    assert polished.status is Status.OPTIMAL
+    assert max(errors["X"]["rotation"], errors["Y"]["rotation"]) < 1e-12
+    # at its own default (eps 1e-4) SCS still claims "optimal"; the certificate does not (gap
+    # 8.8e-2, rotation 1.5e-4 rad off): uncertified, never a silent "optimal"
+    monkeypatch.setattr(so3_sdp, "CVXPY_SETTINGS", {"CLARABEL": so3_sdp.CLARABEL_SETTINGS})
+    loose = handeye.solve("axyb", solver="so3-sdp", cvxpy_solver="SCS", polish=False, **data)
+    assert loose.diagnostics["sdp_status"] == "optimal"
+    assert loose.status is Status.UNCERTIFIED and not loose.diagnostics["certified"]
+    assert loose.diagnostics["relative_gap"] > 100 * so3_sdp.GAP_THRESHOLD
+    assert so3_sdp.cvxpy_problem(True, "SCS") is not so3_sdp.cvxpy_problem(True, "CLARABEL")
+
+
+def test_cvxpy_solver_option_is_checked():
+    from handeye.plugins._cvxpy_solvers import sdp_cvxpy_solvers
+
+    data, _ = simulate(4, seed=12)
+    with pytest.raises(InputError, match="no_such_solver.*not an installed cvxpy solver") as info:
+        handeye.solve("axyb", solver="so3-sdp", cvxpy_solver="no_such_solver", **data)
+    assert "CLARABEL" in sdp_cvxpy_solvers() and "SCS" in sdp_cvxpy_solvers()
+    for name in sdp_cvxpy_solvers():
+        assert name in str(info.value)
+    lp_only = sorted(set(importlib.import_module("cvxpy").installed_solvers()) - set(sdp_cvxpy_solvers()))
+    if lp_only:  # e.g. HIGHS, OSQP
+        with pytest.raises(InputError, match="cannot solve semidefinite"):
+            handeye.solve("axyb", solver="so3-sdp", cvxpy_solver=lp_only[0], **data)
+    with pytest.raises(InputError, match="cvxpy_solver applies only to backend"):
+        handeye.solve("axyb", solver="so3-sdp", backend="picos", cvxpy_solver="SCS", **data)
+    with pytest.raises(InputError, match="cvxpy_solver"):
+        handeye.solve("axyb", solver="so3-sdp", cvxpy_solver=3, **data)

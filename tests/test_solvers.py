@@ -5,11 +5,14 @@ Parametrised from the registry at collection time (fixture ``solver_backend`` in
 Unavailable backends are skipped with the solver's own reason. Bounds come from tolerances.py.
 
 Per solver/backend this suite runs 8 solves (3 noise-free, 1 noisy shared by four tests, 2 for
-the untouched-input / list-input check, 2 rescaled for unit invariance), so that even SDP solvers
-keep the whole project suite within its time budget.
+the untouched-input / list-input check, 2 rescaled for unit invariance), plus 3 for each option
+variant of the unit-invariance test (`invariance_variants`: at most 1 per solver), so that even
+SDP solvers keep the whole project suite within its time budget.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -27,6 +30,14 @@ NOISY_SEED = 2026
 NOISY_PAIRS = 30
 NOISY_MODEL = NoiseModel.on("B", 0.005, 0.5)
 UNIT_SCALES = (1e-3, 1e3)
+#: Option sets of the unit-invariance test besides the defaults and the other value of a bool
+#: ``normalize`` option: the options a solver's declaration is known to depend on.
+EXTRA_INVARIANCE_VARIANTS: dict[str, tuple[dict, ...]] = {"opencv": ({"method": "li"},)}
+#: Where a solver declares the answer NOT unit invariant, it must change by more than this at one
+#: of UNIT_SCALES (rotation [rad] or translation relative to the data scale), so that a wrong
+#: declaration fails either way. Measured on the noisy case, normalize=False / method "li":
+#: 1.4e-3 .. 2.3e-3 rad at s = 1e-3 (only ~1e-7 at s = 1e3, where translations dominate already).
+NOT_INVARIANT_CHANGE = 1e-6
 
 
 def _noise_free_case(seed: int):
@@ -124,23 +135,69 @@ def test_inputs_untouched_and_lists_accepted(solver_case, noisy, noisy_solution)
         np.testing.assert_allclose(sol.unknowns[name], noisy_solution.unknowns[name], rtol=0, atol=1e-9)
 
 
-@pytest.mark.parametrize("s", UNIT_SCALES)
-def test_unit_invariance(solver_case, noisy, noisy_solution, s):
-    if not solver_case.spec.unit_invariant:
-        pytest.skip(f"{solver_case.name} does not declare unit_invariant")
-    data, _ = noisy
-    scale = PROBLEM.validate(**data).translation_scale
+def invariance_variants(spec: handeye.SolverSpec) -> list[dict]:
+    """Options the unit-invariance test tries: the defaults, the other value of a bool
+    ``normalize`` option, and the solver's EXTRA_INVARIANCE_VARIANTS."""
+    variants: list[dict] = [{}]
+    normalize = {f.name: f for f in dataclasses.fields(spec.options)}.get("normalize")
+    if normalize is not None and isinstance(normalize.default, bool):
+        variants.append({"normalize": not normalize.default})
+    return variants + list(EXTRA_INVARIANCE_VARIANTS.get(spec.name, ()))
+
+
+def unit_change(solver_case, data: dict, base: handeye.Solution, s: float,
+                options: dict) -> tuple[float, float]:
+    """(rotation [rad], translation / data scale): the largest difference over X and Y between
+    `base` and the answer for `data` with every translation multiplied by s (divided back)."""
     scaled = {k: np.array(v) for k, v in data.items()}
     for T in scaled.values():
         T[:, :3, 3] *= s
-    sol = handeye.solve("axyb", solver=solver_case.name, backend=solver_case.backend, **scaled)
+    sol = handeye.solve("axyb", solver=solver_case.name, backend=solver_case.backend, **scaled, **options)
+    scale = PROBLEM.validate(**data).translation_scale
+    new, old = sol.unknowns, base.unknowns
+    angle = max(float(rotation_angle(new[n][:3, :3] @ old[n][:3, :3].T)) for n in ("X", "Y"))
+    dt = max(float(np.linalg.norm(new[n][:3, 3] / s - old[n][:3, 3])) for n in ("X", "Y"))
+    return angle, dt / scale
+
+
+@dataclasses.dataclass(frozen=True)
+class NormalizeOptions:
+    normalize: bool = True
+
+
+def test_is_unit_invariant_reads_a_bool_or_a_callable():
+    def spec(unit_invariant):
+        return handeye.SolverSpec(name="probe", problems=("axyb",), run=lambda *a: None,
+                                  options=NormalizeOptions, unit_invariant=unit_invariant)
+
+    assert spec(True).is_unit_invariant({"normalize": False}) is True  # a bool is the answer
+    by_option = spec(lambda options: options.normalize)
+    assert by_option.is_unit_invariant() is True  # None: the defaults
+    assert by_option.is_unit_invariant({"normalize": False}) is False  # keywords, as for solve
+    assert by_option.is_unit_invariant(NormalizeOptions(normalize=False)) is False  # an instance
+    with pytest.raises(UnknownPluginError, match="normalise"):
+        by_option.is_unit_invariant({"normalise": False})
+    with pytest.raises(ValueError, match="unit_invariant must be a bool or a callable"):
+        spec("yes")
+
+
+def test_unit_invariance(solver_case, noisy, noisy_solution):
+    """Invariant exactly where `is_unit_invariant(options)` says so, for each of the solver's
+    `invariance_variants`: to the tolerance where declared, a real change where not."""
+    data, _ = noisy
     tol = tolerance(solver_case.name, "unit_invariance")
-    for name in ("X", "Y"):
-        base, other = noisy_solution.unknowns[name], sol.unknowns[name]
-        angle = float(rotation_angle(other[:3, :3] @ base[:3, :3].T))
-        assert angle < tol["rotation"], (name, angle)
-        dt = np.linalg.norm(other[:3, 3] / s - base[:3, 3]) / scale
-        assert dt < tol["translation_rel"], (name, dt)
+    spec = solver_case.spec
+    for options in invariance_variants(spec):
+        base = noisy_solution if not options else handeye.solve(
+            "axyb", solver=solver_case.name, backend=solver_case.backend, **data, **options)
+        changes = {s: unit_change(solver_case, data, base, s, options) for s in UNIT_SCALES}
+        if spec.is_unit_invariant(options):
+            for s, (angle, dt) in changes.items():
+                assert angle < tol["rotation"] and dt < tol["translation_rel"], (options, s, angle, dt)
+        else:
+            assert max(max(change) for change in changes.values()) > NOT_INVARIANT_CHANGE, (
+                f"{solver_case.name} with options {options} is declared not unit invariant, but its "
+                f"answer does not change with the unit: {changes}")
 
 
 def test_bad_input_raises_right_type(solver_case, noisy):

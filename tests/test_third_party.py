@@ -11,6 +11,7 @@ tomllib), i.e. what an installer would write, and puts that directory on sys.pat
 from __future__ import annotations
 
 import importlib.metadata
+import json
 import sys
 
 import numpy as np
@@ -106,3 +107,74 @@ def test_registry_restored_afterwards():
     """Runs after the tests above (file order): the temporary distribution is gone again."""
     assert SOLVER not in registry.reload().solvers
     assert not any(d.metadata["Name"] == "handeye-example-solver" for d in importlib.metadata.distributions())
+
+
+# ---------------------------------------------------------------------------------------------
+# a broken third-party plugin: its module raises ImportError on import
+
+BROKEN_MODULE = "handeye_broken_plugin"
+BROKEN_DIST = "handeye-broken-plugin"
+
+
+@pytest.fixture
+def broken_plugin(tmp_path, monkeypatch):
+    """A distribution on sys.path whose ``handeye`` entry point ``broken`` names a module that
+    raises ImportError (a missing dependency); afterwards off sys.path and the registry rebuilt."""
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / f"{BROKEN_MODULE}.py").write_text("import handeye_no_such_dependency  # noqa: F401\n")
+    dist_info = site / f"{BROKEN_MODULE}-0.3.0.dist-info"
+    dist_info.mkdir()
+    (dist_info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {BROKEN_DIST}\nVersion: 0.3.0\n")
+    (dist_info / "entry_points.txt").write_text(f"[handeye]\nbroken = {BROKEN_MODULE}\n")
+    monkeypatch.syspath_prepend(str(site))
+    yield site
+    monkeypatch.undo()
+    sys.modules.pop(BROKEN_MODULE, None)
+    registry.reload()
+
+
+def test_broken_plugin_is_skipped_with_one_warning(broken_plugin):
+    with pytest.warns(handeye.PluginLoadWarning) as record:
+        reg = registry.reload()
+    assert len(record) == 1
+    message = str(record[0].message)
+    assert "'broken'" in message and BROKEN_DIST in message and "handeye_no_such_dependency" in message
+    assert "kron-lstsq" in reg.solvers and "axyb" in reg.problems  # the others still load
+    failed = reg.failed["broken"]
+    assert (failed.distribution, failed.version) == (BROKEN_DIST, "0.3.0")
+    assert failed.error.startswith("ModuleNotFoundError: ")
+    data, _ = PROBLEM.simulate(pairs=6, seed=1)
+    assert handeye.solve("axyb", solver="kron-lstsq", **data).status is handeye.Status.OPTIMAL
+
+
+def test_unknown_solver_error_names_the_broken_plugin(broken_plugin):
+    with pytest.warns(handeye.PluginLoadWarning):
+        registry.reload()
+    data, _ = PROBLEM.simulate(pairs=6, seed=1)
+    with pytest.raises(handeye.UnknownPluginError, match="unknown solver for problem 'axyb' 'broken-solver'") as info:
+        handeye.solve("axyb", solver="broken-solver", **data)
+    assert "failed to load" in str(info.value) and f"'broken' (from {BROKEN_DIST} 0.3.0" in str(info.value)
+
+
+def test_cli_lists_the_broken_plugin(broken_plugin, capsys):
+    from handeye.cli import main
+
+    with pytest.warns(handeye.PluginLoadWarning):
+        registry.reload()
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    assert "plugins that failed to load" in out and "kron-lstsq" in out
+    (line,) = [x for x in out.splitlines() if x.strip().startswith("broken ")]
+    assert f"from {BROKEN_DIST} 0.3.0: ModuleNotFoundError:" in line
+    assert main(["list", "--json"]) == 0
+    (entry,) = json.loads(capsys.readouterr().out)["failed_plugins"]
+    assert entry["name"] == "broken" and entry["distribution"] == BROKEN_DIST
+
+
+def test_broken_builtin_plugin_still_raises(broken_plugin, monkeypatch):
+    """A built-in entry point failing to import is handeye's bug: it is not hidden. (Simulated by
+    declaring the broken distribution to be handeye's own.)"""
+    monkeypatch.setattr(registry, "OWN_DISTRIBUTION", BROKEN_DIST)
+    with pytest.raises(ImportError, match="handeye_no_such_dependency"):
+        registry.reload()

@@ -8,8 +8,8 @@ Regimes:
 - "noisy": the paper's X, Y, 30 simulated pairs, noise on B of 0.005 rad and 0.5 mm (seed
   `NOISY_SEED` of test_solvers.py); rotation error [rad] and translation error [mm] against the
   truth, for X and for Y.
-- "unit_invariance": solvers declaring ``unit_invariant=True``; translations scaled by 1e-3 and
-  1e3: difference of the rotations [rad] and of the translations relative to the data scale.
+- "unit_invariance": solver options that ``SolverSpec.is_unit_invariant(options)`` declares
+  invariant; translations scaled by 1e-3 and 1e3: difference of the rotations [rad] and of the translations relative to the data scale.
 
 The DEFAULT "noisy" bounds come from 20 seeds (0..19) of exactly that simulation, measured on
 2026-11-22 with `kron-lstsq` and OpenCV's calibrateRobotWorldHandEye (SHAH and LI):

@@ -6,7 +6,10 @@ them; a new subcommand is one module plus one entry there.
 
 Exit codes: 0 success; 2 bad input (unknown name, bad file, bad option, bad data: every
 `handeye.HandEyeError` except `SolverError`, and unreadable files); 1 the solver failed
-(`SolverError`). Errors are one line on stderr, ``handeye: error: ...``, without a traceback.
+(`SolverError`, or ``handeye solve`` got a solution of status ``not_converged`` / ``failed``,
+which it still prints), or an internal error (a bug in handeye or a plugin). Errors are one line
+on stderr, ``handeye: error: ...`` (``handeye: internal error: ... (please report)`` for a bug),
+without a traceback; Ctrl-C exits 130.
 """
 
 from __future__ import annotations
@@ -29,6 +32,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="handeye",
         description="Robot hand-eye / robot-world calibration, A_i X = Y B_i (docs/conventions.md).",
+        epilog="exit codes: 0 success; 2 bad input (file, data, unknown name or option); 1 solver "
+               "failure (including a solve whose status is not_converged or failed: the result is "
+               "printed, do not use it) or internal error. Errors are one line on stderr.",
     )
     parser.add_argument("--version", action="version", version=f"handeye {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
@@ -54,6 +60,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _fail(exc, EXIT_BAD_INPUT)
     except KeyboardInterrupt:
         return _fail("interrupted", 130)
+    except Exception as exc:  # a bug (ours or a plugin's): one line, no traceback, still exit 1
+        message = " ".join(str(exc).split())
+        print(f"handeye: internal error: {type(exc).__name__}: {message} (please report)", file=sys.stderr)
+        return EXIT_SOLVER_FAILED
 
 
 def _fail(exc: BaseException | str, code: int) -> int:

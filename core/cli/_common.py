@@ -11,10 +11,14 @@ import numpy as np
 
 from ..errors import InputError
 
+#: option values read as bools, whatever their case (JSON knows only lower-case true/false)
+BOOLEANS = {"true": True, "false": False}
+
 
 def parse_key_values(items: Sequence[str] | None, what: str = "--option") -> dict[str, Any]:
-    """``["k=v", ...]`` -> dict; v parsed as a JSON literal when it is one (``1e-6``, ``true``,
-    ``"x"``, ``[1, 2]``), else kept as the string. Raises InputError on a malformed item."""
+    """``["k=v", ...]`` -> dict; v is a bool when it is ``true``/``false`` in any case (``False``
+    as Python prints it), else parsed as a JSON literal when it is one (``1e-6``, ``"x"``,
+    ``[1, 2]``), else kept as the string. Raises InputError on a malformed item."""
     out: dict[str, Any] = {}
     for item in items or ():
         key, sep, text = item.partition("=")
@@ -23,6 +27,9 @@ def parse_key_values(items: Sequence[str] | None, what: str = "--option") -> dic
             raise InputError(f"{what} expects key=value, got {item!r}")
         if key in out:
             raise InputError(f"{what} {key!r} given twice")
+        if text.strip().lower() in BOOLEANS:
+            out[key] = BOOLEANS[text.strip().lower()]
+            continue
         try:
             out[key] = json.loads(text)
         except json.JSONDecodeError:

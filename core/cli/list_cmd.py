@@ -1,9 +1,11 @@
 """``handeye list``: the registered problems and solvers, with backends, availability,
-providing distribution and citation (``--json`` for machines)."""
+providing distribution and citation, and the plugins that failed to load (``--json`` for
+machines)."""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from typing import Any
 
 from ..registry import get_registry
@@ -25,7 +27,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def collect(problem: str | None = None) -> dict[str, Any]:
-    """The listing as a JSON-ready dict: {"problems": [...], "solvers": [...]}."""
+    """The listing as a JSON-ready dict: {"problems": [...], "solvers": [...], "failed_plugins":
+    [{"name", "distribution", "version", "error"}, ...]}."""
     registry = get_registry()
     problems = [
         {"name": p.name, "summary": p.summary, "data": list(p.data_fields), "unknowns": list(p.unknowns)}
@@ -45,7 +48,8 @@ def collect(problem: str | None = None) -> dict[str, Any]:
             "backends": backends, "options": spec.option_names(), "citation": spec.citation,
             "plugin": provider.name, "distribution": provider.distribution, "version": provider.version,
         })
-    return {"problems": problems, "solvers": solvers}
+    failed = [dataclasses.asdict(f) for _, f in sorted(registry.failed.items())]
+    return {"problems": problems, "solvers": solvers, "failed_plugins": failed}
 
 
 def markdown_table(listing: dict[str, Any]) -> str:
@@ -83,4 +87,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"      from     {s['distribution']}{version} (plugin {s['plugin']})")
         if s["citation"]:
             print(f"      cite     {s['citation']}")
+    if listing["failed_plugins"]:
+        print()
+        print("plugins that failed to load (skipped):")
+        for f in listing["failed_plugins"]:
+            print(f"  {f['name']:<16} from {f['distribution']} {f['version']}: {f['error']}")
     return 0

@@ -4,12 +4,18 @@ Prints X and Y, the per-pair residual summary of A_i X = Y B_i (rotation angle o
 (A_i X)(Y B_i)^-1, eq. 32, and translation distance, eq. 33), status, solver time, warnings
 and, when the data come with a truth, the errors against it (eqs. 30-31). ``--json`` prints
 the same as one JSON object.
+
+Exit code 0 for status optimal, optimal_inaccurate and uncertified (a valid answer that the
+solver could not certify globally optimal; the output says so). Exit code 1 for not_converged
+and failed: the answer is still printed, for inspection, with a warning and one line on stderr,
+but it must not be used.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import sys
 from typing import Any
 
 import numpy as np
@@ -19,11 +25,14 @@ from ..errors import InputError
 from ..examples import DEFAULT_EXAMPLE, list_examples, load_example
 from ..io import load_file, supported_extensions
 from ..registry import get_registry
+from ..solution import Status
 from ._common import dump_json, format_pose, parse_key_values
 
 NAME = "solve"
 #: solvers tried, in order, when --solver is not given
 DEFAULT_SOLVERS = ("auto", "kron-lstsq")
+#: statuses whose unknowns must not be used: printed, but the exit code is 1 (solver failure)
+UNUSABLE = (Status.NOT_CONVERGED, Status.FAILED)
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -36,7 +45,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--solver", help="solver (default: 'auto' if installed, else 'kron-lstsq'); see handeye list")
     parser.add_argument("--backend", help="backend of the solver (default: the solver's default)")
     parser.add_argument("--option", action="append", metavar="KEY=VALUE",
-                        help="solver option, repeatable; VALUE is read as JSON when it parses (1e-8, true, \"x\"), else as text")
+                        help="solver option, repeatable; VALUE true/false (any case) is a bool, else it is "
+                             "read as JSON when it parses (1e-8, \"x\"), else as text")
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.set_defaults(run=run)
     return parser
@@ -85,6 +95,10 @@ def run(args: argparse.Namespace) -> int:
         "warnings": solution.warnings,
     }
     print(dump_json(report) if args.json else _text(report))
+    if solution.status in UNUSABLE:
+        print(f"handeye: error: solver {solver!r} ended with status {solution.status}: its X, Y "
+              "(printed above) are not an answer; try another solver or init", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -115,8 +129,11 @@ def _text(r: dict[str, Any]) -> str:
                if k not in ("warnings", "data") and isinstance(v, (int, float, str, bool)) and not isinstance(v, bool)}
     if scalars:
         lines += ["", "diagnostics: " + ", ".join(f"{k}={_short(v)}" for k, v in scalars.items())]
-    if r["status"] in ("not_converged", "failed"):
+    if r["status"] in UNUSABLE:
         lines.append(f"warning: status {r['status']}: the solver did not reach its answer; do not use X, Y")
+    elif r["status"] == Status.UNCERTIFIED:
+        lines.append("note: status uncertified: a valid answer, but the solver could not prove it "
+                     "globally optimal")
     for w in r["warnings"]:
         lines.append(f"warning: {w}")
     return "\n".join(lines)
