@@ -44,15 +44,17 @@ are robust (median norm / median of chi_3) and re-estimated until they are a fix
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from scipy.linalg import lapack
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import DegenerateDataError, InputError
 from handeye.options import check_choice, check_positive
 from handeye.problems.axyb import AXYBData
-from handeye.se3 import make_pose, so3_log
+from handeye.se3 import so3_log
 from handeye.validation import pose_stack
 
 LOSSES = ("linear", "huber", "cauchy")
@@ -71,9 +73,9 @@ SIGMA_FLOOR = 1e-12
 #: and stop short: answers then differed by ~1e-9 rad between mm and m).
 JUDGE_TOL = 1e-10
 #: from this many pairs on, the normal equations are summed in closed form (`model_sigmas`)
-#: instead of from the (m, 6, 12) Jacobian: measured 0.8 vs 0.3 ms at m = 16, equal at 300,
-#: 11 vs 67 ms at m = 10000.
-BLOCKS_MIN_PAIRS = 300
+#: instead of from the (m, 6, 12) Jacobian: measured 0.38 vs 0.08 ms at m = 16, 0.84 vs 0.52 ms
+#: at 600, 0.76 vs 1.7 ms at 1000, 4.8 vs 17 ms at m = 10000.
+BLOCKS_MIN_PAIRS = 700
 JUDGE_STEPS = 3
 #: relative change of estimated sigmas between iterations that counts as a fixed point.
 WEIGHT_TOL = 1e-6
@@ -138,8 +140,9 @@ class Options:
         if (self.init_X is None) != (self.init_Y is None):
             raise InputError("options init_X and init_Y must be given together (both 4x4 poses)")
         if self.init_X is not None:
-            object.__setattr__(self, "init_X", _pose_option(self.init_X, "init_X"))
-            object.__setattr__(self, "init_Y", _pose_option(self.init_Y, "init_Y"))
+            X, Y = _pose_options(self.init_X, self.init_Y)
+            object.__setattr__(self, "init_X", X)
+            object.__setattr__(self, "init_Y", Y)
         if (self.sigma_rot is None) != (self.sigma_trans is None):
             raise InputError("options sigma_rot and sigma_trans must be given together (the ratio sets the weights)")
         if self.sigma_rot is not None:
@@ -158,6 +161,20 @@ def _pose_option(value: Any, name: str) -> np.ndarray:
     return pose_stack(T[None], name)[0]
 
 
+def _pose_options(X: Any, Y: Any) -> tuple[np.ndarray, np.ndarray]:
+    """init_X, init_Y as validated poses. Both are checked in one `pose_stack` call, which is
+    most of the cost of parsing the options at small m; when that fails, each is checked alone,
+    for an error naming the bad one."""
+    X, Y = np.asarray(X, dtype=float), np.asarray(Y, dtype=float)
+    if X.shape == Y.shape == (4, 4):
+        try:
+            both = pose_stack(np.stack([X, Y]), "init_X, init_Y")
+            return both[0], both[1]
+        except InputError:
+            pass
+    return _pose_option(X, "init_X"), _pose_option(Y, "init_Y")
+
+
 def _covariance_option(value: Any) -> np.ndarray:
     C = np.array(value, dtype=float)
     if C.shape[-2:] != (6, 6) or C.ndim not in (2, 3):
@@ -173,99 +190,137 @@ def _covariance_option(value: Any) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- model
+#
+# At the usual m (tens of pairs) every array here is tiny and the cost of a Levenberg-Marquardt
+# iteration is the number of numpy calls (1-3 us each), not arithmetic: the helpers below build
+# 3x3 blocks from (m, 9) rows with one product against a constant (`_SKEW`, `_LOG_MAP`) instead of
+# entry-by-entry assignments, use batched `@` (faster than einsum at every m), and the 12x12
+# systems are solved by LAPACK's Cholesky called directly (`_newton_step`).
+
+#: v @ _SKEW = [v]_x flattened row-major: (..., 3) -> (..., 9)
+_SKEW = np.zeros((3, 9))
+_SKEW[2, 1], _SKEW[1, 2], _SKEW[2, 3], _SKEW[0, 5], _SKEW[1, 6], _SKEW[0, 7] = -1.0, 1.0, 1.0, -1.0, -1.0, 1.0
+#: the 3x3 identity flattened row-major
+_I9 = np.eye(3).reshape(9)
+#: smallest normal float: keeps theta / sin(theta) finite at theta = 0
+_TINY = np.finfo(float).tiny
+#: the 12x12 identity: right-hand side that turns the normal matrix into the covariance
+_I12 = np.eye(12)
+#: R.reshape(m, 9) @ _LOG_MAP = [vee(R - R^T) / 2, tr(R) / 2]: (m, 4), the parts of R that its
+#: rotation vector depends on (sin(theta) axis, and (1 + 2 cos theta) / 2).
+_LOG_MAP = np.zeros((9, 4))
+_LOG_MAP[7, 0], _LOG_MAP[5, 0], _LOG_MAP[2, 1], _LOG_MAP[6, 1], _LOG_MAP[3, 2], _LOG_MAP[1, 2] = 0.5, -0.5, 0.5, -0.5, 0.5, -0.5
+_LOG_MAP[[0, 4, 8], 3] = 0.5
+for _array in (_SKEW, _I9, _I12, _LOG_MAP):
+    _array.setflags(write=False)
+del _array
+
 
 def _so3_log(R: np.ndarray) -> np.ndarray:
     """Rotation vectors of R: (m, 3, 3) -> (m, 3), angle in [0, pi].
 
-    theta = atan2(|s|, (tr R - 1) / 2) with s = vee(R - R^T) / 2 = sin(theta) axis, then
-    phi = theta / sin(theta) s (series below 1e-4 rad); within 1e-3 rad of pi, where s loses the
-    axis, scipy's quaternion route is used for those rotations only. Plain numpy: at m = 16 this is
-    ~20x cheaper than scipy's Rotation, which dominated the per-iteration cost.
+    theta = atan2(|s|, (tr R - 1) / 2) with s = vee(R - R^T) / 2 = sin(theta) axis (one product
+    with `_LOG_MAP`), then phi = theta / |s| s (at small angles atan2 returns |s| itself to
+    rounding, so the ratio is accurate down to 0 and needs no series; s = 0 gives phi = 0);
+    within 1e-3 rad of pi, where s loses the axis, scipy's quaternion route is used for those
+    rotations only. Plain numpy: at m = 16 this is ~20x cheaper than scipy's Rotation.
     """
-    s = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
-    sin = np.sqrt(np.einsum("ni,ni->n", s, s))
-    cos = 0.5 * (R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2] - 1.0)
-    theta = np.arctan2(sin, cos)
-    small = theta < 1e-4
-    factor = np.where(small, 1.0 + theta * theta / 6.0, theta / np.where(small, 1.0, sin))
-    phi = factor[:, None] * s
-    near_pi = theta > np.pi - 1e-3
-    if near_pi.any():
+    parts = R.reshape(len(R), 9) @ _LOG_MAP
+    s = parts[:, :3]
+    sin = np.sqrt((s * s).sum(axis=1))
+    theta = np.arctan2(sin, parts[:, 3] - 0.5)
+    phi = (theta / np.maximum(sin, _TINY))[:, None] * s
+    if theta.max(initial=0.0) > np.pi - 1e-3:
+        near_pi = theta > np.pi - 1e-3
         phi[near_pi] = so3_log(R[near_pi])
     return phi
 
 
 def _so3_exp(w: np.ndarray) -> np.ndarray:
-    """Rotation exp([w]_x) of one rotation vector w: (3,) (Rodrigues, series for tiny angles)."""
-    theta = float(np.sqrt(w @ w))
-    K = _skew(w)
+    """Rotation exp([w]_x) of one rotation vector w: (3,): Rodrigues' I + a [w]_x + b [w]_x^2 with
+    a = sin(theta) / theta, b = (1 - cos theta) / theta^2 (series below 1e-6 rad) and
+    [w]_x^2 = w w^T - theta^2 I, entry by entry in Python floats (cheaper than numpy calls for one
+    3x3; two per iteration)."""
+    x, y, z = w.tolist()
+    theta2 = x * x + y * y + z * z
+    theta = math.sqrt(theta2)
     if theta < 1e-6:
-        a, b = 1.0 - theta * theta / 6.0, 0.5 - theta * theta / 24.0
+        a, b = 1.0 - theta2 / 6.0, 0.5 - theta2 / 24.0
     else:
-        a, b = np.sin(theta) / theta, (1.0 - np.cos(theta)) / (theta * theta)
-    return np.eye(3) + a * K + b * (K @ K)
+        a, b = math.sin(theta) / theta, (1.0 - math.cos(theta)) / theta2
+    ax, ay, az, bx, by, bz = a * x, a * y, a * z, b * x, b * y, b * z
+    return np.array([[1.0 - by * y - bz * z, bx * y - az, bx * z + ay],
+                     [bx * y + az, 1.0 - bx * x - bz * z, by * z - ax],
+                     [bx * z - ay, by * z + ax, 1.0 - bx * x - by * y]])
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
-    out = np.zeros(v.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
-    out[..., 1, 0], out[..., 2, 0], out[..., 2, 1] = v[..., 2], -v[..., 1], v[..., 0]
-    return out
+    """[v]_x: (..., 3) -> (..., 3, 3)."""
+    return (v @ _SKEW).reshape(v.shape[:-1] + (3, 3))
 
 
 @dataclasses.dataclass(frozen=True)
 class Pairs:
     """The data, arranged for cheap evaluation: RA9: (3m, 3) = stacked R_A, RBt9: (3m, 3) =
-    stacked R_B^T, tA, tB: (m, 3)."""
+    stacked R_B^T, tA, tB: (m, 3), TBx_T: (3, 3m) = [t_B]_x stacked side by side (so that
+    R_Y [t_B]_x for all pairs is one product R_Y @ TBx_T)."""
 
     RA9: np.ndarray
     RBt9: np.ndarray
     tA: np.ndarray
     tB: np.ndarray
     m: int
+    TBx_T: np.ndarray
 
     @classmethod
     def of(cls, data: AXYBData) -> Pairs:
         RA, RB = data.A[:, :3, :3], data.B[:, :3, :3]
         m = len(RA)
+        tB = np.ascontiguousarray(data.B[:, :3, 3])
         return cls(np.ascontiguousarray(RA.reshape(3 * m, 3)),
                    np.ascontiguousarray(np.swapaxes(RB, 1, 2)).reshape(3 * m, 3),
-                   np.ascontiguousarray(data.A[:, :3, 3]), np.ascontiguousarray(data.B[:, :3, 3]), m)
+                   np.ascontiguousarray(data.A[:, :3, 3]), tB, m,
+                   np.ascontiguousarray(_skew(tB).transpose(1, 0, 2)).reshape(3, 3 * m))
 
 
 def residuals(P: Pairs, X: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unwhitened residuals e: (m, 6) = [r_i; t_i], and the discrepancy rotations
     Q_i = R_A R_X R_B^T R_Y^T = exp([r_i]_x): (m, 3, 3) (two BLAS products, one batched 3x3)."""
-    RX, tX, RY, tY = X[:3, :3], X[:3, 3], Y[:3, :3], Y[:3, 3]
+    RY = Y[:3, :3]
     m = P.m
-    Q = np.einsum("nij,njk->nik", (P.RA9 @ RX).reshape(m, 3, 3), (P.RBt9 @ RY.T).reshape(m, 3, 3))
-    r = _so3_log(Q)
-    t = (P.RA9 @ tX).reshape(m, 3) + P.tA - P.tB @ RY.T - tY
-    return np.concatenate([r, t], axis=1), Q
+    AX = P.RA9 @ X[:3]  # (3m, 4): [R_A R_X, R_A t_X] per pair
+    Q = AX[:, :3].reshape(m, 3, 3) @ (P.RBt9 @ RY.T).reshape(m, 3, 3)
+    e = np.empty((m, 6))
+    e[:, :3] = _so3_log(Q)
+    e[:, 3:] = AX[:, 3].reshape(m, 3) - P.tB @ RY.T + (P.tA - Y[:3, 3])
+    return e, Q
 
 
-def jl_inv(r: np.ndarray) -> np.ndarray:
-    """Inverse left Jacobians of SO(3) at rotation vectors r: (m, 3) -> (m, 3, 3):
-    Jl^-1(r) = I - [r]_x / 2 + c(theta) (r r^T - theta^2 I), c = 1/theta^2 - (1 + cos theta) /
-    (2 theta sin theta) (series 1/12 + theta^2/720 below 1e-4 rad). Jl^-1(r)^T = Jl^-1(-r) = Jr^-1(r)."""
-    theta2 = np.einsum("ni,ni->n", r, r)
+def _jl_coefficient(theta2: np.ndarray) -> np.ndarray:
+    """c(theta) = 1/theta^2 - (1 + cos theta) / (2 theta sin theta) = (1 - (theta/2) cot(theta/2)) /
+    theta^2 at theta^2 = |r|^2: (m,), the coefficient of [r]_x^2 in the inverse Jacobians of SO(3)
+    (`inverse_jacobians`). When every theta < 0.1 rad (the usual case: residual rotations) its
+    Taylor series 1/12 + theta^2/720 + theta^4/30240 + theta^6/1209600, exact to rounding there
+    (the closed form loses digits to cancellation at small angles) and fewer numpy calls; else the
+    closed form, with 1/12 + theta^2/720 below 1e-4 rad."""
+    if theta2.max(initial=0.0) < 0.01:
+        return ((theta2 / 1209600.0 + 1.0 / 30240.0) * theta2 + 1.0 / 720.0) * theta2 + 1.0 / 12.0
     theta = np.sqrt(theta2)
     small = theta < 1e-4
     ts = np.where(small, 1.0, theta)
-    c = np.where(small, 1.0 / 12.0 + theta2 / 720.0, 1.0 / ts**2 - (1.0 + np.cos(ts)) / (2.0 * ts * np.sin(ts)))
-    out = c[:, None, None] * (r[:, :, None] * r[:, None, :])
-    d = 1.0 - c * theta2
-    h = 0.5 * r
-    out[:, 0, 0] += d
-    out[:, 1, 1] += d
-    out[:, 2, 2] += d
-    out[:, 0, 1] += h[:, 2]
-    out[:, 1, 0] -= h[:, 2]
-    out[:, 0, 2] -= h[:, 1]
-    out[:, 2, 0] += h[:, 1]
-    out[:, 1, 2] += h[:, 0]
-    out[:, 2, 1] -= h[:, 0]
-    return out
+    half = 0.5 * ts
+    return np.where(small, 1.0 / 12.0 + theta2 / 720.0, (1.0 - half / np.tan(half)) / (ts * ts))
+
+
+def inverse_jacobians(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse left and right Jacobians of SO(3) at rotation vectors r: (m, 3) -> two (m, 3, 3):
+    Jl^-1(r) = I - [r]_x / 2 + c(theta) [r]_x^2 and Jr^-1(r) = Jl^-1(r)^T = I + [r]_x / 2 +
+    c(theta) [r]_x^2 ([r]_x^2 = r r^T - theta^2 I; c of `_jl_coefficient`)."""
+    m = len(r)
+    K = (r @ _SKEW).reshape(m, 3, 3)
+    common = _jl_coefficient((r * r).sum(axis=1))[:, None, None] * (K @ K) + _I9.reshape(3, 3)
+    half = 0.5 * K
+    return common - half, common + half
 
 
 def jacobian(P: Pairs, X: np.ndarray, Y: np.ndarray, e: np.ndarray, Q: np.ndarray | None = None) -> np.ndarray:
@@ -273,31 +328,30 @@ def jacobian(P: Pairs, X: np.ndarray, Y: np.ndarray, e: np.ndarray, Q: np.ndarra
 
     With Q_i = R_A R_X R_B^T R_Y^T = exp([r_i]_x): X exp(omega_X) gives Q <- exp([R_A R_X omega_X]_x) Q
     and Y exp(omega_Y) gives Q <- Q exp(-[R_Y omega_Y]_x), hence
-    rotation rows [Jl^-1(r) R_A R_X, 0, -Jr^-1(r) R_Y, 0] (Jr^-1 = (Jl^-1)^T);
-    translation rows [0, R_A R_X, [R_Y t_B]_x R_Y, -R_Y] (R_Y [t_B]_x = [R_Y t_B]_x R_Y).
+    rotation rows [Jl^-1(r) R_A R_X, 0, -Jr^-1(r) R_Y, 0];
+    translation rows [0, R_A R_X, R_Y [t_B]_x, -R_Y] (R_Y [t_B]_x = [R_Y t_B]_x R_Y).
     (Q, the second output of `residuals`, is accepted and not needed.)
     """
     m = P.m
-    RX, RY = X[:3, :3], Y[:3, :3]
+    RX, minus_RY = X[:3, :3], -Y[:3, :3]
     RAX = (P.RA9 @ RX).reshape(m, 3, 3)
-    Ji = jl_inv(e[:, :3])
+    Jl_inv, Jr_inv = inverse_jacobians(e[:, :3])
     J = np.zeros((m, 6, 12))
-    J[:, :3, 0:3] = Ji @ RAX
-    J[:, :3, 6:9] = -(np.swapaxes(Ji, 1, 2).reshape(3 * m, 3) @ RY).reshape(m, 3, 3)
+    np.matmul(Jl_inv, RAX, out=J[:, :3, 0:3])
+    J[:, :3, 6:9] = (Jr_inv.reshape(3 * m, 3) @ minus_RY).reshape(m, 3, 3)
     J[:, 3:, 3:6] = RAX
-    q = P.tB @ RY.T  # R_Y t_B: (m, 3)
-    q0, q1, q2 = q[:, 0, None], q[:, 1, None], q[:, 2, None]
-    J[:, 3, 6:9] = q1 * RY[2] - q2 * RY[1]
-    J[:, 4, 6:9] = q2 * RY[0] - q0 * RY[2]
-    J[:, 5, 6:9] = q0 * RY[1] - q1 * RY[0]
-    J[:, 3:, 9:12] = -RY
+    J[:, 3:, 6:9] = (Y[:3, :3] @ P.TBx_T).reshape(3, m, 3).transpose(1, 0, 2)
+    J[:, 3:, 9:12] = minus_RY
     return J
 
 
 def retract(T: np.ndarray, xi: np.ndarray) -> np.ndarray:
-    """T exp(xi) to first order: (R exp([omega]_x), t + R v) for xi = (omega, v)."""
-    R = T[:3, :3] @ _so3_exp(xi[:3])
-    return make_pose(R, T[:3, 3] + T[:3, :3] @ xi[3:])
+    """T exp(xi) to first order: (R exp([omega]_x), t + R v) for xi = (omega, v) and a pose T
+    (whose last row [0, 0, 0, 1] is kept)."""
+    R, out = T[:3, :3], T.copy()
+    out[:3, :3] = R @ _so3_exp(xi[:3])
+    out[:3, 3] += R @ xi[3:]
+    return out
 
 
 # --------------------------------------------------------------------------- weights, losses
@@ -341,13 +395,24 @@ def estimate_sigmas(e: np.ndarray, scale: float, robust: bool = False) -> Whiten
     so the answer does not depend on the start or the path to it.
     robust=True (huber, cauchy): median norm / CHI3_MEDIAN, so that outliers do not set the scale.
     """
-    if robust:
-        norms = np.sort(np.sqrt(np.add.reduceat(e * e, [0, 3], axis=1)), axis=0)  # (m, 2)
-        m = len(e)
-        s_rot, s_trans = 0.5 * (norms[(m - 1) // 2] + norms[m // 2]) / CHI3_MEDIAN  # medians
-    else:
-        s_rot, s_trans = np.sqrt(np.add.reduceat(np.sum(e * e, axis=0), [0, 3]) / (3 * len(e)))
-    return Whitening(max(float(s_rot), SIGMA_FLOOR), max(float(s_trans), SIGMA_FLOOR * scale))
+    m = len(e)
+    if not robust:
+        return _rms_whitening(*_sums_of_squares(e), m, scale)
+    norms = np.sort(np.sqrt((e * e).reshape(m, 2, 3).sum(axis=2)), axis=0)  # (m, 2)
+    s_rot, s_trans = (0.5 * (norms[(m - 1) // 2] + norms[m // 2]) / CHI3_MEDIAN).tolist()  # medians
+    return Whitening(max(s_rot, SIGMA_FLOOR), max(s_trans, SIGMA_FLOOR * scale))
+
+
+def _sums_of_squares(e: np.ndarray) -> tuple[float, float]:
+    """sum_i |r_i|^2 and sum_i |t_i|^2 of residuals e: (m, 6)."""
+    sum_rot, sum_trans = (e * e).reshape(len(e), 2, 3).sum(axis=(0, 2)).tolist()
+    return sum_rot, sum_trans
+
+
+def _rms_whitening(sum_rot: float, sum_trans: float, m: int, scale: float) -> Whitening:
+    """The RMS sigmas of `estimate_sigmas` (robust=False) from the sums of squares of m residuals."""
+    s_rot, s_trans = math.sqrt(sum_rot / (3 * m)), math.sqrt(sum_trans / (3 * m))
+    return Whitening(max(s_rot, SIGMA_FLOOR), max(s_trans, SIGMA_FLOOR * scale))
 
 
 def loss_terms(s: np.ndarray, loss: str, c: float) -> tuple[np.ndarray, np.ndarray]:
@@ -400,6 +465,7 @@ class LMResult:
     ew: np.ndarray  # (m, 6) whitened residuals at the end
     e: np.ndarray  # (m, 6) residuals at the end
     mode: str
+    e0: np.ndarray  # (m, 6) residuals at the start
 
 
 def objective(e: np.ndarray, W: Whitening, mode: str, loss: str, c: float, scale: float) -> tuple[float, Whitening]:
@@ -413,12 +479,12 @@ def objective(e: np.ndarray, W: Whitening, mode: str, loss: str, c: float, scale
     weights, then minimise", L is one smooth function: monotone descent, quadratic convergence.
     """
     if mode == "profile":
-        W = estimate_sigmas(e, scale, robust=False)
-        ew = W.residual(e)
-        m = len(e)
-        return 3.0 * m * float(np.log(W.sigma_rot) + np.log(W.sigma_trans)) + 0.5 * float(np.sum(ew * ew)), W
+        sum_rot, sum_trans = _sums_of_squares(e)
+        W = _rms_whitening(sum_rot, sum_trans, len(e), scale)
+        return (3.0 * len(e) * (math.log(W.sigma_rot) + math.log(W.sigma_trans))
+                + 0.5 * (sum_rot / W.sigma_rot**2 + sum_trans / W.sigma_trans**2)), W
     ew = W.residual(e)
-    return 0.5 * float(np.sum(loss_terms(np.einsum("ni,ni->n", ew, ew), loss, c)[0])), W
+    return 0.5 * float(loss_terms((ew * ew).sum(axis=1), loss, c)[0].sum()), W
 
 
 def cost_of(P: Pairs, X: np.ndarray, Y: np.ndarray, W: Whitening, loss: str, c: float) -> float:
@@ -437,36 +503,30 @@ def _model(e: np.ndarray, J: np.ndarray, W: Whitening, mode: str, loss: str, c: 
     positive definite (far from the minimum), which keeps the step a descent direction.
     """
     ew, Jw = W.residual(e), W.jacobian(J)
-    s = np.einsum("ni,ni->n", ew, ew)
-    rho, drho = loss_terms(s, loss, c)
-    F = 0.5 * float(np.sum(rho))
-    if loss != "linear":
+    if loss == "linear":
+        F = 0.5 * float((ew * ew).sum())
+    else:
+        rho, drho = loss_terms((ew * ew).sum(axis=1), loss, c)
+        F = 0.5 * float(rho.sum())
         sq = np.sqrt(drho)
         ew, Jw = ew * sq[:, None], Jw * sq[:, None, None]
     Jf = Jw.reshape(-1, 12)
     Hw = Jf.T @ Jf
-    g = Jf.T @ ew.reshape(-1)
-    H = Hw
-    if mode == "profile":
-        a_rot = np.einsum("nij,ni->j", Jw[:, :3], ew[:, :3])
-        a_trans = np.einsum("nij,ni->j", Jw[:, 3:], ew[:, 3:])
-        H = _profile_hessian(Hw, a_rot, a_trans, W, len(e), scale)
-    return g, H, Hw, F, ew
+    if mode != "profile":
+        return Jf.T @ ew.reshape(-1), Hw, Hw, F, ew
+    m = len(e)
+    a = np.einsum("ngik,ngi->gk", Jw.reshape(m, 2, 3, 12), ew.reshape(m, 2, 3))  # gradient per group
+    return a[0] + a[1], _profile_hessian(Hw, a, W, m, scale), Hw, F, ew
 
 
-def _profile_hessian(Hw: np.ndarray, a_rot: np.ndarray, a_trans: np.ndarray, W: Whitening,
-                     m: int, scale: float) -> np.ndarray:
-    """Hw - 2/(3m) a a^T for each group whose sigma is above its floor (the logs' curvature of the
-    profile likelihood); Hw itself when that is not positive definite (far from the minimum)."""
-    H = Hw.copy()
-    for a, sigma, floor in ((a_rot, W.sigma_rot, SIGMA_FLOOR), (a_trans, W.sigma_trans, SIGMA_FLOOR * scale)):
-        if sigma > floor:
-            H -= (2.0 / (3.0 * m)) * np.outer(a, a)
-    try:
-        np.linalg.cholesky(H)
-    except np.linalg.LinAlgError:
-        return Hw
-    return H
+def _profile_hessian(Hw: np.ndarray, a: np.ndarray, W: Whitening, m: int, scale: float) -> np.ndarray:
+    """Hw - 2/(3m) a_g a_g^T for each group g (rows of a: (2, 12), rotation and translation) whose
+    sigma is above its floor (the logs' curvature of the profile likelihood); Hw itself when that
+    is not positive definite (far from the minimum)."""
+    if W.sigma_rot <= SIGMA_FLOOR or W.sigma_trans <= SIGMA_FLOOR * scale:
+        a = a[[W.sigma_rot > SIGMA_FLOOR, W.sigma_trans > SIGMA_FLOOR * scale]]
+    H = Hw - (2.0 / (3.0 * m)) * (a.T @ a)
+    return H if lapack.dpotrf(H)[1] == 0 else Hw  # LAPACK's Cholesky: info 0 = positive definite
 
 
 def model_sigmas(P: Pairs, X: np.ndarray, Y: np.ndarray, e: np.ndarray, W: Whitening, mode: str,
@@ -476,7 +536,7 @@ def model_sigmas(P: Pairs, X: np.ndarray, Y: np.ndarray, e: np.ndarray, W: White
     The blocks of J^T W J and J^T W e are sums over pairs of small products (derivation in
     docs/solvers/refine.md), using Jl^-T r = Jl^-1 r = r, Jl^-T Jl^-1 = Jl^-1 Jl^-T = I + beta [r]_x^2
     and Jl^-T Jl^-T = I + gamma [r]_x + delta [r]_x^2, with beta = 2c - 1/4 - c^2 theta^2,
-    gamma = 1 - c theta^2, delta = 1/4 + 2c - c^2 theta^2 (c of `jl_inv`). Each sum is one BLAS
+    gamma = 1 - c theta^2, delta = 1/4 + 2c - c^2 theta^2 (c of `_jl_coefficient`). Each sum is one BLAS
     contraction over the pairs: this is several times faster than `_model` at large m and equal
     to it to rounding (tested).
     """
@@ -491,10 +551,7 @@ def model_sigmas(P: Pairs, X: np.ndarray, Y: np.ndarray, e: np.ndarray, W: White
     RA = P.RA9.reshape(m, 3, 3)
     dr, dt = d[:, None] * r, d[:, None] * t
     theta2 = np.einsum("ni,ni->n", r, r)
-    theta = np.sqrt(theta2)
-    small = theta < 1e-4
-    ts = np.where(small, 1.0, theta)
-    cc = np.where(small, 1.0 / 12.0 + theta2 / 720.0, 1.0 / ts**2 - (1.0 + np.cos(ts)) / (2.0 * ts * np.sin(ts)))
+    cc = _jl_coefficient(theta2)
     beta = 2.0 * cc - 0.25 - cc * cc * theta2
     gamma = 1.0 - cc * theta2
     delta = 0.25 + 2.0 * cc - cc * cc * theta2
@@ -528,7 +585,7 @@ def model_sigmas(P: Pairs, X: np.ndarray, Y: np.ndarray, e: np.ndarray, W: White
     H[6:9, 9:12] = wt * (RY.T @ _skew(dq.sum(axis=0)) @ RY)
     Hw = np.triu(H) + np.triu(H, 1).T  # mirror the upper blocks filled above
     g = g_rot + g_trans
-    Hm = _profile_hessian(Hw, g_rot, g_trans, W, m, scale) if mode == "profile" else Hw
+    Hm = _profile_hessian(Hw, np.stack([g_rot, g_trans]), W, m, scale) if mode == "profile" else Hw
     return g, Hm, Hw, F, ew
 
 
@@ -558,20 +615,18 @@ def levenberg_marquardt(P: Pairs, X: np.ndarray, Y: np.ndarray, W: Whitening | N
     is larger than the change.
     """
     mode = mode_of(W, loss, P.m, estimate)
-    e, _ = residuals(P, X, Y)
-    if mode != "fixed":
+    e0 = e = residuals(P, X, Y)[0]
+    if mode == "profile":  # the objective (carried along with e: each point is evaluated once) and its weights
+        value, W = objective(e, None, mode, loss, c, scale)
+    elif mode != "fixed":
         W = estimate_sigmas(e, scale, robust=loss != "linear")
     weight_change = np.inf if mode == "irls" else 0.0
     lam, iterations, converged, unjudged = 0.0, 0, False, 0
     while True:
         g, H, Hw, F, _ = model_at(P, X, Y, e, W, mode, loss, c, scale)
-        value = objective(e, W, mode, loss, c, scale)[0] if mode == "profile" else F
-        try:
-            step_gn = -np.linalg.solve(H, g)
-        except np.linalg.LinAlgError:
-            raise DegenerateDataError(
-                "the refinement's normal matrix is singular: the data do not determine X and Y"
-            ) from None
+        if mode != "profile":
+            value = F
+        step_gn = _newton_step(H, g)
         decrement = -0.5 * float(g @ step_gn)  # objective decrease predicted by the Gauss-Newton step
         if decrement <= tol * F or F == 0.0:
             if decrement > 0.0:
@@ -582,7 +637,7 @@ def levenberg_marquardt(P: Pairs, X: np.ndarray, Y: np.ndarray, W: Whitening | N
                 X, Y = retract(X, step_gn[:6]), retract(Y, step_gn[6:])
                 e, _ = residuals(P, X, Y)
                 if mode == "profile":
-                    W = estimate_sigmas(e, scale)
+                    value, W = objective(e, None, mode, loss, c, scale)
             if weight_change <= WEIGHT_TOL:
                 converged = True
                 break
@@ -604,18 +659,20 @@ def levenberg_marquardt(P: Pairs, X: np.ndarray, Y: np.ndarray, W: Whitening | N
             X, Y = retract(X, step_gn[:6]), retract(Y, step_gn[6:])
             e, _ = residuals(P, X, Y)
             if mode == "profile":
-                W = estimate_sigmas(e, scale)
+                value, W = objective(e, None, mode, loss, c, scale)
             elif mode == "irls":
                 new = estimate_sigmas(e, scale, robust=True)
                 weight_change, W = _relative_change(new, W), new
             continue
         unjudged = 0
-        D = np.diag(np.diag(Hw))
         accepted = False
         while not accepted:  # try steps, raising the damping until one decreases the objective
             iterations += 1
-            step = step_gn if lam == 0.0 else -np.linalg.solve(H + lam * D, g)
-            predicted = -float(g @ step + 0.5 * step @ H @ step)
+            if lam == 0.0:
+                step, predicted = step_gn, decrement
+            else:
+                step = _newton_step(H + lam * np.diag(Hw.diagonal()), g)
+                predicted = -float(g @ step + 0.5 * step @ H @ step)
             Xn, Yn = retract(X, step[:6]), retract(Y, step[6:])
             en, _ = residuals(P, Xn, Yn)
             value_n, Wn = objective(en, W, mode, loss, c, scale)
@@ -625,7 +682,7 @@ def levenberg_marquardt(P: Pairs, X: np.ndarray, Y: np.ndarray, W: Whitening | N
                     lam = 0.0 if lam < 1e-9 else lam / 3.0
                 elif gain < 0.25:
                     lam = max(2.0 * lam, 1e-6)
-                X, Y, e, W = Xn, Yn, en, Wn
+                X, Y, e, W, value = Xn, Yn, en, Wn, value_n
                 accepted = True
             else:
                 lam = max(lam * 10.0, 1e-6)
@@ -646,8 +703,19 @@ def levenberg_marquardt(P: Pairs, X: np.ndarray, Y: np.ndarray, W: Whitening | N
             new = estimate_sigmas(e, scale, robust=True)
             weight_change, W = _relative_change(new, W), new
     _, _, Hw, F, _ = model_at(P, X, Y, e, W, "fixed", loss, c, scale)
-    value = objective(e, W, mode, loss, c, scale)[0] if mode == "profile" else F
-    return LMResult(X, Y, W, value, iterations, converged, Hw, W.residual(e), e, mode)
+    if mode != "profile":
+        value = F
+    return LMResult(X, Y, W, value, iterations, converged, Hw, W.residual(e), e, mode, e0)
+
+
+def _newton_step(H: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """-H^-1 g for the (12, 12) Gauss-Newton matrix H (positive definite; damped or not), by
+    LAPACK's Cholesky solver called directly: np.linalg.solve costs ~5x more at this size, which
+    shows at small m. DegenerateDataError when H is not positive definite."""
+    _, x, info = lapack.dposv(H, g)
+    if info != 0:
+        raise DegenerateDataError("the refinement's normal matrix is singular: the data do not determine X and Y")
+    return -x
 
 
 def _relative_change(new: Whitening, old: Whitening) -> float:
@@ -708,7 +776,7 @@ def refine(data: AXYBData, X0: np.ndarray, Y0: np.ndarray, options: Options) -> 
     # profile likelihood are monotone; with "irls" the weights moved on the way, so a start that
     # is better under the final weights (another basin) is refined under them too and the better
     # answer kept.
-    initial_cost = objective(residuals(P, X0, Y0)[0], res.W, res.mode, loss, c, scale)[0]
+    initial_cost = objective(res.e0, res.W, res.mode, loss, c, scale)[0]
     if res.mode == "irls" and initial_cost < res.cost:
         again = levenberg_marquardt(P, X0, Y0, res.W, loss, c, int(options.max_iter), options.tol, scale)
         iterations += again.iterations
@@ -716,20 +784,20 @@ def refine(data: AXYBData, X0: np.ndarray, Y0: np.ndarray, options: Options) -> 
             res = again
     X, Y = res.X, res.Y
 
-    try:
-        cov = np.linalg.inv(res.H)
-    except np.linalg.LinAlgError:
-        raise DegenerateDataError("the refinement's normal matrix is singular at the solution") from None
+    _, cov, info = lapack.dposv(res.H, _I12)  # the inverse, by Cholesky (as the steps)
+    if info != 0:
+        raise DegenerateDataError("the refinement's normal matrix is singular at the solution")
     cov = 0.5 * (cov + cov.T)
-    s = np.einsum("ni,ni->n", res.ew, res.ew)
+    s = (res.ew * res.ew).sum(axis=1)
     _, drho = loss_terms(s, loss, c)
-    dof = 6.0 * float(np.sum(drho)) - 12.0
-    variance_factor = float(np.sum(drho * s) / dof) if dof > 0 else float("nan")
+    dof = 6.0 * float(drho.sum()) - 12.0
+    variance_factor = float((drho * s).sum()) / dof if dof > 0 else float("nan")
     if weights == "estimated":
-        if not np.isfinite(variance_factor):
+        if not math.isfinite(variance_factor):
             raise DegenerateDataError("too few pairs to estimate the noise and the covariance")
         cov = cov * variance_factor
-    e = res.e
+    var = cov.diagonal().tolist()
+    sum_rot, sum_trans = _sums_of_squares(res.e)
     diagnostics: dict[str, Any] = {
         "iterations": iterations,
         "initial_cost": initial_cost,
@@ -748,11 +816,10 @@ def refine(data: AXYBData, X0: np.ndarray, Y0: np.ndarray, options: Options) -> 
         "variance_factor": variance_factor,
         "covariance": {"X": cov[:6, :6].tolist(), "Y": cov[6:, 6:].tolist()},
         "covariance_XY": cov.tolist(),
-        "std": {k: {"rotation": float(np.sqrt(np.trace(cov[o:o + 3, o:o + 3]))),
-                    "translation": float(np.sqrt(np.trace(cov[o + 3:o + 6, o + 3:o + 6])))}
+        "std": {k: {"rotation": math.sqrt(sum(var[o:o + 3])), "translation": math.sqrt(sum(var[o + 3:o + 6]))}
                 for k, o in (("X", 0), ("Y", 6))},
-        "residual_rms": {"rotation": float(np.sqrt(np.mean(np.sum(e[:, :3] ** 2, axis=1)))),
-                         "translation": float(np.sqrt(np.mean(np.sum(e[:, 3:] ** 2, axis=1))))},
+        "residual_rms": {"rotation": math.sqrt(sum_rot / res.e.shape[0]),
+                         "translation": math.sqrt(sum_trans / res.e.shape[0])},
     }
     if res.W.L is None:
         diagnostics["sigma_rot"], diagnostics["sigma_trans"] = res.W.sigma_rot, res.W.sigma_trans

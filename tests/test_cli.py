@@ -293,3 +293,20 @@ def test_solve_exit_code_follows_the_status(capsys, monkeypatch, status, exit_co
     assert code == exit_code and f"status {status}," in out
     assert (err == "") == (exit_code == 0)
     assert ("could not prove it globally optimal" in out) == (status == "uncertified")
+
+
+def test_bench_times_the_selected_rows_and_judges_the_targets(capsys):
+    """`handeye bench` runs end to end (a smoke test: timings are not asserted, machines are
+    noisy): the selected solvers, the OpenCV reference rows, the extra row a target asks for
+    (refine from the closed-form start) and one verdict line per target."""
+    code, out, _ = run_cli(capsys, "bench", "--pairs", "16", "--repeats", "1", "--no-progress",
+                           "--solvers", "kron-lstsq,refine")
+    assert code == 0
+    for label in ("kron-lstsq/numpy", "refine/numpy", "refine/numpy [init=kron-lstsq]", "opencv [method=shah]"):
+        assert f"\n{label} " in out
+    verdicts = [line for line in out.splitlines() if line.startswith("  issue ")]
+    from handeye.cli.bench_cmd import TARGETS
+
+    assert len(verdicts) == len(TARGETS)
+    judged = [line for line in verdicts if "refine/numpy [init=kron-lstsq]" in line and "m=16" in line]
+    assert len(judged) == 1 and ("PASS" in judged[0] or "MISS" in judged[0])
