@@ -28,12 +28,12 @@ import dataclasses
 from typing import Any
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.errors import BackendUnavailableError, InputError, SolverError
+from handeye.errors import InputError
 from handeye.plugins import refine as _refine
 from handeye.problems.axyb import AXYBData
 
 #: the start when so3-sdp is unavailable or fails, and the second start when it is not certified
-FALLBACK = "kron-lstsq"
+FALLBACK = _refine.FALLBACK_INIT
 #: keys of an init solver's diagnostics that make up its certificate
 CERTIFICATE_KEYS = ("certified", "eigenvalue_ratio", "relative_gap", "duality_gap", "lower_bound", "cost", "thresholds")
 
@@ -69,16 +69,8 @@ class Options:
 
 
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
-    start = options.init or _refine.default_init()
-    warnings: list[str] = []
-    try:
-        X0, Y0, init_status, init_diag = _refine.run_init(start, data)
-    except (SolverError, BackendUnavailableError) as exc:
-        if options.init is not None or start == FALLBACK:
-            raise
-        warnings.append(f"auto: the start solver {start!r} failed ({exc}); started from {FALLBACK!r}")
-        start = FALLBACK
-        X0, Y0, init_status, init_diag = _refine.run_init(start, data)
+    start, X0, Y0, init_status, init_diag, warnings = _refine.start(data, options.init)
+    warnings = [f"auto: {w}" for w in warnings]
     certificate = {k: init_diag[k] for k in CERTIFICATE_KEYS if k in init_diag}
     certified = bool(init_diag.get("certified", False)) and init_status == Status.OPTIMAL
     pipeline = [start, "refine"]

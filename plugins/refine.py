@@ -729,6 +729,10 @@ def _relative_change(new: Whitening, old: Whitening) -> float:
 
 # --------------------------------------------------------------------------- solver
 
+#: the start when so3-sdp, the default start, is unavailable or fails
+FALLBACK_INIT = "kron-lstsq"
+
+
 def default_init() -> str:
     """"so3-sdp" when registered and available here, else "kron-lstsq"."""
     from handeye.registry import get_registry
@@ -737,7 +741,26 @@ def default_init() -> str:
     spec = registry.solvers.get("so3-sdp")
     if spec is not None and "axyb" in spec.problems and spec.unavailable_reason(spec.default_backend) is None:
         return "so3-sdp"
-    return "kron-lstsq"
+    return FALLBACK_INIT
+
+
+def start(data: AXYBData, requested: str | None) -> tuple[str, np.ndarray, np.ndarray, Status, dict[str, Any], list[str]]:
+    """The starting poses: (solver name, X0, Y0, its status, its diagnostics, warnings).
+
+    `requested` None means the default start (`default_init`); when that solve fails
+    (SolverError, or its backend turns out unavailable) the closed form FALLBACK_INIT is used and
+    a warning says so. A start the user asked for by name is never replaced: its failure raises.
+    """
+    from handeye.errors import BackendUnavailableError, SolverError
+
+    name = requested or default_init()
+    try:
+        return (name, *run_init(name, data), [])
+    except (SolverError, BackendUnavailableError) as exc:
+        if requested is not None or name == FALLBACK_INIT:
+            raise
+        warning = f"the start solver {name!r} failed ({exc}); started from {FALLBACK_INIT!r}"
+        return (FALLBACK_INIT, *run_init(FALLBACK_INIT, data), [warning])
 
 
 def run_init(name: str, data: AXYBData) -> tuple[np.ndarray, np.ndarray, Status, dict[str, Any]]:
@@ -839,11 +862,11 @@ def refine(data: AXYBData, X0: np.ndarray, Y0: np.ndarray, options: Options) -> 
 
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     if options.init_X is not None:
-        X0, Y0, init_name, init_status, init_diag = options.init_X, options.init_Y, "given", None, {}
+        X0, Y0, init_name, init_status, init_diag, warnings = options.init_X, options.init_Y, "given", None, {}, []
     else:
-        init_name = options.init or default_init()
-        X0, Y0, init_status, init_diag = run_init(init_name, data)
+        init_name, X0, Y0, init_status, init_diag, warnings = start(data, options.init)
     X, Y, status, diagnostics = refine(data, X0, Y0, options)
+    diagnostics["warnings"] = warnings + diagnostics.get("warnings", [])
     diagnostics["init"] = init_name
     if init_status is not None:
         diagnostics["init_status"] = str(init_status)

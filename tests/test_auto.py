@@ -109,12 +109,8 @@ def test_auto_rejects_bad_options(noisy, bad):
         handeye.solve("axyb", **bad, **data)
 
 
-def test_auto_declares_unit_invariance():
-    assert handeye.get_registry().solver("auto", "axyb").unit_invariant
-    assert auto.SPEC.unit_invariant
-
-
-def test_a_failing_start_falls_back_to_kron_lstsq(noisy, monkeypatch):
+@pytest.mark.parametrize("solver", ["auto", "refine"])
+def test_a_failing_default_start_falls_back_to_kron_lstsq(noisy, monkeypatch, solver):
     from handeye.errors import SolverError
 
     data, _ = noisy
@@ -127,8 +123,12 @@ def test_a_failing_start_falls_back_to_kron_lstsq(noisy, monkeypatch):
 
     monkeypatch.setattr(refine, "run_init", failing)
     monkeypatch.setattr(refine, "default_init", lambda: "so3-sdp")
-    sol = handeye.solve("axyb", **data)
-    assert sol.diagnostics["pipeline"] == ["kron-lstsq", "refine"] and sol.status == Status.OPTIMAL
+    sol = handeye.solve("axyb", solver=solver, **data)
+    assert sol.diagnostics["init"] == "kron-lstsq" and sol.status == Status.OPTIMAL
+    if solver == "auto":
+        assert sol.diagnostics["pipeline"] == ["kron-lstsq", "refine"]
     assert any("so3-sdp" in w and "kron-lstsq" in w for w in sol.warnings)
+    reference = handeye.solve("axyb", solver="refine", init="kron-lstsq", **data)
+    np.testing.assert_allclose(sol.X, reference.X, atol=1e-12)
     with pytest.raises(SolverError):  # a start the user asked for is not replaced
-        handeye.solve("axyb", init="so3-sdp", **data)
+        handeye.solve("axyb", solver=solver, init="so3-sdp", **data)
