@@ -21,7 +21,6 @@ from .runner import data_seed, run_study, run_unit, units_of
 from .study import (
     ACCURACY_NOISE,
     CENTERS,
-    PAPER_CONTRAST,
     PAPER_METHODS,
     PAPER_MM_PER_RAD,
     PAPER_OPTIONS,
@@ -45,7 +44,7 @@ from .study import (
 )
 
 __all__ = [
-    "ACCURACY_NOISE", "CENTERS", "PAPER_CONTRAST", "PAPER_METHODS", "PAPER_MM_PER_RAD", "PAPER_OPTIONS", "PAPER_PAIRS", "UNITS",
+    "ACCURACY_NOISE", "CENTERS", "PAPER_METHODS", "PAPER_MM_PER_RAD", "PAPER_OPTIONS", "PAPER_PAIRS", "UNITS",
     "Cell", "Spec", "Study", "StudyResult", "Sweep", "accuracy_study", "data_seed", "default_specs",
     "error_table", "load_study", "missing_paper_methods", "paper_noise", "paper_specs", "paper_study", "parse_floats", "parse_ints", "parse_specs", "plot_study", "read_csv", "run_study",
     "run_unit", "study_from_dict", "time_table", "units_of", "write_report",

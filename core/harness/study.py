@@ -252,9 +252,6 @@ def default_specs(problem: str = "axyb") -> tuple[Spec, ...]:
 #: the three methods the paper compares (Sec. III-IV): LMI-SDP (eq. 14), iterative (eqs. 15-21),
 #: dual quaternions (eqs. 22-26)
 PAPER_METHODS = ("lmi-sdp", "iterative", "dual-quaternion")
-#: our solvers shown beside them in the paper study: least squares on eq. 8 in closed form (what
-#: eq. 14 computes), eq. 8 under exact SO(3) constraints (certified SDP), and the default pipeline
-PAPER_CONTRAST = ("kron-lstsq", "so3-sdp", "auto")
 
 
 #: options that make a paper method run as the paper has it: the dual-quaternion SVD on the data
@@ -264,20 +261,18 @@ PAPER_OPTIONS: dict[str, dict[str, Any]] = {"dual-quaternion": {"normalize": Fal
 
 def paper_specs(problem: str = "axyb") -> tuple[Spec, ...]:
     """The default contenders of `paper_study`: `PAPER_METHODS` as the paper runs them (every
-    available backend of ``lmi-sdp``; `PAPER_OPTIONS`, label suffix ``(raw)``) then
-    `PAPER_CONTRAST` with their defaults, those registered here. `missing_paper_methods` tells
-    which of the paper's methods are not."""
+    available backend of ``lmi-sdp``; `PAPER_OPTIONS`, label suffix ``(raw)``), then every other
+    registered solver of `problem` (ours and third parties') with its defaults and default
+    backend. `missing_paper_methods` tells which of the paper's methods are not registered."""
     registry = get_registry()
-    known = set(registry.solver_names(problem))
+    known = registry.solver_names(problem)
     specs = []
-    for name in PAPER_METHODS + PAPER_CONTRAST:
-        if name not in known:
-            continue
+    for name in [n for n in PAPER_METHODS if n in known] + [n for n in known if n not in PAPER_METHODS]:
         solver = registry.solvers[name]
         backends = sorted(solver.backends, key=lambda b: b != solver.default_backend) if name == "lmi-sdp" \
             else [solver.default_backend]
         fields = {f.name for f in dataclasses.fields(solver.options)} if dataclasses.is_dataclass(solver.options) else set()
-        options = PAPER_OPTIONS.get(name, {}) if name in PAPER_METHODS else {}
+        options = PAPER_OPTIONS.get(name, {})
         options = {k: v for k, v in options.items() if k in fields}  # a replacement plugin may lack them
         for backend in backends:
             if solver.unavailable_reason(backend) is None:
@@ -296,7 +291,7 @@ def paper_study(*, trials: int = 5, seed: int = 0, pairs: int = PAPER_PAIRS,
                 mm_per_rad: float = PAPER_MM_PER_RAD, specs: Sequence[Spec] = ()) -> Study:
     """Sec. IV-A: sigma_N = 0, 0.01, ..., 0.1 at m = `pairs` (Fig. 3) and m = 10, 20, ..., 100 at
     sigma_N = 0.05 (Fig. 4), `trials` trials per cell (the paper: 5), the paper's X and Y, mm.
-    specs: default `paper_specs()` (the paper's three methods and ours for contrast)."""
+    specs: default `paper_specs()` (the paper's three methods, then every other registered solver)."""
     return Study(
         name="paper", specs=tuple(specs) or paper_specs(), noise=paper_noise(1.0, mm_per_rad),
         sweeps=(Sweep("noise", tuple(round(0.01 * i, 2) for i in range(11)), (pairs,)),
