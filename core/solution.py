@@ -88,15 +88,17 @@ class Solution:
             "status": self.status.value,
             "seconds": self.seconds,
             "unknowns": {k: v.tolist() for k, v in self.unknowns.items()},
-            "diagnostics": _jsonable(dict(self.diagnostics)),
+            "diagnostics": jsonable(dict(self.diagnostics)),
         }
 
 
-def _jsonable(value: Any) -> Any:
+def jsonable(value: Any) -> Any:
+    """`value` with numpy arrays, numpy scalars and enums turned into plain Python (JSON-ready);
+    mappings (keys as str) and sequences converted recursively."""
     if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
+        return {str(k): jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
+        return [jsonable(v) for v in value]
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, np.generic):

@@ -30,6 +30,7 @@ from typing import Any
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import InputError
 from handeye.plugins import refine as _refine
+from handeye.solution import jsonable
 from handeye.problems.axyb import AXYBData
 
 #: the start when so3-sdp is unavailable or fails, and the second start when it is not certified
@@ -106,7 +107,7 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
         "init": diag.get("init", start),
         "init_status": str(init_status),
         "init_certified": certified,
-        "certificate": _refine._jsonable(certificate),
+        "certificate": jsonable(certificate),
         "starts": starts,
         "refine": {k: v for k, v in diag.items() if k != "warnings"},
     }

@@ -54,6 +54,7 @@ from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import DegenerateDataError, InputError
 from handeye.options import check_choice, check_positive
 from handeye.problems.axyb import AXYBData
+from handeye.solution import jsonable
 from handeye.se3 import so3_log
 from handeye.validation import pose_stack
 
@@ -870,20 +871,8 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     diagnostics["init"] = init_name
     if init_status is not None:
         diagnostics["init_status"] = str(init_status)
-        diagnostics["init_diagnostics"] = _jsonable(init_diag)
+        diagnostics["init_diagnostics"] = jsonable(init_diag)
     return SolverOutput(unknowns={"X": X, "Y": Y}, status=status, diagnostics=diagnostics)
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 SPEC = SolverSpec(
