@@ -108,6 +108,7 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
         "init_status": str(init_status),
         "init_certified": certified,
         "certificate": jsonable(certificate),
+        "compile_seconds": float(init_diag.get("compile_seconds", 0.0)),
         "starts": starts,
         "refine": {k: v for k, v in diag.items() if k != "warnings"},
     }

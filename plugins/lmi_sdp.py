@@ -77,6 +77,7 @@ from __future__ import annotations
 
 import dataclasses
 import threading
+import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -85,7 +86,7 @@ import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import InputError, SolverError
 from handeye.options import check_bool, check_choice
-from handeye.plugins._cvxpy_solvers import resolve_cvxpy_solver, sdp_cvxpy_solvers  # noqa: F401 (re-exported)
+from handeye.plugins._cvxpy_solvers import compile_seconds, resolve_cvxpy_solver, sdp_cvxpy_solvers  # noqa: F401 (re-exported)
 from handeye.problems.axyb import AXYBData, KroneckerSystem, solve_translations, split_beta
 from handeye.se3 import gram_schmidt, make_pose, project_to_so3
 
@@ -200,6 +201,7 @@ class SDPResult:
     solver_status: str
     backend_solver: str
     iterations: int | None
+    compile_seconds: float = 0.0  # compiling the cvxpy problem (its first solve in a process)
 
 
 def _status(solver_status: str, optimal: set[str], inaccurate: set[str], where: str) -> Status:
@@ -226,6 +228,7 @@ class CvxpyLMI:
     gamma: Any
     u: Any
     lock: threading.Lock
+    compiled: bool = False  # cvxpy compiles the problem on its first solve
 
 
 _CVXPY_PROBLEMS: dict[str, CvxpyLMI] = {}
@@ -270,6 +273,7 @@ def _solve_cvxpy(lmi: ScaledLMI, solver: str) -> SDPResult:
         cached.R.value = lmi.R
         cached.q.value = lmi.q
         cached.rest.value = lmi.rest
+        start = time.perf_counter()
         try:
             cached.problem.solve(solver=solver, warm_start=True, **CVXPY_SETTINGS.get(solver, {}))
         except cp.error.SolverError as exc:
@@ -277,11 +281,13 @@ def _solve_cvxpy(lmi: ScaledLMI, solver: str) -> SDPResult:
         status = str(cached.problem.status)
         gamma, u = cached.gamma.value, cached.u.value
         iterations = cached.problem.solver_stats.num_iters
+        setup = 0.0 if cached.compiled else compile_seconds(cached.problem, start)
+        cached.compiled = True
     result_status = _status(status, {cp.OPTIMAL}, {cp.OPTIMAL_INACCURATE}, f"cvxpy/{solver}")
     if gamma is None or u is None:
         raise SolverError(f"lmi-sdp: cvxpy/{solver} reported {status!r} but gave no solution")
     return SDPResult(np.array(gamma, dtype=float), float(u), result_status, status, solver,
-                     None if iterations is None else int(iterations))
+                     None if iterations is None else int(iterations), setup)
 
 
 # --------------------------------------------------------------------------------------------
@@ -362,6 +368,7 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
             "solver_status": result.solver_status,
             "backend_solver": result.backend_solver,
             "iterations": result.iterations,
+            "compile_seconds": result.compile_seconds,
             "sigma_min_R1": system.smallest_singular_value(),
             "beta": beta_out,
             "orthogonalize": options.orthogonalize,

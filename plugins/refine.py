@@ -870,6 +870,7 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     diagnostics["warnings"] = warnings + diagnostics.get("warnings", [])
     diagnostics["init"] = init_name
     if init_status is not None:
+        diagnostics["compile_seconds"] = float(init_diag.get("compile_seconds", 0.0))
         diagnostics["init_status"] = str(init_status)
         diagnostics["init_diagnostics"] = jsonable(init_diag)
     return SolverOutput(unknowns={"X": X, "Y": Y}, status=status, diagnostics=diagnostics)

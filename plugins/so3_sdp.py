@@ -38,6 +38,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import threading
+import time
 import types
 import warnings
 from collections.abc import Mapping
@@ -47,7 +48,7 @@ import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import InputError, SolverError
 from handeye.options import check_bool
-from handeye.plugins._cvxpy_solvers import check_backend_options, resolve_cvxpy_solver
+from handeye.plugins._cvxpy_solvers import check_backend_options, compile_seconds, resolve_cvxpy_solver
 from handeye.problems.axyb import AXYBData, KroneckerSystem
 from handeye.se3 import make_pose, project_to_so3, rotation_angle, skew, so3_exp
 
@@ -239,6 +240,7 @@ class _CvxpyProblem:
     nu: Any  # cvxpy Variable (K,): the multipliers
     slack: Any  # the constraint M - sum_k nu_k A_k >> 0; its dual value is Z
     lock: threading.Lock
+    compiled: bool = False  # cvxpy compiles the problem on its first solve
 
 
 _CVXPY_PROBLEMS: dict[tuple[bool, str], _CvxpyProblem] = {}
@@ -303,6 +305,7 @@ def _solve_cvxpy(M: np.ndarray, redundant: bool,
         # "solution may be inaccurate" is reported as sdp_status; the certificate decides
         warnings.simplefilter("ignore", UserWarning)
         cached.M.value = 0.5 * (M + M.T)
+        start = time.perf_counter()
         try:
             _solve_with_settings(cached.problem, solver)
         except cp.error.SolverError as exc:
@@ -314,7 +317,9 @@ def _solve_cvxpy(M: np.ndarray, redundant: bool,
         Z = np.array(Z, dtype=float)
         nu = np.array(cached.nu.value, dtype=float)
         info = {"sdp_solver": solver, "sdp_status": status, "sdp_objective": float(cached.problem.value),
-                "sdp_iterations": cached.problem.solver_stats.num_iters}
+                "sdp_iterations": cached.problem.solver_stats.num_iters,
+                "compile_seconds": 0.0 if cached.compiled else compile_seconds(cached.problem, start)}
+        cached.compiled = True
     return Z, nu, info
 
 

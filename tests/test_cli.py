@@ -310,3 +310,23 @@ def test_bench_times_the_selected_rows_and_judges_the_targets(capsys):
     assert len(verdicts) == len(TARGETS)
     judged = [line for line in verdicts if "refine/numpy [init=kron-lstsq]" in line and "m=16" in line]
     assert len(judged) == 1 and ("PASS" in judged[0] or "MISS" in judged[0])
+
+
+@pytest.mark.parametrize("solver", ["so3-sdp", "lmi-sdp", "auto"])
+def test_first_sdp_solve_reports_its_compilation(capsys, monkeypatch, solver):
+    """The solve that compiles a cvxpy problem says so (compile_seconds > 0, and the CLI notes
+    that the time includes the one-time set-up); the next solve of the same problem does not."""
+    from handeye.plugins import lmi_sdp, so3_sdp
+
+    monkeypatch.setattr(so3_sdp, "_CVXPY_PROBLEMS", {})  # as in a fresh process
+    monkeypatch.setattr(lmi_sdp, "_CVXPY_PROBLEMS", {})
+    code, out, _ = run_cli(capsys, "solve", "--example", "--solver", solver, "--json")
+    assert code == 0 and json.loads(out)["diagnostics"]["compile_seconds"] > 0
+    code, out, _ = run_cli(capsys, "solve", "--example", "--solver", solver)
+    assert code == 0 and "first SDP solve in this process" not in out
+    code, out, _ = run_cli(capsys, "solve", "--example", "--solver", solver, "--json")
+    assert json.loads(out)["diagnostics"]["compile_seconds"] == 0.0
+    monkeypatch.setattr(so3_sdp, "_CVXPY_PROBLEMS", {})
+    monkeypatch.setattr(lmi_sdp, "_CVXPY_PROBLEMS", {})
+    code, out, _ = run_cli(capsys, "solve", "--example", "--solver", solver)
+    assert "first SDP solve in this process" in out

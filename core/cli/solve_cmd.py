@@ -114,7 +114,7 @@ def _text(r: dict[str, Any]) -> str:
     extras = ", ".join(x for x in (r["setup"], f"lengths in {unit}" if r["units"] else None) if x)
     lines = [head + (f" ({extras})" if extras else ""),
              f"solver {r['solver']} (backend {r['backend']}): status {r['status']}, "
-             f"solver time {_ms(r['seconds'])}"]
+             f"solver time {_ms(r['seconds'])}" + _setup_note(r["diagnostics"])]
     for name, T in r["unknowns"].items():
         lines += ["", f"{name} =", format_pose(np.array(T))]
     lines += ["", "residuals of A_i X = Y B_i over the pairs (eqs. 32-33):"]
@@ -147,6 +147,16 @@ def _value(kind: str, v: float, unit: str) -> str:
 
 def _short(v: Any) -> str:
     return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+
+def _setup_note(diagnostics: dict[str, Any]) -> str:
+    """A note when the solve compiled an SDP (`compile_seconds` > 0): the first solve of an SDP
+    solver in a process also loads cvxpy (~1 s) and compiles its problem, which a one-shot command
+    always pays and a program solving repeatedly pays once."""
+    if not float(diagnostics.get("compile_seconds") or 0.0) > 0.0:
+        return ""
+    return ("\n  (first SDP solve in this process: includes loading cvxpy and compiling the problem; "
+            "repeated solves are much faster, see `handeye bench`)")
 
 
 def _ms(seconds: float) -> str:
