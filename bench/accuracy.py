@@ -209,8 +209,8 @@ def main(argv: list[str] | None = None) -> int:
         diffs = unit_differences(result_mm, result_m)
         print(f"mm vs m: largest relative difference of any per-trial error ({result_m.seconds:.0f} s)")
         for label, d in diffs.items():
-            solver = next(s.solver for s in study.specs if s.label == label)
-            invariant = spec_of[solver].is_unit_invariant(next(s.options for s in study.specs if s.label == label))
+            spec = next(s for s in study.specs if s.label == label)
+            invariant = spec_of[spec.solver].is_unit_invariant(spec.options)
             print(f"  {label:18s} {d:.2e}  {'(declares unit_invariant)' if invariant else ''}")
             if invariant and d > UNIT_TOLERANCE:
                 misses.append(f"{label} declares unit_invariant but mm and m differ by {d:.2e}")

@@ -1,8 +1,8 @@
 """Solver options: each solver declares a frozen dataclass; unknown keys are errors.
 
 `parse_options` builds that dataclass from keyword arguments and names the known options when a
-key is wrong; `check_choice` / `check_positive` / `check_bool` are small validators for
-``__post_init__``.
+key is wrong and refuses a non-bool for an option whose default is a bool; `check_choice` /
+`check_positive` are small validators for ``__post_init__``.
 """
 
 from __future__ import annotations
@@ -24,14 +24,19 @@ class NoOptions:
 
 
 def parse_options(cls: type[T], values: Mapping[str, Any], solver: str) -> T:
-    """Instantiate the options dataclass `cls` from `values`; unknown keys raise, listing known."""
-    known = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
-    for key in values:
-        if key not in known:
+    """Instantiate the options dataclass `cls` from `values`; unknown keys raise, listing known.
+
+    An option whose default is a bool must be given a bool (`check_bool`), for every solver,
+    third parties' included: ``"False"`` would otherwise mean True."""
+    fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    for key, value in values.items():
+        if key not in fields:
             raise UnknownPluginError(
-                f"option of solver {solver!r}", key, known,
+                f"option of solver {solver!r}", key, fields,
                 hint="Data fields and options are passed as keyword arguments to handeye.solve",
             )
+        if isinstance(fields[key].default, bool):
+            check_bool(key, value)
     return cls(**values)
 
 

@@ -75,7 +75,6 @@ import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.dualquat import conjugate, dual_quat_from_pose, pose_from_dual_quat, q_left, q_right, quat_multiply
 from handeye.errors import SolverError
-from handeye.options import check_bool
 from handeye.problems.axyb import AXYBData
 
 
@@ -84,9 +83,6 @@ class Options:
     """normalize: divide translations by the data's RMS translation first (see module docstring)."""
 
     normalize: bool = True
-
-    def __post_init__(self) -> None:
-        check_bool("normalize", self.normalize)
 
 
 def pair_signs(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, float]:

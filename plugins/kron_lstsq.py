@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.options import check_bool
 from handeye.problems.axyb import AXYBData, solve_translations, split_beta
 from handeye.se3 import make_pose, project_to_so3
 
@@ -22,9 +21,6 @@ class Options:
     """normalize: divide translations by the data's RMS translation first (see module docstring)."""
 
     normalize: bool = True
-
-    def __post_init__(self) -> None:
-        check_bool("normalize", self.normalize)
 
 
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:

@@ -43,7 +43,6 @@ from scipy.linalg import solve_triangular
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import DegenerateDataError
-from handeye.options import check_bool
 from handeye.plugins.dual_quaternion import triangular_factor
 from handeye.plugins.shah import normalize_rotation
 from handeye.problems.axyb import AXYBData, regression_blocks, split_beta
@@ -55,9 +54,6 @@ class Options:
     """normalize: divide translations by the data's RMS translation first (see module docstring)."""
 
     normalize: bool = True
-
-    def __post_init__(self) -> None:
-        check_bool("normalize", self.normalize)
 
 
 #: Largest relative size of the correction step for which the corrected semi-normal solution is

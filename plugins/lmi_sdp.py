@@ -85,8 +85,13 @@ import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import InputError, SolverError
-from handeye.options import check_bool, check_choice
-from handeye.plugins._cvxpy_solvers import compile_seconds, resolve_cvxpy_solver, sdp_cvxpy_solvers  # noqa: F401 (re-exported)
+from handeye.options import check_choice
+from handeye.plugins._cvxpy_solvers import (  # noqa: F401 (sdp_cvxpy_solvers re-exported)
+    check_backend_options,
+    compile_seconds,
+    resolve_cvxpy_solver,
+    sdp_cvxpy_solvers,
+)
 from handeye.problems.axyb import AXYBData, KroneckerSystem, solve_translations, split_beta
 from handeye.se3 import gram_schmidt, make_pose, project_to_so3
 
@@ -142,7 +147,6 @@ class Options:
     def __post_init__(self) -> None:
         check_choice("orthogonalize", self.orthogonalize, tuple(ORTHOGONALIZERS))
         check_choice("translations", self.translations, TRANSLATIONS)
-        check_bool("normalize", self.normalize)
         if self.cvxpy_solver is not None and not isinstance(self.cvxpy_solver, str):
             raise InputError(f"option cvxpy_solver={self.cvxpy_solver!r} must be a cvxpy solver name (str)")
         if self.multistart is not None and (isinstance(self.multistart, bool)
@@ -153,16 +157,6 @@ class Options:
             raise InputError(f"option seed={self.seed!r} must be an integer")
         if self.ipopt_options is not None and not isinstance(self.ipopt_options, Mapping):
             raise InputError(f"option ipopt_options={self.ipopt_options!r} must be a dict of IPOPT options")
-
-
-def check_backend_options(options: Options, backend: str) -> None:
-    """Raise InputError when an option of one backend is given with another."""
-    for name, backends in BACKEND_ONLY_OPTIONS.items():
-        if getattr(options, name) is not None and backend not in backends:
-            raise InputError(
-                f"lmi-sdp: option {name} applies only to backend(s) {', '.join(backends)}, "
-                f"not to backend {backend!r}; drop it or choose backend={backends[0]!r}"
-            )
 
 
 # --------------------------------------------------------------------------------------------
@@ -275,14 +269,13 @@ def _solve_cvxpy(lmi: ScaledLMI, solver: str) -> SDPResult:
         cached.rest.value = lmi.rest
         start = time.perf_counter()
         try:
-            cached.problem.solve(solver=solver, warm_start=True, **CVXPY_SETTINGS.get(solver, {}))
+            cached.problem.solve(solver=solver, warm_start=False, **CVXPY_SETTINGS.get(solver, {}))
         except cp.error.SolverError as exc:
             raise SolverError(f"lmi-sdp: cvxpy/{solver} failed on the LMI of eq. 14: {exc}") from None
         status = str(cached.problem.status)
         gamma, u = cached.gamma.value, cached.u.value
         iterations = cached.problem.solver_stats.num_iters
-        setup = 0.0 if cached.compiled else compile_seconds(cached.problem, start)
-        cached.compiled = True
+        setup = compile_seconds(cached, start)
     result_status = _status(status, {cp.OPTIMAL}, {cp.OPTIMAL_INACCURATE}, f"cvxpy/{solver}")
     if gamma is None or u is None:
         raise SolverError(f"lmi-sdp: cvxpy/{solver} reported {status!r} but gave no solution")
@@ -340,7 +333,7 @@ def solve_lmi(system: KroneckerSystem, backend: str, options: Options) -> tuple[
 
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     """The paper's method on `data` (A, B: (m, 4, 4)); see the module docstring."""
-    check_backend_options(options, backend)
+    check_backend_options("lmi-sdp", options, backend, BACKEND_ONLY_OPTIONS)
     if backend == "casadi":
         return _run_casadi(data, options)
     scale = data.translation_scale if options.normalize else 1.0

@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import lapack
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.errors import DegenerateDataError, InputError
+from handeye.errors import BackendUnavailableError, DegenerateDataError, InputError, SolverError
 from handeye.options import check_choice, check_positive
 from handeye.problems.axyb import AXYBData
 from handeye.solution import jsonable
@@ -206,8 +206,8 @@ def _covariance_option(value: Any) -> np.ndarray:
 #: v @ _SKEW = [v]_x flattened row-major: (..., 3) -> (..., 9)
 _SKEW = np.zeros((3, 9))
 _SKEW[2, 1], _SKEW[1, 2], _SKEW[2, 3], _SKEW[0, 5], _SKEW[1, 6], _SKEW[0, 7] = -1.0, 1.0, 1.0, -1.0, -1.0, 1.0
-#: the 3x3 identity flattened row-major
-_I9 = np.eye(3).reshape(9)
+#: the 3x3 identity
+_I3 = np.eye(3)
 #: smallest normal float: keeps theta / sin(theta) finite at theta = 0
 _TINY = np.finfo(float).tiny
 #: the 12x12 identity: right-hand side that turns the normal matrix into the covariance
@@ -217,7 +217,7 @@ _I12 = np.eye(12)
 _LOG_MAP = np.zeros((9, 4))
 _LOG_MAP[7, 0], _LOG_MAP[5, 0], _LOG_MAP[2, 1], _LOG_MAP[6, 1], _LOG_MAP[3, 2], _LOG_MAP[1, 2] = 0.5, -0.5, 0.5, -0.5, 0.5, -0.5
 _LOG_MAP[[0, 4, 8], 3] = 0.5
-for _array in (_SKEW, _I9, _I12, _LOG_MAP):
+for _array in (_SKEW, _I3, _I12, _LOG_MAP):
     _array.setflags(write=False)
 del _array
 
@@ -322,9 +322,8 @@ def inverse_jacobians(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Inverse left and right Jacobians of SO(3) at rotation vectors r: (m, 3) -> two (m, 3, 3):
     Jl^-1(r) = I - [r]_x / 2 + c(theta) [r]_x^2 and Jr^-1(r) = Jl^-1(r)^T = I + [r]_x / 2 +
     c(theta) [r]_x^2 ([r]_x^2 = r r^T - theta^2 I; c of `_jl_coefficient`)."""
-    m = len(r)
-    K = (r @ _SKEW).reshape(m, 3, 3)
-    common = _jl_coefficient((r * r).sum(axis=1))[:, None, None] * (K @ K) + _I9.reshape(3, 3)
+    K = _skew(r)
+    common = _jl_coefficient((r * r).sum(axis=1))[:, None, None] * (K @ K) + _I3
     half = 0.5 * K
     return common - half, common + half
 
@@ -752,8 +751,6 @@ def start(data: AXYBData, requested: str | None) -> tuple[str, np.ndarray, np.nd
     (SolverError, or its backend turns out unavailable) the closed form FALLBACK_INIT is used and
     a warning says so. A start the user asked for by name is never replaced: its failure raises.
     """
-    from handeye.errors import BackendUnavailableError, SolverError
-
     name = requested or default_init()
     try:
         return (name, *run_init(name, data), [])

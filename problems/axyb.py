@@ -5,9 +5,10 @@ A_i = T_base_flange, B_i = T_target_cam (camera pose in the target frame), X = T
 Y = T_base_target (docs/conventions.md gives the eye-to-hand mapping and OpenCV's).
 
 Shared by the solvers here:
-- `kronecker_system`: the linear system of eqs. 5-8, reduced in O(m) (closed-form sums over the
-  pairs, no loop) to the 24x24 triangular factor R1 of eq. 10 (plus Q1^T w and |Q2^T w|^2), so
-  that no solver's cost grows with m beyond that reduction. `regression_blocks` builds the
+- `kronecker(scale)` (`kronecker_system` in the data's units): the linear system of eqs. 5-8
+  with translations divided by `scale`, reduced in O(m) (closed-form sums over the pairs, no
+  loop) to the 24x24 triangular factor R1 of eq. 10 (plus Q1^T w and |Q2^T w|^2), so that no
+  solver's cost grows with m beyond that reduction. `regression_blocks` builds the
   explicit per-pair H_i, w_i (for tests and for solvers that need the rows).
 - `solve_translations`: eqs. 20-21, translations by least squares given the rotations.
 - residuals (eqs. 32-33), errors against truth (eqs. 30-31) and the simulator of Sec. IV-A.
@@ -123,8 +124,10 @@ class AXYBData:
 
     def kronecker(self, scale: float) -> KroneckerSystem:
         """The reduced system of eqs. 8-12 with every translation divided by `scale` (cached per
-        scale). Built from sums over the pairs taken once, so that a solver normalising the units
-        (scale = `translation_scale`) copies no data and repeats no O(m) work."""
+        scale). Built from sums over the pairs, most of them taken once (`rotation_sum`,
+        `translation_sums`), so that a solver normalising the units (scale = `translation_scale`)
+        copies no data; only the block sum_i (R_Bi^T R_Bi) kron (R_Ai^T R_Ai) is summed again per
+        scale (`normal_equations`)."""
         systems = self._kronecker_systems
         if scale not in systems:
             systems[scale] = reduce_normal_equations(*normal_equations(self, scale))
@@ -210,7 +213,8 @@ class TranslationSums:
 
 def normal_equations(data: AXYBData, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
     """N = H^T H (24x24), g = H^T w (24), w^T w of eq. 8 with every translation divided by
-    `scale`, from sums over the pairs (no (12m, 24) matrix; O(1) once the sums exist).
+    `scale`, from sums over the pairs (no (12m, 24) matrix): the cached `rotation_sum` and
+    `translation_sums`, and the K^T K block below, which is summed here (O(m)) at every call.
 
     The blocks of H_i (eq. 8) give, with K_i = R_Bi kron R_Ai and T_i = t_Bi^T kron I:
     K^T K = (R_B^T R_B) kron (R_A^T R_A), T^T T = (t_B t_B^T) kron I, T^T R_A = t_B kron R_A.

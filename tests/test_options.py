@@ -49,3 +49,16 @@ def test_solve_refuses_string_normalize_before_solving():
     data, _ = handeye.get_registry().problem("axyb").simulate(pairs=6, seed=1)
     with pytest.raises(handeye.InputError, match="normalize='False'"):
         handeye.solve("axyb", solver="kron-lstsq", normalize="False", **data)
+
+
+def test_parse_options_checks_the_bool_options_of_any_solver():
+    """The check sits in parse_options, so a third party's options class gets it without code."""
+
+    @dataclasses.dataclass(frozen=True)
+    class ThirdPartyOptions:
+        verbose: bool = False
+        level: int = 1
+
+    with pytest.raises(handeye.InputError, match="option verbose='yes' must be True or False"):
+        parse_options(ThirdPartyOptions, {"verbose": "yes"}, "third-party")
+    assert parse_options(ThirdPartyOptions, {"verbose": True, "level": 2}, "third-party") == ThirdPartyOptions(True, 2)

@@ -27,8 +27,9 @@ def parse_key_values(items: Sequence[str] | None, what: str = "--option") -> dic
             raise InputError(f"{what} expects key=value, got {item!r}")
         if key in out:
             raise InputError(f"{what} {key!r} given twice")
-        if text.strip().lower() in BOOLEANS:
-            out[key] = BOOLEANS[text.strip().lower()]
+        word = text.strip().lower()
+        if word in BOOLEANS:
+            out[key] = BOOLEANS[word]
             continue
         try:
             out[key] = json.loads(text)
