@@ -72,7 +72,7 @@ from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import InputError
 from handeye.options import check_choice, check_positive
 from handeye.problems.axyb import AXYBData, solve_translations, split_beta
-from handeye.se3 import make_pose, project_to_so3, skew
+from handeye.se3 import make_pose, project_to_so3, skew, vee
 
 INITS = ("kron-lstsq", "identity")
 #: relative margin by which the final cost may exceed the reference before the end point is
@@ -144,11 +144,6 @@ def linearised_system(RA: np.ndarray, RB: np.ndarray, RX: np.ndarray,
     return F.reshape(9 * m, 6), q.reshape(9 * m)
 
 
-def _vee(P: np.ndarray) -> np.ndarray:
-    """Axial vectors of the skew parts of P: (n, 3, 3) -> (n, 3) (as `handeye.se3.vee`)."""
-    return 0.5 * (P[:, (2, 0, 1), (1, 2, 0)] - P[:, (1, 2, 0), (2, 0, 1)])
-
-
 _SKEW_E = skew(_E)  # [e_l], l = 1..3: (3, 3, 3)
 
 
@@ -158,7 +153,7 @@ def normal_equations(sums: RotationSums, RX: np.ndarray, RY: np.ndarray) -> tupl
     Z = np.concatenate([RY[None], _SKEW_E @ RY])  # R_Y, [e_l] R_Y: (4, 3, 3)
     L = (Z.reshape(4, 9) @ K).reshape(4, 3, 3)  # L(.) = sum R_A^T (.) R_B of each
     KX = (K @ RX.ravel()).reshape(3, 3)  # sum R_A R_X R_B^T
-    v = _vee(np.concatenate([L @ RX.T, (KX @ RY.T)[None]]))  # (5, 3)
+    v = vee(np.concatenate([L @ RX.T, (KX @ RY.T)[None]]))  # (5, 3)
     N = np.empty((6, 6))
     N[:3, :3] = sums.NXX
     N[:3, 3:] = -2.0 * v[1:4].T  # column l: -2 vee(L([e_l] R_Y) R_X^T)

@@ -340,18 +340,12 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     system = data.kronecker(scale)
     beta, u, result = solve_lmi(system, backend, options)
     MX, MY, tX, tY = split_beta(beta)
-    orthogonalize = ORTHOGONALIZERS[options.orthogonalize]
-    RX, RY = orthogonalize(MX), orthogonalize(MY)
-    if options.translations == "resolve":
-        tX, tY = solve_translations(data, RX, RY)
-    else:
-        tX, tY = tX * scale, tY * scale
     e = system.R1 @ beta - system.q1
     beta_out = beta.copy()
     beta_out[18:] *= scale
     beta_out.flags.writeable = False
     return SolverOutput(
-        unknowns={"X": make_pose(RX, tX), "Y": make_pose(RY, tY)},
+        unknowns=_unknowns(data, options, MX, MY, tX * scale, tY * scale),
         status=result.status,
         diagnostics={
             "u": u,
@@ -377,16 +371,23 @@ def _run_casadi(data: AXYBData, options: Options) -> SolverOutput:
 
     out = solve_casadi(data, normalize=bool(options.normalize), multistart=options.multistart or 0,
                        seed=options.seed, ipopt_options=options.ipopt_options)
-    orthogonalize = ORTHOGONALIZERS[options.orthogonalize]
-    RX, RY = orthogonalize(out.unknowns["X"][:3, :3]), orthogonalize(out.unknowns["Y"][:3, :3])
-    if options.translations == "resolve":
-        tX, tY = solve_translations(data, RX, RY)
-    else:
-        tX, tY = out.unknowns["X"][:3, 3], out.unknowns["Y"][:3, 3]
+    X, Y = out.unknowns["X"], out.unknowns["Y"]
     diagnostics = dict(out.diagnostics)
     diagnostics.update(orthogonalize=options.orthogonalize, translations=options.translations)
-    return SolverOutput(unknowns={"X": make_pose(RX, tX), "Y": make_pose(RY, tY)},
+    return SolverOutput(unknowns=_unknowns(data, options, X[:3, :3], Y[:3, :3], X[:3, 3], Y[:3, 3]),
                         status=out.status, diagnostics=diagnostics)
+
+
+def _unknowns(data: AXYBData, options: Options, MX: np.ndarray, MY: np.ndarray, tX: np.ndarray,
+              tY: np.ndarray) -> dict[str, np.ndarray]:
+    """X, Y from rotation blocks MX, MY made rotations by ``options.orthogonalize`` and the
+    translations tX, tY (data units), or with ``translations="resolve"`` translations re-solved
+    given those rotations (eqs. 20-21)."""
+    orthogonalize = ORTHOGONALIZERS[options.orthogonalize]
+    RX, RY = orthogonalize(MX), orthogonalize(MY)
+    if options.translations == "resolve":
+        tX, tY = solve_translations(data, RX, RY)
+    return {"X": make_pose(RX, tX), "Y": make_pose(RY, tY)}
 
 
 SPEC = SolverSpec(

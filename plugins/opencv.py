@@ -91,10 +91,7 @@ def calibrate(A: np.ndarray, B: np.ndarray, method: str) -> tuple[np.ndarray, np
         )
     except cv2.error as exc:
         raise SolverError(f"cv2.calibrateRobotWorldHandEye (method {method!r}) failed: {' '.join(str(exc).split())}") from exc
-    X, Y = np.eye(4), np.eye(4)
-    X[:3, :3], X[:3, 3] = R_bw, np.ravel(t_bw)
-    Y[:3, :3], Y[:3, 3] = R_gc, np.ravel(t_gc)
-    return X, Y
+    return make_pose(R_bw, np.ravel(t_bw)), make_pose(R_gc, np.ravel(t_gc))
 
 
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:

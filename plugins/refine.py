@@ -328,14 +328,13 @@ def inverse_jacobians(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return common - half, common + half
 
 
-def jacobian(P: Pairs, X: np.ndarray, Y: np.ndarray, e: np.ndarray, Q: np.ndarray | None = None) -> np.ndarray:
+def jacobian(P: Pairs, X: np.ndarray, Y: np.ndarray, e: np.ndarray) -> np.ndarray:
     """J: (m, 6, 12) = d e_i / d (omega_X, v_X, omega_Y, v_Y) at (X, Y), e from `residuals`.
 
     With Q_i = R_A R_X R_B^T R_Y^T = exp([r_i]_x): X exp(omega_X) gives Q <- exp([R_A R_X omega_X]_x) Q
     and Y exp(omega_Y) gives Q <- Q exp(-[R_Y omega_Y]_x), hence
     rotation rows [Jl^-1(r) R_A R_X, 0, -Jr^-1(r) R_Y, 0];
     translation rows [0, R_A R_X, R_Y [t_B]_x, -R_Y] (R_Y [t_B]_x = [R_Y t_B]_x R_Y).
-    (Q, the second output of `residuals`, is accepted and not needed.)
     """
     m = P.m
     RX, minus_RY = X[:3, :3], -Y[:3, :3]
@@ -436,8 +435,6 @@ def loss_terms(s: np.ndarray, loss: str, c: float) -> tuple[np.ndarray, np.ndarr
 
 # --------------------------------------------------------------------------- Levenberg-Marquardt
 
-#: how the weights are obtained, see `levenberg_marquardt`
-MODES = ("fixed", "initial", "profile", "irls")
 #: fewest pairs for the profile likelihood. The translation residuals (3m numbers) depend on 9
 #: parameters (t_X, t_Y, R_Y); with m = 3 they can be fitted exactly, and the likelihood with an
 #: unknown translation variance is unbounded there (sigma_trans -> 0): measured in 6% of m = 3
@@ -562,7 +559,6 @@ def model_sigmas(P: Pairs, X: np.ndarray, Y: np.ndarray, e: np.ndarray, W: White
     delta = 0.25 + 2.0 * cc - cc * cc * theta2
     u = np.einsum("nji,nj->ni", RA, r)  # R_A^T r
     sum_d = float(np.sum(d))
-    I3 = np.eye(3)
     # gradient
     g_rot, g_trans = np.zeros(12), np.zeros(12)
     g_rot[0:3] = wr * (RX.T @ np.einsum("nji,nj->i", RA, dr))
@@ -574,19 +570,19 @@ def model_sigmas(P: Pairs, X: np.ndarray, Y: np.ndarray, e: np.ndarray, W: White
     # information matrix
     H = np.zeros((12, 12))
     db = d * beta
-    H[0:3, 0:3] = wr * (RX.T @ (float(np.sum(d * (1.0 - beta * theta2))) * I3 + (db[:, None] * u).T @ u) @ RX)
-    H[6:9, 6:9] = wr * (RY.T @ (float(np.sum(d * (1.0 - beta * theta2))) * I3 + (db[:, None] * r).T @ r) @ RY)
+    H[0:3, 0:3] = wr * (RX.T @ (float(np.sum(d * (1.0 - beta * theta2))) * _I3 + (db[:, None] * u).T @ u) @ RX)
+    H[6:9, 6:9] = wr * (RY.T @ (float(np.sum(d * (1.0 - beta * theta2))) * _I3 + (db[:, None] * r).T @ r) @ RY)
     K = _skew(r)
     T = (np.einsum("n,nij->ji", d * (1.0 - delta * theta2), RA)
          + np.tensordot(RA, (d * gamma)[:, None, None] * K, axes=([0, 1], [0, 1]))
          + ((d * delta)[:, None] * u).T @ r)
     H[0:3, 6:9] = -wr * (RX.T @ T @ RY)
-    H[3:6, 3:6] = wt * sum_d * I3
-    H[9:12, 9:12] = wt * sum_d * I3
+    H[3:6, 3:6] = wt * sum_d * _I3
+    H[9:12, 9:12] = wt * sum_d * _I3
     H[3:6, 6:9] = wt * (RX.T @ np.tensordot(RA, d[:, None, None] * _skew(q), axes=([0, 1], [0, 1])) @ RY)
     H[3:6, 9:12] = -wt * (RX.T @ np.einsum("n,nij->ji", d, RA) @ RY)
     dq = d[:, None] * q
-    H[6:9, 6:9] += wt * (RY.T @ (float(np.sum(dq * q)) * I3 - dq.T @ q) @ RY)
+    H[6:9, 6:9] += wt * (RY.T @ (float(np.sum(dq * q)) * _I3 - dq.T @ q) @ RY)
     H[6:9, 9:12] = wt * (RY.T @ _skew(dq.sum(axis=0)) @ RY)
     Hw = np.triu(H) + np.triu(H, 1).T  # mirror the upper blocks filled above
     g = g_rot + g_trans
@@ -764,7 +760,6 @@ def start(data: AXYBData, requested: str | None) -> tuple[str, np.ndarray, np.nd
 def run_init(name: str, data: AXYBData) -> tuple[np.ndarray, np.ndarray, Status, dict[str, Any]]:
     """Run registered solver `name` (default backend and options) on validated data, as handeye.solve does."""
     from handeye.api import _checked_pose
-    from handeye.errors import BackendUnavailableError
     from handeye.options import parse_options
     from handeye.registry import get_registry
 

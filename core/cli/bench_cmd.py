@@ -390,7 +390,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("nothing to time: no available solver matches --solvers")
     cells = measure(rows, pairs, args.repeats, args.budget, noise, args.seed, progress=not args.no_progress)
 
-    print(f"handeye bench ({PROBLEM}): {machine_note()}")
+    machine = machine_note()
+    print(f"handeye bench ({PROBLEM}): {machine}")
     print(f"data: PROBLEM.simulate(seed={args.seed}), noise on A and B: {args.noise_rot:g} rad, "
           f"{args.noise_trans:g} mm; median of up to {args.repeats} solves after one warm-up, "
           f"round-robin over the rows; budget {args.budget:g} s per solve")
@@ -414,16 +415,17 @@ def run(args: argparse.Namespace) -> int:
             print(f"  {note}")
     print()
     print("targets (judged on the handeye.solve call time):")
-    for line in target_lines(cells, pairs):
+    targets = target_lines(cells, pairs)
+    for line in targets:
         print(line)
     if args.json:
         payload = {
-            "machine": machine_note(), "pairs": pairs, "repeats": args.repeats, "seed": args.seed,
+            "machine": machine, "pairs": pairs, "repeats": args.repeats, "seed": args.seed,
             "noise": {"rot": args.noise_rot, "trans": args.noise_trans}, "reference": REFERENCE,
             "cells": [{"row": label, "m": m, "warmup": c.warmup, "calls": c.calls, "runs": c.runs,
                        "median_call": c.call, "median_run": c.run, "note": c.note, "error": c.error}
                       for (label, m), c in cells.items()],
-            "targets": target_lines(cells, pairs), "unavailable": unavailable,
+            "targets": targets, "unavailable": unavailable,
         }
         with open(args.json, "w") as f:
             json.dump(payload, f, indent=1)

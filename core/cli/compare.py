@@ -38,8 +38,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--solvers", metavar="LIST",
                         help="comma-separated: name, name/backend, name/* (every backend) or all "
                              "(default: every registered solver, every lmi-sdp backend; with --paper: "
-                             "lmi-sdp (every backend), iterative, dual-quaternion (normalize=false), kron-lstsq, "
-                             "so3-sdp, auto)")
+                             "lmi-sdp (every backend), iterative, dual-quaternion (normalize=false), then "
+                             "every other registered solver)")
     parser.add_argument("--noise-levels", metavar="LEVELS",
                         help=f"multipliers of the base noise, '0,0.01' or start:stop:step (default "
                              f"{DEFAULT_LEVELS} with the paper's base noise, 1 with --noise-rot/--noise-trans)")

@@ -79,7 +79,7 @@ def _grid(result: StudyResult, rows: list[dict[str, Any]], xkey: str, xlabel: st
 
     center = result.study.center
     unknowns = _unknowns(result)
-    labels = [s.label for s in result.specs]
+    labels = result.labels
     colors = matplotlib.colormaps["tab10" if len(labels) <= 10 else "tab20"]
     unit = {"rot": "rad", "trans": "mm"}
     fig = Figure(figsize=(5.2 * len(unknowns), 7.2))

@@ -15,7 +15,7 @@ import importlib.metadata
 import json
 import math
 import platform
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -165,10 +165,3 @@ def read_csv(path: str | Path) -> list[dict[str, str]]:
     """The rows of a results CSV as dicts of strings (for tests and quick looks)."""
     with Path(path).open(newline="") as f:
         return list(csv.DictReader(f))
-
-
-def labels_in_order(records: Sequence[dict[str, Any]]) -> list[str]:
-    seen: dict[str, None] = {}
-    for r in records:
-        seen.setdefault(r["label"], None)
-    return list(seen)

@@ -225,9 +225,7 @@ def _failed(base: dict[str, Any], spec: Spec, reason: str, unknowns: Iterable[st
 
 def _init_worker(plugins: list[tuple[str, Any]]) -> None:
     """Make a worker see the run-time plugins of its parent (a no-op after fork)."""
-    from .. import registry
-
-    known = {name for name, _ in registry._extra}
+    known = {name for name, _ in _runtime_plugins}
     for name, plugin in plugins:
         if name not in known:
             register_plugin(plugin, name)

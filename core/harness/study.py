@@ -237,16 +237,24 @@ def default_specs(problem: str = "axyb") -> tuple[Spec, ...]:
     ``lmi-sdp`` (the paper's method: its backends are part of the comparison). Backends that
     cannot run here are left out."""
     registry = get_registry()
+    return tuple(spec for name in registry.solver_names(problem) for spec in _solver_specs(name, registry.solvers[name]))
+
+
+def _solver_specs(name: str, solver: Any, options: Mapping[str, Any] | None = None,
+                  suffix: str = "") -> list[Spec]:
+    """Specs of registered solver `name` on its default backend, or for ``lmi-sdp`` on every
+    backend (default first, labelled ``lmi-sdp/<backend>``), leaving out backends that cannot run
+    here; `suffix` is appended to every label."""
+    if name == "lmi-sdp":
+        backends = sorted(solver.backends, key=lambda b: b != solver.default_backend)
+    else:
+        backends = [solver.default_backend]
     specs = []
-    for name in registry.solver_names(problem):
-        solver = registry.solvers[name]
-        backends = list(solver.backends) if name == "lmi-sdp" else [solver.default_backend]
-        backends.sort(key=lambda b: b != solver.default_backend)
-        for backend in backends:
-            if solver.unavailable_reason(backend) is None:
-                label = f"{name}/{backend}" if len(solver.backends) > 1 and name == "lmi-sdp" else name
-                specs.append(Spec(name, backend, label=label))
-    return tuple(specs)
+    for backend in backends:
+        if solver.unavailable_reason(backend) is None:
+            label = f"{name}/{backend}" if name == "lmi-sdp" and len(solver.backends) > 1 else name
+            specs.append(Spec(name, backend, options or {}, label=label + suffix))
+    return specs
 
 
 #: the three methods the paper compares (Sec. III-IV): LMI-SDP (eq. 14), iterative (eqs. 15-21),
@@ -269,15 +277,10 @@ def paper_specs(problem: str = "axyb") -> tuple[Spec, ...]:
     specs = []
     for name in [n for n in PAPER_METHODS if n in known] + [n for n in known if n not in PAPER_METHODS]:
         solver = registry.solvers[name]
-        backends = sorted(solver.backends, key=lambda b: b != solver.default_backend) if name == "lmi-sdp" \
-            else [solver.default_backend]
         fields = {f.name for f in dataclasses.fields(solver.options)} if dataclasses.is_dataclass(solver.options) else set()
         options = PAPER_OPTIONS.get(name, {})
         options = {k: v for k, v in options.items() if k in fields}  # a replacement plugin may lack them
-        for backend in backends:
-            if solver.unavailable_reason(backend) is None:
-                label = f"{name}/{backend}" if name == "lmi-sdp" and len(solver.backends) > 1 else name
-                specs.append(Spec(name, backend, options, label=label + (" (raw)" if options else "")))
+        specs += _solver_specs(name, solver, options, " (raw)" if options else "")
     return tuple(specs)
 
 
