@@ -75,6 +75,7 @@ import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.dualquat import conjugate, dual_quat_from_pose, pose_from_dual_quat, q_left, q_right, quat_multiply
 from handeye.errors import SolverError
+from handeye.linalg import triangular_factor
 from handeye.problems.axyb import AXYBData
 
 
@@ -131,28 +132,6 @@ def null_space_solution(v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, bool]
         raise SolverError("dual-quaternion: the null space of eq. 24 has no rotation part (degenerate data)")
     mu = mu * np.sqrt(2.0 / norm2)
     return mu[0] * v + mu[1] * w, real_root
-
-
-def triangular_factor(blocks: np.ndarray) -> np.ndarray:
-    """R: (c, c) with R^T R = M^T M for the tall matrix M stacked from blocks: (m, r, c).
-
-    Tree (tall-skinny) QR: the rows are cut into chunks of 8c rows, each chunk reduced to its c x c
-    factor by one batched small QR, and the stacked factors reduced again the same way until one
-    chunk remains. Backward stable like a QR of the whole (m r) x c matrix (M and R have the same
-    singular values and right singular vectors to rounding). The small chunks matter on a shared
-    machine: a LAPACK QR or SVD of a large tall matrix goes multi-threaded, and with busy cores
-    that made it 5 to 80 times slower than single-threaded in our measurements, while
-    chunks of <= 8c rows stay single-threaded. Needs m r >= c (R has min(m r, c) rows otherwise).
-    """
-    c = blocks.shape[-1]
-    X = blocks.reshape(-1, c)
-    per = 8 * c
-    while len(X) > per:
-        n = -(-len(X) // per)
-        padded = np.zeros((n * per, c))
-        padded[:len(X)] = X
-        X = np.linalg.qr(padded.reshape(n, per, c), mode="r").reshape(-1, c)
-    return np.linalg.qr(X, mode="r")
 
 
 def solve_dq(a: np.ndarray, ad: np.ndarray, b: np.ndarray, bd: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:

@@ -43,7 +43,7 @@ from scipy.linalg import solve_triangular
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import DegenerateDataError
-from handeye.plugins.dual_quaternion import triangular_factor
+from handeye.linalg import triangular_factor
 from handeye.plugins.shah import normalize_rotation
 from handeye.problems.axyb import AXYBData, regression_blocks, split_beta
 from handeye.se3 import make_pose

@@ -19,7 +19,8 @@ from handeye.dualquat import (
     rotation_from_quat,
 )
 from handeye.noise import NoiseModel
-from handeye.plugins.dual_quaternion import dq_matrix, pair_signs, solve_dual_quaternions, triangular_factor
+from handeye.linalg import triangular_factor
+from handeye.plugins.dual_quaternion import dq_matrix, pair_signs, solve_dual_quaternions
 from handeye.problems.axyb import PROBLEM, random_truth
 from handeye.se3 import quat_from_matrix, random_poses, random_rotations, so3_exp
 
