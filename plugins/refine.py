@@ -289,9 +289,9 @@ class Pairs:
                    np.ascontiguousarray(_skew(tB).transpose(1, 0, 2)).reshape(3, 3 * m))
 
 
-def residuals(P: Pairs, X: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unwhitened residuals e: (m, 6) = [r_i; t_i], and the discrepancy rotations
-    Q_i = R_A R_X R_B^T R_Y^T = exp([r_i]_x): (m, 3, 3) (two BLAS products, one batched 3x3)."""
+def residuals(P: Pairs, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """Unwhitened residuals e: (m, 6) = [r_i; t_i], r_i the rotation vector of the discrepancy
+    Q_i = R_A R_X R_B^T R_Y^T (two BLAS products, one batched 3x3)."""
     RY = Y[:3, :3]
     m = P.m
     AX = P.RA9 @ X[:3]  # (3m, 4): [R_A R_X, R_A t_X] per pair
@@ -299,7 +299,7 @@ def residuals(P: Pairs, X: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.nd
     e = np.empty((m, 6))
     e[:, :3] = _so3_log(Q)
     e[:, 3:] = AX[:, 3].reshape(m, 3) - P.tB @ RY.T + (P.tA - Y[:3, 3])
-    return e, Q
+    return e
 
 
 def _jl_coefficient(theta2: np.ndarray) -> np.ndarray:
@@ -491,7 +491,7 @@ def objective(e: np.ndarray, W: Whitening, mode: str, loss: str, c: float, scale
 
 def cost_of(P: Pairs, X: np.ndarray, Y: np.ndarray, W: Whitening, loss: str, c: float) -> float:
     """F = 1/2 sum_i rho(|W^(1/2) e_i|^2) at (X, Y) under weights W."""
-    return objective(residuals(P, X, Y)[0], W, "fixed", loss, c, 1.0)[0]
+    return objective(residuals(P, X, Y), W, "fixed", loss, c, 1.0)[0]
 
 
 def _model(e: np.ndarray, J: np.ndarray, W: Whitening, mode: str, loss: str, c: float,
@@ -616,7 +616,7 @@ def levenberg_marquardt(P: Pairs, X: np.ndarray, Y: np.ndarray, W: Whitening | N
     is larger than the change.
     """
     mode = mode_of(W, loss, P.m, estimate)
-    e0 = e = residuals(P, X, Y)[0]
+    e0 = e = residuals(P, X, Y)
     if mode == "profile":  # the objective (carried along with e: each point is evaluated once) and its weights
         value, W = objective(e, None, mode, loss, c, scale)
     elif mode != "fixed":
@@ -636,7 +636,7 @@ def levenberg_marquardt(P: Pairs, X: np.ndarray, Y: np.ndarray, W: Whitening | N
                 # ~1e-7 (relative to the errors) that tol leaves, so the answer does not depend
                 # on the path taken (unit invariance to ~1e-14, one answer from every start).
                 X, Y = retract(X, step_gn[:6]), retract(Y, step_gn[6:])
-                e, _ = residuals(P, X, Y)
+                e = residuals(P, X, Y)
                 if mode == "profile":
                     value, W = objective(e, None, mode, loss, c, scale)
             if weight_change <= WEIGHT_TOL:
@@ -658,7 +658,7 @@ def levenberg_marquardt(P: Pairs, X: np.ndarray, Y: np.ndarray, W: Whitening | N
                 break
             iterations += 1
             X, Y = retract(X, step_gn[:6]), retract(Y, step_gn[6:])
-            e, _ = residuals(P, X, Y)
+            e = residuals(P, X, Y)
             if mode == "profile":
                 value, W = objective(e, None, mode, loss, c, scale)
             elif mode == "irls":
@@ -675,7 +675,7 @@ def levenberg_marquardt(P: Pairs, X: np.ndarray, Y: np.ndarray, W: Whitening | N
                 step = _newton_step(H + lam * np.diag(Hw.diagonal()), g)
                 predicted = -float(g @ step + 0.5 * step @ H @ step)
             Xn, Yn = retract(X, step[:6]), retract(Y, step[6:])
-            en, _ = residuals(P, Xn, Yn)
+            en = residuals(P, Xn, Yn)
             value_n, Wn = objective(en, W, mode, loss, c, scale)
             if value_n < value and predicted > 0:
                 gain = (value - value_n) / predicted

@@ -57,18 +57,6 @@ def overflow_error(where: str) -> InputError:
     )
 
 
-def check_translation_range(A: np.ndarray, B: np.ndarray) -> None:
-    """Raise InputError when the sum of squared translations of A, B: (m, 4, 4) overflows float64.
-
-    Every solver needs sums of that order (eq. 8's normal equations, the RMS translation used
-    to normalise units), so data beyond it are refused for all of them alike.
-    """
-    with np.errstate(over="ignore", invalid="ignore"):
-        total = float(np.sum(A[:, :3, 3] ** 2) + np.sum(B[:, :3, 3] ** 2))
-    if not np.isfinite(total):
-        raise overflow_error("the sums of squared translations")
-
-
 @dataclasses.dataclass(frozen=True)
 class AXYBData:
     """Validated data of A_i X = Y B_i: read-only float64 stacks A, B of shape (m, 4, 4)."""
@@ -113,6 +101,12 @@ class AXYBData:
         return float(max(0.0, 1.0 - sigma[1] / self.m))
 
     @functools.cached_property
+    def rotation_gram_sum(self) -> np.ndarray:
+        """sum_i (R_Bi^T R_Bi) kron (R_Ai^T R_Ai): (9, 9), the K^T K block of eq. 8's normal matrix
+        (computed once; the identity times m for exact rotations)."""
+        return _kron_sum(gram(self.B[:, :3, :3]), gram(self.A[:, :3, :3]))
+
+    @functools.cached_property
     def translation_sums(self) -> TranslationSums:
         """The O(m) sums behind the translation rows of eq. 8 (computed once)."""
         return TranslationSums.of(self.A, self.B)
@@ -124,10 +118,9 @@ class AXYBData:
 
     def kronecker(self, scale: float) -> KroneckerSystem:
         """The reduced system of eqs. 8-12 with every translation divided by `scale` (cached per
-        scale). Built from sums over the pairs, most of them taken once (`rotation_sum`,
+        scale). Built from sums over the pairs taken once (`rotation_sum`, `rotation_gram_sum`,
         `translation_sums`), so that a solver normalising the units (scale = `translation_scale`)
-        copies no data; only the block sum_i (R_Bi^T R_Bi) kron (R_Ai^T R_Ai) is summed again per
-        scale (`normal_equations`)."""
+        copies no data and repeats no O(m) work."""
         systems = self._kronecker_systems
         if scale not in systems:
             systems[scale] = reduce_normal_equations(*normal_equations(self, scale))
@@ -213,8 +206,8 @@ class TranslationSums:
 
 def normal_equations(data: AXYBData, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
     """N = H^T H (24x24), g = H^T w (24), w^T w of eq. 8 with every translation divided by
-    `scale`, from sums over the pairs (no (12m, 24) matrix): the cached `rotation_sum` and
-    `translation_sums`, and the K^T K block below, which is summed here (O(m)) at every call.
+    `scale`, from the sums over the pairs that `data` caches (no (12m, 24) matrix; O(1) once
+    they exist).
 
     The blocks of H_i (eq. 8) give, with K_i = R_Bi kron R_Ai and T_i = t_Bi^T kron I:
     K^T K = (R_B^T R_B) kron (R_A^T R_A), T^T T = (t_B t_B^T) kron I, T^T R_A = t_B kron R_A.
@@ -224,7 +217,7 @@ def normal_equations(data: AXYBData, scale: float = 1.0) -> tuple[np.ndarray, np
     sums = data.translation_sums
     I3 = np.eye(3)
     N = np.zeros((24, 24))
-    N[:9, :9] = _kron_sum(gram(data.B[:, :3, :3]), gram(data.A[:, :3, :3]))
+    N[:9, :9] = data.rotation_gram_sum
     S = data.rotation_sum
     N[:9, 9:18], N[9:18, :9] = -S.T, -S
     N[9:18, 9:18] = m * np.eye(9) + np.kron(sums.TB, I3) / s**2
@@ -326,8 +319,12 @@ class AXYB(Problem):
             raise InputError(f"problem 'axyb' takes data {list(self.data_fields)}, not {sorted(unexpected)}")
         A, B = pose_stack(data["A"], "A"), pose_stack(data["B"], "B")
         same_length({"A": A, "B": B}, self.min_pairs)
-        check_translation_range(A, B)
         out = AXYBData(A, B)
+        # Every solver needs sums of squared translations (eq. 8's normal equations, the RMS
+        # translation that normalises units): data whose sums overflow are refused for all alike.
+        with np.errstate(over="ignore", invalid="ignore"):
+            if not np.isfinite(out.translation_scale):
+                raise overflow_error("the sums of squared translations")
         excitation = out.rotation_excitation
         if excitation < DEGENERATE_EXCITATION:
             raise DegenerateDataError(

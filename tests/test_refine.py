@@ -46,7 +46,7 @@ def test_noise_free_recovery_from_perturbed_init():
 def test_residual_definition_matches_problem_residuals(noisy16):
     data, truth = noisy16
     d = PROBLEM.validate(**data)
-    e, _ = R.residuals(R.Pairs.of(d), truth["X"], truth["Y"])
+    e = R.residuals(R.Pairs.of(d), truth["X"], truth["Y"])
     ref = PROBLEM.residuals(d, truth)
     np.testing.assert_allclose(np.linalg.norm(e[:, :3], axis=1), ref["rotation"], rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(np.linalg.norm(e[:, 3:], axis=1), ref["translation"], rtol=1e-12)
@@ -64,15 +64,15 @@ def test_analytic_jacobian_matches_finite_differences(residual_angle):
     X = make_pose(truth["X"][:3, :3] @ so3_exp(residual_angle * np.array([0.6, -0.48, 0.64])),
                   truth["X"][:3, 3] + 30.0 * rng.standard_normal(3))
     Y = _perturb(truth["Y"], rng, rot=0.01, trans=10.0)
-    e, _ = R.residuals(P, X, Y)
+    e = R.residuals(P, X, Y)
     J = R.jacobian(P, X, Y, e)
     h = 1e-6
     Jfd = np.zeros_like(J)
     for k in range(12):
         xi = np.zeros(12)
         xi[k] = h
-        ep = R.residuals(P, R.retract(X, xi[:6]), R.retract(Y, xi[6:]))[0]
-        em = R.residuals(P, R.retract(X, -xi[:6]), R.retract(Y, -xi[6:]))[0]
+        ep = R.residuals(P, R.retract(X, xi[:6]), R.retract(Y, xi[6:]))
+        em = R.residuals(P, R.retract(X, -xi[:6]), R.retract(Y, -xi[6:]))
         Jfd[:, :, k] = (ep - em) / (2 * h)
     np.testing.assert_allclose(J, Jfd, atol=1e-6 * max(1.0, np.abs(J).max()), rtol=1e-6)
 
@@ -246,7 +246,7 @@ def test_init_as_mapping_of_poses(noisy16):
 
 
 def _profile_objective(P, X, Y, scale):
-    return R.objective(R.residuals(P, X, Y)[0], None, "profile", "linear", 1.0, scale)[0]
+    return R.objective(R.residuals(P, X, Y), None, "profile", "linear", 1.0, scale)[0]
 
 
 def test_estimated_weights_are_the_profile_likelihood_optimum(noisy16):
@@ -256,7 +256,7 @@ def test_estimated_weights_are_the_profile_likelihood_optimum(noisy16):
     sol = handeye.solve("axyb", solver="refine", init="kron-lstsq", **data)
     d = PROBLEM.validate(**data)
     P = R.Pairs.of(d)
-    e, _ = R.residuals(P, sol.X, sol.Y)
+    e = R.residuals(P, sol.X, sol.Y)
     m = len(e)
     assert sol.diagnostics["sigma_rot"] == pytest.approx(np.sqrt(np.sum(e[:, :3] ** 2) / (3 * m)), rel=1e-12)
     assert sol.diagnostics["sigma_trans"] == pytest.approx(np.sqrt(np.sum(e[:, 3:] ** 2) / (3 * m)), rel=1e-12)
@@ -280,7 +280,7 @@ def test_initial_estimate_and_three_pairs_use_the_start_residuals(noisy16):
     assert a.diagnostics["weight_mode"] == b.diagnostics["weight_mode"] == "initial"
     assert a.diagnostics["sigma_rot"] != b.diagnostics["sigma_rot"]  # from the start: differ
     d = PROBLEM.validate(**data)
-    e0, _ = R.residuals(R.Pairs.of(d), truth["X"], truth["Y"])
+    e0 = R.residuals(R.Pairs.of(d), truth["X"], truth["Y"])
     assert b.diagnostics["sigma_trans"] == pytest.approx(np.sqrt(np.sum(e0[:, 3:] ** 2) / (3 * len(e0))), rel=1e-12)
     # with m = 3 the translations can be fitted exactly (unbounded likelihood): "initial"
     three = {k: v[:3] for k, v in data.items()}
@@ -301,7 +301,7 @@ def test_block_normal_equations_equal_the_jacobian_ones(loss, mode):
     d = PROBLEM.validate(**data)
     P = R.Pairs.of(d)
     X, Y = _perturb(truth["X"], rng, rot=0.4), _perturb(truth["Y"], rng, rot=0.4)
-    e, _ = R.residuals(P, X, Y)
+    e = R.residuals(P, X, Y)
     W = R.estimate_sigmas(e, d.translation_scale, robust=loss != "linear")
     fast = R.model_sigmas(P, X, Y, e, W, mode, loss, 2.0, d.translation_scale)
     ref = R._model(e, R.jacobian(P, X, Y, e), W, mode, loss, 2.0, d.translation_scale)
