@@ -13,6 +13,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from .se3 import make_pose, random_rotations, rotation_angle
+
 Poses = Mapping[str, np.ndarray]
 #: errors per unknown: {"X": {"rotation": rad, "translation": data units}, ...}
 ErrorTable = dict[str, dict[str, float]]
@@ -51,3 +53,23 @@ class Problem(ABC):
     def diagnose(self, data: Any) -> dict[str, Any]:
         """Figures describing how well the data determine the unknowns, and ``warnings``."""
         return {"warnings": []}
+
+    def random_unknowns(self, rng: np.random.Generator, translation_scale: float = 500.0) -> dict[str, np.ndarray]:
+        """Random unknowns for tests and studies: uniform rotations, translations
+        N(0, translation_scale^2) per axis (data units), one pose per name in `unknowns`."""
+        R = random_rotations(len(self.unknowns), rng)
+        t = translation_scale * rng.standard_normal((len(self.unknowns), 3))
+        return {name: make_pose(R[k], t[k]) for k, name in enumerate(self.unknowns)}
+
+
+def pose_errors(unknowns: Mapping[str, np.ndarray], truth: Mapping[str, np.ndarray],
+                names: tuple[str, ...]) -> ErrorTable:
+    """Rotation angle of R_cal R_true^T and translation distance for each named unknown."""
+    table: ErrorTable = {}
+    for name in names:
+        cal, true = np.asarray(unknowns[name], dtype=float), np.asarray(truth[name], dtype=float)
+        table[name] = {
+            "rotation": float(rotation_angle(cal[:3, :3] @ true[:3, :3].T)),
+            "translation": float(np.linalg.norm(cal[:3, 3] - true[:3, 3])),
+        }
+    return table

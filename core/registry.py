@@ -25,7 +25,12 @@ from typing import Any
 import pluggy
 
 from . import hookspecs
-from .errors import PluginLoadWarning, PluginRegistrationError, UnknownPluginError
+from .errors import (
+    InputError,
+    PluginLoadWarning,
+    PluginRegistrationError,
+    UnknownPluginError,
+)
 from .problem import Problem
 from .solver import SolverSpec
 
@@ -58,7 +63,16 @@ class FailedPlugin:
 
 class Registry:
     """Problems and solvers registered by every loaded plugin; `failed`: the third-party plugins
-    that could not be loaded (name -> `FailedPlugin`)."""
+    that could not be loaded (name -> `FailedPlugin`).
+
+    A solver name may serve several problems (``refine`` solves ``axyb`` and ``axxb``): the
+    registry keeps one `SolverSpec` per (solver name, problem). A spec whose ``problems`` tuple
+    names several problems serves each of them with the same run function; a plugin that needs
+    other options or code per problem registers one spec per problem under the same name. Two
+    specs for the same (name, problem) are an error naming both plugins; different plugins may
+    share a name for different problems (a third-party problem plugin can offer its own
+    ``auto``), each pair keeping its own provider.
+    """
 
     def __init__(self, plugin_manager: pluggy.PluginManager, plugins: dict[str, PluginInfo],
                  failed: dict[str, FailedPlugin] | None = None) -> None:
@@ -66,9 +80,10 @@ class Registry:
         self.plugins = plugins
         self.failed = dict(failed or {})
         self.problems: dict[str, Problem] = {}
-        self.solvers: dict[str, SolverSpec] = {}
+        #: solver name -> problem -> spec
+        self.solvers: dict[str, dict[str, SolverSpec]] = {}
         self._problem_owner: dict[str, str] = {}
-        self.solver_owner: dict[str, str] = {}
+        self._solver_owner: dict[tuple[str, str], str] = {}
         self._collect()
 
     def _collect(self) -> None:
@@ -96,19 +111,22 @@ class Registry:
             raise PluginRegistrationError(
                 f"plugin {owner!r} registered {spec!r}, which is not a handeye.SolverSpec"
             )
-        if spec.name in self.solvers:
-            raise PluginRegistrationError(
-                f"solver {spec.name!r} is registered by both plugin "
-                f"{self.solver_owner[spec.name]!r} and plugin {owner!r}"
-            )
+        if not spec.problems:
+            raise PluginRegistrationError(f"solver {spec.name!r} of plugin {owner!r} names no problem")
         for problem in spec.problems:
             if problem not in self.problems:
                 raise PluginRegistrationError(
                     f"solver {spec.name!r} of plugin {owner!r} claims problem {problem!r}, which no "
                     f"plugin registered (known: {sorted(self.problems)})"
                 )
-        self.solvers[spec.name] = spec
-        self.solver_owner[spec.name] = owner
+            if (spec.name, problem) in self._solver_owner:
+                raise PluginRegistrationError(
+                    f"solver {spec.name!r} for problem {problem!r} is registered by both plugin "
+                    f"{self._solver_owner[spec.name, problem]!r} and plugin {owner!r}"
+                )
+        for problem in spec.problems:
+            self.solvers.setdefault(spec.name, {})[problem] = spec
+            self._solver_owner[spec.name, problem] = owner
 
     def problem(self, name: str) -> Problem:
         try:
@@ -117,21 +135,33 @@ class Registry:
             raise UnknownPluginError("problem", name, self.problems, self._failed_hint()) from None
 
     def solver(self, name: str, problem: str | None = None) -> SolverSpec:
+        """The spec of solver `name` for `problem`. Without a problem the name must serve exactly
+        one (else an `UnknownPluginError` asks for it)."""
         known = self.solver_names(problem)
         if name not in known:
             if name in self.solvers and problem is not None:
-                hint = f"solver {name!r} exists but solves only {list(self.solvers[name].problems)}"
+                hint = f"solver {name!r} exists but solves only {self.solver_problems(name)}"
             else:
                 hint = self._failed_hint()
             raise UnknownPluginError(
                 "solver" if problem is None else f"solver for problem {problem!r}", name, known, hint
             )
-        return self.solvers[name]
+        by_problem = self.solvers[name]
+        if problem is None:
+            if len(by_problem) > 1:
+                raise InputError(f"solver {name!r} serves several problems ({', '.join(by_problem)}): "
+                                 "name the problem too")
+            return next(iter(by_problem.values()))
+        return by_problem[problem]
 
     def solver_names(self, problem: str | None = None) -> list[str]:
         if problem is not None:
             self.problem(problem)
-        return sorted(n for n, s in self.solvers.items() if problem is None or problem in s.problems)
+        return sorted(n for n, specs in self.solvers.items() if problem is None or problem in specs)
+
+    def solver_problems(self, name: str) -> list[str]:
+        """The problems solver `name` serves, in the order they were registered."""
+        return list(self.solvers.get(name, {}))
 
     def _failed_hint(self) -> str:
         """For unknown-name errors: the plugins that failed to load (one may hold the name)."""
@@ -141,9 +171,11 @@ class Registry:
         return (f"Plugin(s) that failed to load, which may provide it: {listing}; fix or "
                 "reinstall the distribution (see handeye list)")
 
-    def provider(self, solver: str) -> PluginInfo:
-        """The plugin (and distribution) that registered `solver`."""
-        owner = self.solver_owner[solver]
+    def provider(self, solver: str, problem: str | None = None) -> PluginInfo:
+        """The plugin (and distribution) that registered `solver` for `problem` (default: the
+        first problem it was registered for)."""
+        problem = problem if problem is not None else self.solver_problems(solver)[0]
+        owner = self._solver_owner[solver, problem]
         return self.plugins.get(owner, PluginInfo(owner, "(registered at run time)", ""))
 
 

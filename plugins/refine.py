@@ -734,8 +734,8 @@ def default_init() -> str:
     from handeye.registry import get_registry
 
     registry = get_registry()
-    spec = registry.solvers.get("so3-sdp")
-    if spec is not None and "axyb" in spec.problems and spec.unavailable_reason(spec.default_backend) is None:
+    spec = registry.solvers.get("so3-sdp", {}).get("axyb")
+    if spec is not None and spec.unavailable_reason(spec.default_backend) is None:
         return "so3-sdp"
     return FALLBACK_INIT
 

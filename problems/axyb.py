@@ -22,13 +22,25 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-
 from handeye import hookimpl
 from handeye.errors import DegenerateDataError, InputError
 from handeye.kinematics import random_flange_poses
+from handeye.kronecker import (
+    KroneckerSystem,
+    TranslationSums,
+    kron_sum,
+    overflow_error,
+    reduce_normal_equations,
+)
 from handeye.noise import NoiseModel
-from handeye.problem import ErrorTable, Problem
-from handeye.se3 import gram, inverse, make_pose, project_to_so3, random_rotations, rotation_angle
+from handeye.problem import ErrorTable, Problem, pose_errors
+from handeye.se3 import (
+    gram,
+    inverse,
+    make_pose,
+    project_to_so3,
+    rotation_angle,
+)
 from handeye.validation import pose_stack, same_length
 
 #: Ground truth of the paper's simulation (Sec. IV-A), projected onto SO(3): the printed 4-digit
@@ -46,15 +58,6 @@ PAPER_Y = make_pose(
 DEGENERATE_EXCITATION = 1e-10
 #: ... and below which a warning says the data are weak.
 WEAK_EXCITATION = 1e-4
-
-
-def overflow_error(where: str) -> InputError:
-    """The error for data whose sums over the pairs overflow float64 (huge translations)."""
-    return InputError(
-        f"the translations of A and B are too large: {where} overflow float64 (translations of "
-        "order 1e150 or more). Express the translations in a larger unit (e.g. m instead of um) "
-        "and solve again"
-    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,7 +89,7 @@ class AXYBData:
     def rotation_sum(self) -> np.ndarray:
         """S = sum_i R_Bi kron R_Ai: (9, 9), the rotation block of eq. 8's normal matrix (computed
         once; shared by the excitation check, the normal equations and Shah's method)."""
-        return _kron_sum(np.ascontiguousarray(self.B[:, :3, :3]), np.ascontiguousarray(self.A[:, :3, :3]))
+        return kron_sum(np.ascontiguousarray(self.B[:, :3, :3]), np.ascontiguousarray(self.A[:, :3, :3]))
 
     @functools.cached_property
     def rotation_excitation(self) -> float:
@@ -104,7 +107,7 @@ class AXYBData:
     def rotation_gram_sum(self) -> np.ndarray:
         """sum_i (R_Bi^T R_Bi) kron (R_Ai^T R_Ai): (9, 9), the K^T K block of eq. 8's normal matrix
         (computed once; the identity times m for exact rotations)."""
-        return _kron_sum(gram(self.B[:, :3, :3]), gram(self.A[:, :3, :3]))
+        return kron_sum(gram(self.B[:, :3, :3]), gram(self.A[:, :3, :3]))
 
     @functools.cached_property
     def translation_sums(self) -> TranslationSums:
@@ -131,29 +134,6 @@ class AXYBData:
         return {}
 
 
-@dataclasses.dataclass(frozen=True)
-class KroneckerSystem:
-    """Eq. 8, H beta = w, reduced by QR (eq. 10): |H beta - w|^2 = |R1 beta - q1|^2 + rest.
-
-    R1: (24, 24) upper triangular; q1 = Q1^T w: (24,); rest = |Q2^T w|^2 (eq. 12).
-    beta = [vec(R_X); vec(R_Y); t_X; t_Y] (column-major vec, as in the paper).
-    """
-
-    R1: np.ndarray
-    q1: np.ndarray
-    rest: float
-
-    def least_squares(self) -> np.ndarray:
-        """beta minimising |H beta - w| (the optimum of eq. 14), by back substitution."""
-        from scipy.linalg import solve_triangular
-
-        return solve_triangular(self.R1, self.q1, lower=False)
-
-    def smallest_singular_value(self) -> float:
-        """sigma_min(H) = sigma_min(R1): how well eq. 8 determines beta."""
-        return float(np.linalg.svd(self.R1, compute_uv=False)[-1])
-
-
 def regression_blocks(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The per-pair blocks H_i: (m, 12, 24) and w_i: (m, 12) of eq. 8, without a loop over pairs."""
     m = len(A)
@@ -167,41 +147,6 @@ def regression_blocks(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndar
     w = np.zeros((m, 12))
     w[:, 9:] = tA
     return H, w
-
-
-def _kron_sum(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
-    """sum_i kron(P_i, Q_i) for stacks P, Q: (m, 3, 3) -> (9, 9), as one BLAS product."""
-    M = P.reshape(-1, 9).T @ Q.reshape(-1, 9)  # M[(i, j), (k, l)] = sum P_ij Q_kl
-    return M.reshape(3, 3, 3, 3).transpose(0, 2, 1, 3).reshape(9, 9)
-
-
-@dataclasses.dataclass(frozen=True)
-class TranslationSums:
-    """Sums over the pairs (all O(m), each one BLAS product) that the translation rows of eq. 8
-    and eqs. 20-21 need: G_A = sum R_A^T R_A, sum R_A, C = sum t_B kron R_A (as (3, 3, 3):
-    C[j, a, b] = sum t_Bj R_A,ab), sum t_B, sum R_A^T t_A, sum t_A, sum t_B t_A^T, sum |t_A|^2,
-    T_B = sum t_B t_B^T, and m."""
-
-    GA: np.ndarray
-    sum_RA: np.ndarray
-    C: np.ndarray
-    sum_tB: np.ndarray
-    RAt_tA: np.ndarray
-    sum_tA: np.ndarray
-    tB_tA: np.ndarray
-    tA_tA: float
-    TB: np.ndarray
-    m: int
-
-    @classmethod
-    def of(cls, A: np.ndarray, B: np.ndarray) -> TranslationSums:
-        m = len(A)
-        RA = np.ascontiguousarray(A[:, :3, :3])
-        tA, tB = np.ascontiguousarray(A[:, :3, 3]), np.ascontiguousarray(B[:, :3, 3])
-        RA3 = RA.reshape(3 * m, 3)
-        return cls(GA=RA3.T @ RA3, sum_RA=RA.sum(axis=0), C=(tB.T @ RA.reshape(m, 9)).reshape(3, 3, 3),
-                   sum_tB=tB.sum(axis=0), RAt_tA=RA3.T @ tA.reshape(3 * m),
-                   sum_tA=tA.sum(axis=0), tB_tA=tB.T @ tA, tA_tA=float(np.sum(tA * tA)), TB=tB.T @ tB, m=m)
 
 
 def normal_equations(data: AXYBData, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
@@ -240,32 +185,6 @@ def reduce_system(A: np.ndarray, B: np.ndarray) -> KroneckerSystem:
     return reduce_normal_equations(*normal_equations(AXYBData(A, B)))
 
 
-def reduce_normal_equations(N: np.ndarray, g: np.ndarray, ww: float) -> KroneckerSystem:
-    """Eq. 8's normal equations -> the triangular form of eqs. 10-12.
-
-    R1 is the Cholesky factor of the column-equilibrated normal matrix (R1^T R1 = H^T H; equal to
-    the R of H = QR up to row signs), q1 = R1^-T H^T w and rest = w^T w - |q1|^2. Equilibration
-    (scaling columns to unit norm before factorising) keeps the accuracy close to a QR of H even
-    when translations in mm make the columns differ by orders of magnitude: on noise-free data
-    beta is recovered to ~1e-11 relative, against 1e-13 for a dense QR that is ~5x slower.
-    Raises InputError when N, g or ww are not finite (translations so large their sums overflow).
-    """
-    from scipy.linalg import cholesky, solve_triangular
-
-    if not (np.all(np.isfinite(N)) and np.all(np.isfinite(g)) and np.isfinite(ww)):
-        raise overflow_error("the normal equations of eq. 8")
-    d = np.sqrt(np.diag(N))
-    try:
-        R1 = cholesky(N / np.outer(d, d), lower=False) * d[None, :]
-    except np.linalg.LinAlgError:
-        raise DegenerateDataError(
-            "the Kronecker system of eq. 8 is rank deficient: the data do not determine X and Y "
-            "(too little rotation or translation variety)"
-        ) from None
-    q1 = solve_triangular(R1, g, trans="T")
-    return KroneckerSystem(R1=R1, q1=q1, rest=max(ww - float(q1 @ q1), 0.0))
-
-
 def split_beta(beta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(M_X, M_Y, t_X, t_Y) from beta of eq. 8; M are 3x3 (not yet rotations)."""
     beta = np.asarray(beta, dtype=float).ravel()
@@ -284,7 +203,7 @@ def solve_translations(data: AXYBData, RX: np.ndarray, RY: np.ndarray) -> tuple[
     from scipy.linalg import LinAlgError, solve
 
     sums = data.translation_sums
-    RAt_p = np.einsum("aj,jab->b", RY, sums.C) - sums.RAt_tA  # sum R_A^T (R_Y t_B - t_A)
+    RAt_p = sums.RAt_R_tB(RY) - sums.RAt_tA  # sum R_A^T (R_Y t_B - t_A)
     sum_p = RY @ sums.sum_tB - sums.sum_tA
     N = np.block([[sums.GA, -sums.sum_RA.T], [-sums.sum_RA, sums.m * np.eye(3)]])
     try:
@@ -299,9 +218,7 @@ def solve_translations(data: AXYBData, RX: np.ndarray, RY: np.ndarray) -> tuple[
 
 def random_truth(rng: np.random.Generator, translation_scale: float = 500.0) -> dict[str, np.ndarray]:
     """Random X, Y: uniform rotations, translations N(0, scale^2) per axis (data units)."""
-    R = random_rotations(2, rng)
-    t = translation_scale * rng.standard_normal((2, 3))
-    return {"X": make_pose(R[0], t[0]), "Y": make_pose(R[1], t[1])}
+    return PROBLEM.random_unknowns(rng, translation_scale)
 
 
 class AXYB(Problem):
@@ -381,19 +298,6 @@ class AXYB(Problem):
         A_noisy = noise.apply("A", A, pose_rng)
         B_noisy = noise.apply("B", B, pose_rng)
         return {"A": A_noisy, "B": B_noisy}, {"X": np.array(X), "Y": np.array(Y)}
-
-
-def pose_errors(unknowns: Mapping[str, np.ndarray], truth: Mapping[str, np.ndarray],
-                names: tuple[str, ...]) -> ErrorTable:
-    """Rotation angle of R_cal R_true^T and translation distance for each named unknown."""
-    table: ErrorTable = {}
-    for name in names:
-        cal, true = np.asarray(unknowns[name], dtype=float), np.asarray(truth[name], dtype=float)
-        table[name] = {
-            "rotation": float(rotation_angle(cal[:3, :3] @ true[:3, :3].T)),
-            "translation": float(np.linalg.norm(cal[:3, 3] - true[:3, 3])),
-        }
-    return table
 
 
 PROBLEM = AXYB()

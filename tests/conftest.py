@@ -53,7 +53,7 @@ class SolverCase:
 def registered_axyb_backends() -> list[tuple[str, str]]:
     """(solver, backend) for every solver of problem "axyb" registered now, sorted."""
     reg = handeye.get_registry()
-    return [(name, backend) for name in reg.solver_names("axyb") for backend in reg.solvers[name].backends]
+    return [(name, backend) for name in reg.solver_names("axyb") for backend in reg.solver(name, "axyb").backends]
 
 
 def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
@@ -65,7 +65,7 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
 @pytest.fixture
 def solver_case(solver_backend: tuple[str, str]) -> SolverCase:
     name, backend = solver_backend
-    spec = handeye.get_registry().solvers[name]
+    spec = handeye.get_registry().solver(name, "axyb")
     reason = spec.unavailable_reason(backend)
     if reason:
         pytest.skip(f"{name}/{backend} unavailable: {reason}")

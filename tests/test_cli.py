@@ -84,7 +84,7 @@ def test_version_and_help_exit_0(capsys):
 
 
 def test_list_shows_unavailable_backend_with_reason(capsys, monkeypatch):
-    spec = get_registry().solvers["kron-lstsq"]
+    spec = get_registry().solver("kron-lstsq", "axyb")
     monkeypatch.setattr(type(spec), "unavailable_reason", lambda self, b: "needs the moon" if self is spec else None)
     code, out, _ = run_cli(capsys, "list")
     assert code == 0 and "UNAVAILABLE: needs the moon" in out
@@ -197,12 +197,12 @@ def test_degenerate_data_exits_2(capsys, tmp_path):
 
 
 def test_solver_failure_exits_1(capsys, monkeypatch):
-    spec = get_registry().solvers["kron-lstsq"]
+    spec = get_registry().solver("kron-lstsq", "axyb")
 
     def explode(data, options, backend):
         raise SolverError("the solver gave up: numerical trouble")
 
-    monkeypatch.setitem(get_registry().solvers, "kron-lstsq", dataclasses.replace(spec, run=explode))
+    monkeypatch.setitem(get_registry().solvers["kron-lstsq"], "axyb", dataclasses.replace(spec, run=explode))
     code, out, err = run_cli(capsys, "solve", "--example", "--solver", "kron-lstsq")
     assert code == 1 and out == ""
     assert err == "handeye: error: the solver gave up: numerical trouble\n"
@@ -283,12 +283,12 @@ def test_not_converged_solution_is_printed_and_exits_1(capsys, tmp_path):
 @pytest.mark.parametrize("status, exit_code", [("optimal", 0), ("optimal_inaccurate", 0), ("uncertified", 0),
                                                ("not_converged", 1), ("failed", 1)])
 def test_solve_exit_code_follows_the_status(capsys, monkeypatch, status, exit_code):
-    spec = get_registry().solvers["kron-lstsq"]
+    spec = get_registry().solver("kron-lstsq", "axyb")
 
     def with_status(data, options, backend):
         return dataclasses.replace(spec.run(data, options, backend), status=status)
 
-    monkeypatch.setitem(get_registry().solvers, "kron-lstsq", dataclasses.replace(spec, run=with_status))
+    monkeypatch.setitem(get_registry().solvers["kron-lstsq"], "axyb", dataclasses.replace(spec, run=with_status))
     code, out, err = run_cli(capsys, "solve", "--example", "--solver", "kron-lstsq")
     assert code == exit_code and f"status {status}," in out
     assert (err == "") == (exit_code == 0)

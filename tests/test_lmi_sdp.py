@@ -123,7 +123,7 @@ def test_default_is_not_unit_invariant(noisy):
         T[:, :3, 3] *= 1e-3
     a, b = _solve(raw), _solve(scaled)
     assert rotation_angle(b.X[:3, :3] @ a.X[:3, :3].T) > 1e-6  # hence unit_invariant=False
-    spec = handeye.get_registry().solvers["lmi-sdp"]
+    spec = handeye.get_registry().solver("lmi-sdp", "axyb")
     assert spec.is_unit_invariant() is False and spec.is_unit_invariant({"normalize": True}) is True
 
 

@@ -146,4 +146,4 @@ def test_shah_is_unit_invariant_li_is_not():
         b = handeye.solve("axyb", solver="opencv", method=method, **small)
         angle = float(rotation_angle(a.X[:3, :3] @ b.X[:3, :3].T))
         assert (angle < 1e-12) is invariant, (method, angle)
-        assert handeye.get_registry().solvers["opencv"].is_unit_invariant({"method": method}) is invariant
+        assert handeye.get_registry().solver("opencv", "axyb").is_unit_invariant({"method": method}) is invariant

@@ -11,10 +11,11 @@ import handeye
 from handeye.options import check_bool, parse_options
 
 
-def bool_options() -> list[tuple[str, str]]:
-    """(solver, option) for every option of a registered solver whose default is a bool."""
+def bool_options() -> list[tuple[str, str, str]]:
+    """(solver, problem, option) for every option of a registered solver whose default is a bool."""
     reg = handeye.get_registry()
-    return [(name, f.name) for name, spec in sorted(reg.solvers.items())
+    return [(name, problem, f.name) for name, specs in sorted(reg.solvers.items())
+            for problem, spec in specs.items()
             for f in dataclasses.fields(spec.options) if isinstance(f.default, bool)]
 
 
@@ -33,13 +34,14 @@ def test_check_bool_rejects_everything_else_naming_option_and_value(value):
 def test_the_bool_options_we_know_of_are_all_found():
     assert {("kron-lstsq", "normalize"), ("li", "normalize"), ("dual-quaternion", "normalize"),
             ("lmi-sdp", "normalize"), ("so3-sdp", "normalize"), ("so3-sdp", "redundant"),
-            ("so3-sdp", "polish")} <= set(bool_options())
+            ("so3-sdp", "polish")} <= {(s, o) for s, _, o in bool_options()}
 
 
-@pytest.mark.parametrize("solver, option", bool_options(), ids=[f"{s}:{o}" for s, o in bool_options()])
-def test_every_bool_option_rejects_a_string(solver, option):
+@pytest.mark.parametrize("solver, problem, option", bool_options(),
+                         ids=[f"{s}:{p}:{o}" for s, p, o in bool_options()])
+def test_every_bool_option_rejects_a_string(solver, problem, option):
     """"False" is truthy: accepted, it would silently mean True. Every solver refuses it."""
-    spec = handeye.get_registry().solvers[solver]
+    spec = handeye.get_registry().solver(solver, problem)
     with pytest.raises(handeye.InputError, match=f"option {option}='False' must be True or False"):
         parse_options(spec.options, {option: "False"}, solver)
     parse_options(spec.options, {option: False}, solver)  # the bool itself is fine

@@ -66,7 +66,7 @@ def test_runtime_plugin_is_listed_and_removed(runtime_plugins):
 
 def test_duplicate_solver_names_both_plugins(runtime_plugins):
     runtime_plugins(SolverPlugin(SolverSpec("test-dup", ("axyb",), _run)), "first-plugin")
-    with pytest.raises(PluginRegistrationError, match="solver 'test-dup' is registered by both") as info:
+    with pytest.raises(PluginRegistrationError, match="solver 'test-dup' for problem 'axyb' is registered by both") as info:
         runtime_plugins(SolverPlugin(SolverSpec("test-dup", ("axyb",), _run)), "second-plugin")
     assert "'first-plugin'" in str(info.value) and "'second-plugin'" in str(info.value)
 

@@ -175,16 +175,16 @@ def build_rows(selection: str | None) -> tuple[list[Row], list[str]]:
             wanted.add((name, backend or None))
     rows: list[Row] = []
     unavailable: list[str] = []
-    if "opencv" in names and not registry.solvers["opencv"].unavailable_reason("opencv"):
+    if "opencv" in names and not registry.solver("opencv", PROBLEM).unavailable_reason("opencv"):
         rows += [Row(REFERENCE, "opencv", "opencv", (("method", "shah"),)),
                  Row("opencv [method=li]", "opencv", "opencv", (("method", "li"),)),
                  Row("cv2 direct SHAH", cv2_method="SHAH"), Row("cv2 direct LI", cv2_method="LI")]
     elif "opencv" in names:
-        unavailable.append(f"opencv/opencv: {registry.solvers['opencv'].unavailable_reason('opencv')}")
+        unavailable.append(f"opencv/opencv: {registry.solver('opencv', PROBLEM).unavailable_reason('opencv')}")
     for name in names:
         if name == "opencv":
             continue
-        spec = registry.solvers[name]
+        spec = registry.solver(name, PROBLEM)
         for backend in spec.backends:
             if wanted is not None and (name, backend) not in wanted and (name, None) not in wanted:
                 continue
@@ -330,14 +330,14 @@ def target_lines(cells: dict[tuple[str, int], Cell], pairs: Sequence[int]) -> li
     registry = get_registry()
     lines = []
     for t in TARGETS:
-        spec = registry.solvers.get(t.solver)
+        spec = registry.solvers.get(t.solver, {}).get(PROBLEM)
         backend = t.backend or (spec.default_backend if spec else "?")
         label = t.label(backend)
         head = f"  {t.issue}  {label:<34} m={t.m:<6} {t.limit():<22}"
         cell = cells.get((label, t.m))
         ref = cells.get((REFERENCE, t.m))
         direct = cells.get(("cv2 direct SHAH", t.m))
-        if spec is None or PROBLEM not in spec.problems:
+        if spec is None:
             lines.append(f"{head} n/a: solver {t.solver!r} is not registered")
         elif backend not in spec.backends:
             lines.append(f"{head} n/a: {t.solver!r} has no backend {backend!r}")

@@ -36,30 +36,51 @@ def collect(problem: str | None = None) -> dict[str, Any]:
     ]
     solvers = []
     for name in registry.solver_names(problem):
-        spec = registry.solvers[name]
-        provider = registry.provider(name)
-        backends = []
-        for backend in spec.backends:
-            reason = spec.unavailable_reason(backend)
-            backends.append({"name": backend, "default": backend == spec.default_backend,
-                             "available": reason is None, "reason": reason})
+        served = [problem] if problem is not None else registry.solver_problems(name)
+        specs = {p: registry.solver(name, p) for p in served}
+        first = specs[served[0]]
+        provider = registry.provider(name, served[0])
+        per_problem = []
+        for p, spec in specs.items():
+            backends = []
+            for backend in spec.backends:
+                reason = spec.unavailable_reason(backend)
+                backends.append({"name": backend, "default": backend == spec.default_backend,
+                                 "available": reason is None, "reason": reason})
+            info = registry.provider(name, p)
+            per_problem.append({"problem": p, "summary": spec.summary, "backends": backends,
+                                "options": spec.option_names(), "citation": spec.citation,
+                                "plugin": info.name, "distribution": info.distribution, "version": info.version})
         solvers.append({
-            "name": name, "problems": list(spec.problems), "summary": spec.summary,
-            "backends": backends, "options": spec.option_names(), "citation": spec.citation,
+            "name": name, "problems": served, "summary": first.summary,
+            "backends": per_problem[0]["backends"], "options": first.option_names(), "citation": first.citation,
             "plugin": provider.name, "distribution": provider.distribution, "version": provider.version,
+            "per_problem": per_problem,
         })
     failed = [dataclasses.asdict(f) for _, f in sorted(registry.failed.items())]
     return {"problems": problems, "solvers": solvers, "failed_plugins": failed}
 
 
 def markdown_table(listing: dict[str, Any]) -> str:
-    """The solvers as a Markdown table: name, problems, backends (default first), citation."""
+    """The solvers as a Markdown table: name, problems, backends (default first), citation. A
+    solver whose backends or citation differ between its problems says so per problem."""
     rows = ["| solver | problems | backends (default first) | citation |", "|---|---|---|---|"]
     for s in listing["solvers"]:
-        backends = sorted(s["backends"], key=lambda b: not b["default"])
-        rows.append(f"| `{s['name']}` | {', '.join(s['problems'])} | "
-                    f"{', '.join(b['name'] for b in backends)} | {s['citation'].replace('|', '/')} |")
+        rows.append(f"| `{s['name']}` | {', '.join(s['problems'])} | {_per_problem(s, _backend_list)} | "
+                    f"{_per_problem(s, lambda p: p['citation']).replace('|', '/')} |")
     return "\n".join(rows)
+
+
+def _backend_list(entry: dict[str, Any]) -> str:
+    return ", ".join(b["name"] for b in sorted(entry["backends"], key=lambda b: not b["default"]))
+
+
+def _per_problem(solver: dict[str, Any], field: Any) -> str:
+    """field(entry) when it is the same for every problem of the solver, else each with its problem."""
+    values = [(p["problem"], field(p)) for p in solver["per_problem"]]
+    if len({v for _, v in values}) == 1:
+        return values[0][1]
+    return "; ".join(f"{problem}: {value}" for problem, value in values)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -77,16 +98,19 @@ def run(args: argparse.Namespace) -> int:
     print("solvers (* = default backend):")
     for s in listing["solvers"]:
         print(f"  {s['name']:<16} [{', '.join(s['problems'])}] {s['summary']}")
-        for b in s["backends"]:
-            mark = "*" if b["default"] else " "
-            state = "available" if b["available"] else f"UNAVAILABLE: {b['reason']}"
-            print(f"      backend {b['name'] + mark:<10} {state}")
-        if s["options"]:
-            print(f"      options  {', '.join(s['options'])}")
-        version = f" {s['version']}" if s["version"] else ""
-        print(f"      from     {s['distribution']}{version} (plugin {s['plugin']})")
-        if s["citation"]:
-            print(f"      cite     {s['citation']}")
+        for entry in s["per_problem"]:
+            if len(s["per_problem"]) > 1:
+                print(f"    {entry['problem']}:" + (f" {entry['summary']}" if entry["summary"] != s["summary"] else ""))
+            for b in entry["backends"]:
+                mark = "*" if b["default"] else " "
+                state = "available" if b["available"] else f"UNAVAILABLE: {b['reason']}"
+                print(f"      backend {b['name'] + mark:<10} {state}")
+            if entry["options"]:
+                print(f"      options  {', '.join(entry['options'])}")
+            version = f" {entry['version']}" if entry["version"] else ""
+            print(f"      from     {entry['distribution']}{version} (plugin {entry['plugin']})")
+            if entry["citation"]:
+                print(f"      cite     {entry['citation']}")
     if listing["failed_plugins"]:
         print()
         print("plugins that failed to load (skipped):")

@@ -237,7 +237,7 @@ def default_specs(problem: str = "axyb") -> tuple[Spec, ...]:
     ``lmi-sdp`` (the paper's method: its backends are part of the comparison). Backends that
     cannot run here are left out."""
     registry = get_registry()
-    return tuple(spec for name in registry.solver_names(problem) for spec in _solver_specs(name, registry.solvers[name]))
+    return tuple(spec for name in registry.solver_names(problem) for spec in _solver_specs(name, registry.solver(name, problem)))
 
 
 def _solver_specs(name: str, solver: Any, options: Mapping[str, Any] | None = None,
@@ -276,7 +276,7 @@ def paper_specs(problem: str = "axyb") -> tuple[Spec, ...]:
     known = registry.solver_names(problem)
     specs = []
     for name in [n for n in PAPER_METHODS if n in known] + [n for n in known if n not in PAPER_METHODS]:
-        solver = registry.solvers[name]
+        solver = registry.solver(name, problem)
         fields = {f.name for f in dataclasses.fields(solver.options)} if dataclasses.is_dataclass(solver.options) else set()
         options = PAPER_OPTIONS.get(name, {})
         options = {k: v for k, v in options.items() if k in fields}  # a replacement plugin may lack them
