@@ -1,0 +1,384 @@
+"""The classic hand-eye problem A_i X = X B_i (relative motions).
+
+Data: A, B: (m, 4, 4) relative motions with A_i X = X B_i. Unknown: X (4x4). They are built from
+the absolute poses a robot cell records by `motions` (docs/conventions.md): with robot poses
+T_base_flange and board poses T_cam_target (what OpenCV's ``calibrateHandEye`` takes), X is
+T_flange_cam for a camera on the flange (eye-in-hand) and T_base_cam for a fixed camera
+(eye-to-hand), exactly the ``cam2gripper`` / ``cam2base`` that OpenCV returns.
+
+Shared by the solvers here (the analogue of the paper's eq. 8 for AX=XB):
+- `AXXBData.kronecker(scale)`: with beta = [vec(R_X); t_X] (column-major vec), each motion gives
+  (R_Bi kron R_Ai - I9) vec(R_X) = 0                          (rotation rows, homogeneous)
+  (t_Bi^T kron I3) vec(R_X) + (I3 - R_Ai) t_X = t_Ai           (translation rows)
+  reduced in O(m) to its 12x12 triangular factor (`handeye.kronecker`), translations divided by
+  `scale`. The rotation rows alone admit beta = 0; what makes a solver's problem well posed is
+  its own business (docs/solvers/kron-lstsq.md states the constraint used there).
+- `solve_translation`: t_X by least squares given R_X, (I - R_Ai) t_X = t_Ai - R_X t_Bi.
+- residuals, errors against a truth, `diagnose` (rotation spread, axis spread, motions whose
+  rotation angles or screw pitches disagree), and a simulator that puts the noise on the
+  absolute poses before differencing them, so that the motions carry the correlated noise of
+  real data.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from handeye import hookimpl
+from handeye.errors import DegenerateDataError, InputError
+from handeye.kinematics import random_flange_poses
+from handeye.kronecker import KroneckerSystem, TranslationSums, kron_sum, overflow_error, reduce_normal_equations
+from handeye.noise import NoiseModel
+from handeye.problem import ErrorTable, Problem, pose_errors
+from handeye.se3 import gram, inverse, rotation_angle, so3_log
+from handeye.validation import pose_stack, same_length
+
+SETUPS = ("eye-in-hand", "eye-to-hand")
+PAIRINGS = ("consecutive", "all")
+
+#: A motion rotating by less than this (rad) has no usable rotation axis.
+MIN_MOTION_ANGLE = 1e-6
+#: Axis spread (rad, see `AXXBData.axis_spread`) below which the rotation axes count as parallel:
+#: R_X is then undetermined about that axis, and the data are refused.
+DEGENERATE_AXIS_SPREAD = 1e-6
+#: Below this axis spread (rad, 5.7 deg) a warning says the rotation axes vary too little.
+WEAK_AXIS_SPREAD = 0.1
+#: Below this largest motion angle (rad, 5.7 deg) a warning says the motions rotate too little.
+WEAK_ROTATION = 0.1
+#: A motion is listed as likely mismatched when |angle(A_i) - angle(B_i)| exceeds both this
+#: floor (rad, 1 deg) and MISMATCH_SIGMAS robust standard deviations of those differences over
+#: all motions (likewise for the screw pitch, with a floor relative to the data's translations).
+MISMATCH_ANGLE_FLOOR = np.deg2rad(1.0)
+MISMATCH_PITCH_FLOOR = 1e-3
+MISMATCH_SIGMAS = 5.0
+
+
+@dataclasses.dataclass(frozen=True)
+class AXXBData:
+    """Validated data of A_i X = X B_i: read-only float64 stacks A, B of shape (m, 4, 4)."""
+
+    A: np.ndarray
+    B: np.ndarray
+
+    @property
+    def m(self) -> int:
+        return len(self.A)
+
+    @functools.cached_property
+    def translation_scale(self) -> float:
+        """RMS norm of all translations of A and B: the data's length unit, for normalisation."""
+        t = np.concatenate([self.A[:, :3, 3], self.B[:, :3, 3]])
+        scale = float(np.sqrt(np.mean(np.sum(t * t, axis=1))))
+        return scale if scale > 0 else 1.0
+
+    def scaled(self, s: float) -> AXXBData:
+        """The same data with every translation divided by s."""
+        A, B = self.A.copy(), self.B.copy()
+        A[:, :3, 3] /= s
+        B[:, :3, 3] /= s
+        return AXXBData(A, B)
+
+    @functools.cached_property
+    def rotation_vectors(self) -> tuple[np.ndarray, np.ndarray]:
+        """Rotation vectors (axis times angle, rad) of A_i and B_i: two (m, 3)."""
+        return so3_log(self.A[:, :3, :3]), so3_log(self.B[:, :3, :3])
+
+    @functools.cached_property
+    def angles(self) -> tuple[np.ndarray, np.ndarray]:
+        """Rotation angles of A_i and of B_i (rad): two (m,). Equal for exact data (conjugation)."""
+        a, b = self.rotation_vectors
+        return np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
+
+    @functools.cached_property
+    def axis_spread(self) -> float:
+        """How far apart the rotation axes of the motions of A are (rad, in [0, pi/2]).
+
+        With the unit axes n_i of the motions that rotate by more than MIN_MOTION_ANGLE and
+        lambda_1 >= lambda_2 the two largest eigenvalues of sum n_i n_i^T (insensitive to the
+        axes' signs), the spread is 2 atan(sqrt(lambda_2 / lambda_1)): for two motions the angle
+        between their axes, 0 when all axes are parallel (R_X is then undetermined by a rotation
+        about that axis, and t_X along it).
+        """
+        rotvec, angle = self.rotation_vectors[0], self.angles[0]
+        moving = angle > MIN_MOTION_ANGLE
+        if moving.sum() < 2:
+            return 0.0
+        n = rotvec[moving] / angle[moving, None]
+        lam = np.linalg.eigvalsh(n.T @ n)
+        return float(2.0 * np.arctan(np.sqrt(max(lam[1], 0.0) / lam[2])))
+
+    @functools.cached_property
+    def rotation_sum(self) -> np.ndarray:
+        """S = sum_i R_Bi kron R_Ai: (9, 9)."""
+        return kron_sum(np.ascontiguousarray(self.B[:, :3, :3]), np.ascontiguousarray(self.A[:, :3, :3]))
+
+    @functools.cached_property
+    def rotation_gram_sum(self) -> np.ndarray:
+        """sum_i (R_Bi^T R_Bi) kron (R_Ai^T R_Ai): (9, 9) (m I for exact rotations)."""
+        return kron_sum(gram(self.B[:, :3, :3]), gram(self.A[:, :3, :3]))
+
+    @functools.cached_property
+    def translation_sums(self) -> TranslationSums:
+        return TranslationSums.of(self.A, self.B)
+
+    @functools.cached_property
+    def kronecker_system(self) -> KroneckerSystem:
+        """The reduced linear system (module docstring) in the data's units."""
+        return self.kronecker(1.0)
+
+    def kronecker(self, scale: float) -> KroneckerSystem:
+        """The reduced linear system with every translation divided by `scale` (cached per scale)."""
+        systems = self._kronecker_systems
+        if scale not in systems:
+            systems[scale] = reduce_normal_equations(*normal_equations(self, scale))
+        return systems[scale]
+
+    @functools.cached_property
+    def _kronecker_systems(self) -> dict[float, KroneckerSystem]:
+        return {}
+
+
+def normal_equations(data: AXXBData, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
+    """N = H^T H (12x12), g = H^T w, w^T w of the linear system of the module docstring, with
+    every translation divided by `scale`, from sums over the motions taken once.
+
+    With K_i = R_Bi kron R_Ai, T_i = t_Bi^T kron I3 and D_i = I3 - R_Ai:
+    N_rr = sum (K_i - I)^T (K_i - I) + T_i^T T_i,  N_rt = sum T_i^T D_i = sum t_Bi kron D_i,
+    N_tt = sum D_i^T D_i,  g_r = sum t_Bi kron t_Ai,  g_t = sum D_i^T t_Ai.
+    """
+    m, s = data.m, float(scale)
+    sums = data.translation_sums
+    I3 = np.eye(3)
+    S = data.rotation_sum
+    N = np.zeros((12, 12))
+    N[:9, :9] = data.rotation_gram_sum - S - S.T + m * np.eye(9) + np.kron(sums.TB, I3) / s**2
+    Nrt = (np.kron(sums.sum_tB[:, None], I3) - sums.C.reshape(9, 3)) / s
+    N[:9, 9:], N[9:, :9] = Nrt, Nrt.T
+    N[9:, 9:] = m * I3 - sums.sum_RA - sums.sum_RA.T + sums.GA
+    g = np.zeros(12)
+    g[:9] = sums.tB_tA.reshape(9) / s**2
+    g[9:] = (sums.sum_tA - sums.RAt_tA) / s
+    return N, g, sums.tA_tA / s**2
+
+
+def regression_blocks(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The per-motion blocks H_i: (m, 12, 12) and w_i: (m, 12) of the linear system (module
+    docstring), explicitly (for tests and for solvers that need the rows)."""
+    m = len(A)
+    RA, RB, tA, tB = A[:, :3, :3], B[:, :3, :3], A[:, :3, 3], B[:, :3, 3]
+    H = np.zeros((m, 12, 12))
+    H[:, :9, :9] = np.einsum("nij,nkl->nikjl", RB, RA).reshape(m, 9, 9) - np.eye(9)
+    H[:, 9:, :9] = np.einsum("nj,kl->nkjl", tB, np.eye(3)).reshape(m, 3, 9)
+    H[:, 9:, 9:] = np.eye(3) - RA
+    w = np.zeros((m, 12))
+    w[:, 9:] = tA
+    return H, w
+
+
+def solve_translation(data: AXXBData, RX: np.ndarray) -> np.ndarray:
+    """t_X by least squares given R_X: (I - R_Ai) t_X = t_Ai - R_X t_Bi, from its 3x3 normal
+    equations (sums over the motions taken once). Needs two motions with different axes."""
+    from scipy.linalg import LinAlgError, solve
+
+    sums = data.translation_sums
+    D = data.m * np.eye(3) - sums.sum_RA - sums.sum_RA.T + sums.GA  # sum (I - R_A)^T (I - R_A)
+    rhs = sums.sum_tA - sums.RAt_tA - RX @ sums.sum_tB + sums.RAt_R_tB(RX)  # sum (I - R_A)^T (t_A - R_X t_B)
+    try:
+        return solve(D, rhs, assume_a="pos")
+    except LinAlgError:
+        raise DegenerateDataError(
+            "the translation of X is undetermined: the robot motions must rotate about at least "
+            "two different axes"
+        ) from None
+
+
+def relative_motions(A_abs: np.ndarray, B_abs: np.ndarray, pairing: str = "consecutive") -> tuple[np.ndarray, np.ndarray]:
+    """Motions A_ij = inv(A_j) A_i, B_ij = inv(B_j) B_i of absolute poses with A_k X = Y B_k.
+
+    Then A_ij X = inv(A_j) Y B_i = X inv(B_j) B_i = X B_ij. pairing "consecutive": (i, i + 1)
+    for i = 0 .. n-2; "all": every i < j, i outer and j inner (the order of OpenCV's
+    ``calibrateHandEye``, which forms these pairs itself).
+    """
+    if pairing not in PAIRINGS:
+        raise InputError(f"pairing={pairing!r} is not one of {', '.join(PAIRINGS)}")
+    n = len(A_abs)
+    if pairing == "consecutive":
+        i, j = np.arange(n - 1), np.arange(1, n)
+    else:
+        i, j = np.triu_indices(n, k=1)
+    return inverse(A_abs[j]) @ A_abs[i], inverse(B_abs[j]) @ B_abs[i]
+
+
+def motions(robot_poses: Any, camera_poses: Any, setup: str = "eye-in-hand",
+            pairing: str = "consecutive") -> dict[str, np.ndarray]:
+    """Relative motions {"A", "B"} for `axxb` from the absolute poses a cell records.
+
+    robot_poses: (n, 4, 4) T_base_flange, the flange pose in the robot base (OpenCV's
+        ``gripper2base``). camera_poses: (n, 4, 4) T_cam_target, the calibration board's pose in
+        the camera as solvePnP gives it (OpenCV's ``target2cam``). Same order, same length unit.
+    setup: "eye-in-hand" (camera on the flange): X = T_flange_cam (OpenCV's ``cam2gripper``);
+        "eye-to-hand" (camera fixed, board on the flange): X = T_base_cam (what OpenCV returns
+        when given base2gripper poses).
+    pairing: "consecutive" (station i with i + 1) or "all" (every pair, OpenCV's choice).
+
+    With the absolute poses A_k = T_base_flange (eye-in-hand) or T_flange_base (eye-to-hand) and
+    B_k = T_target_cam, A_k X = Y B_k holds with a constant Y (T_base_target, T_flange_target),
+    and `relative_motions` removes Y.
+    """
+    if setup not in SETUPS:
+        raise InputError(f"setup={setup!r} is not one of {', '.join(SETUPS)}")
+    robot = pose_stack(robot_poses, "robot_poses")
+    camera = pose_stack(camera_poses, "camera_poses")
+    same_length({"robot_poses": robot, "camera_poses": camera}, 2)
+    A_abs = robot if setup == "eye-in-hand" else inverse(robot)
+    A, B = relative_motions(A_abs, inverse(camera), pairing)
+    return {"A": A, "B": B}
+
+
+class AXXB(Problem):
+    """A_i X = X B_i: hand-eye calibration from relative motions."""
+
+    name = "axxb"
+    summary = "hand-eye calibration from relative motions, A_i X = X B_i"
+    unknowns = ("X",)
+    data_fields = ("A", "B")
+    min_pairs = 2
+
+    def validate(self, **data: Any) -> AXXBData:
+        unexpected = set(data) - set(self.data_fields)
+        if unexpected:
+            raise InputError(f"problem 'axxb' takes data {list(self.data_fields)}, not {sorted(unexpected)}")
+        missing = [f for f in self.data_fields if f not in data]
+        if missing:
+            raise InputError(f"problem 'axxb' needs data {list(self.data_fields)}; missing {missing}")
+        A, B = pose_stack(data["A"], "A"), pose_stack(data["B"], "B")
+        same_length({"A": A, "B": B}, self.min_pairs)
+        out = AXXBData(A, B)
+        with np.errstate(over="ignore", invalid="ignore"):
+            if not np.isfinite(out.translation_scale):
+                raise overflow_error("the sums of squared translations")
+        moving = int(np.sum(out.angles[0] > MIN_MOTION_ANGLE))
+        if moving < 2 or out.axis_spread < DEGENERATE_AXIS_SPREAD:
+            raise DegenerateDataError(
+                f"the robot motions do not determine X: {moving} of {out.m} motions rotate, and "
+                f"their rotation axes are {'parallel' if moving >= 2 else 'undefined'} (spread "
+                f"{np.rad2deg(out.axis_spread):.2g} deg). Record motions that rotate about at "
+                "least two different axes"
+            )
+        return out
+
+    def diagnose(self, data: AXXBData) -> dict[str, Any]:
+        """Spread of the rotations and axes, and the motions whose rotation angle or screw pitch
+        differ between A and B (invariant under A = X B X^-1, so a difference is noise or a
+        mismatched pair)."""
+        angle_A, angle_B = data.angles
+        spread, largest = data.axis_spread, float(angle_A.max())
+        warnings = []
+        if spread < WEAK_AXIS_SPREAD:
+            warnings.append(
+                f"the rotation axes of the robot motions differ by only {np.rad2deg(spread):.2g} deg "
+                f"(< {np.rad2deg(WEAK_AXIS_SPREAD):.2g}): X will be poorly determined; add motions "
+                "that rotate about other axes"
+            )
+        if largest < WEAK_ROTATION:
+            warnings.append(
+                f"the robot motions rotate by at most {np.rad2deg(largest):.2g} deg "
+                f"(< {np.rad2deg(WEAK_ROTATION):.2g}): X will be poorly determined; add motions "
+                "with larger rotations"
+            )
+        angle_gap = np.abs(angle_A - angle_B)
+        pitch_gap = np.abs(_pitch(data.A, data.rotation_vectors[0]) - _pitch(data.B, data.rotation_vectors[1]))
+        pitch_gap[(angle_A < WEAK_ROTATION) | (angle_B < WEAK_ROTATION)] = 0.0  # axis too uncertain
+        flagged_angle = _outlying(angle_gap, MISMATCH_ANGLE_FLOOR)
+        flagged_pitch = _outlying(pitch_gap, MISMATCH_PITCH_FLOOR * data.translation_scale)
+        mismatched = sorted(set(flagged_angle) | set(flagged_pitch))
+        if mismatched:
+            listing = ", ".join(
+                f"{i} (angle {np.rad2deg(angle_A[i]):.3g} vs {np.rad2deg(angle_B[i]):.3g} deg)" for i in mismatched[:5]
+            ) + (" ..." if len(mismatched) > 5 else "")
+            warnings.append(
+                f"{len(mismatched)} motion(s) rotate by a different angle (or move a different "
+                f"distance along their axis) in A than in B, which a true pair cannot: {listing}. "
+                "Check that the robot and camera poses are paired in the same order"
+            )
+        return {
+            "pairs": data.m,
+            "axis_spread": spread,
+            "largest_rotation": largest,
+            "angle_difference_max": float(angle_gap.max()),
+            "pitch_difference_max": float(pitch_gap.max()),
+            "likely_mismatched": mismatched,
+            "warnings": warnings,
+        }
+
+    def residuals(self, data: AXXBData, unknowns: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Per motion: rotation angle of (A_i X)(X B_i)^-1, |t(A_i X) - t(X B_i)|."""
+        X = np.asarray(unknowns["X"], dtype=float)
+        AX, XB = data.A @ X, X @ data.B
+        return {
+            "rotation": rotation_angle(AX[:, :3, :3] @ np.swapaxes(XB[:, :3, :3], 1, 2)),
+            "translation": np.linalg.norm(AX[:, :3, 3] - XB[:, :3, 3], axis=1),
+        }
+
+    def errors(self, unknowns: Mapping[str, np.ndarray], truth: Mapping[str, np.ndarray]) -> ErrorTable:
+        """Angle of R_cal R_true^-1 and |t_cal - t_true| of X."""
+        return pose_errors(unknowns, truth, self.unknowns)
+
+    def simulate(self, *, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
+                 X: np.ndarray | None = None, Y: np.ndarray | None = None, pairing: str = "consecutive",
+                 **options: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        """`pairs` motions of an eye-in-hand cell, with the noise on the absolute poses.
+
+        Absolute poses as the ``axyb`` simulator makes them (`simulate_stations`): robot poses
+        A_k of the paper's arm at random joints (mm), B_k = Y^-1 A_k X, noise (`NoiseModel`: "A"
+        on the robot poses, "B" on the camera poses) applied to them, then differenced
+        (`relative_motions`), so consecutive motions share a station's noise. pairing
+        "consecutive" uses pairs + 1 stations; "all" the fewest stations n with n (n - 1) / 2 >=
+        pairs, keeping the first `pairs` motions. X, Y default to the paper's (Sec. IV-A).
+        """
+        if options:
+            raise InputError(f"unknown simulate option(s) {sorted(options)}; known: pairs, seed, noise, X, Y, pairing")
+        if pairs < 1:
+            raise InputError(f"pairs must be >= 1, got {pairs}")
+        if pairing not in PAIRINGS:
+            raise InputError(f"pairing={pairing!r} is not one of {', '.join(PAIRINGS)}")
+        stations = pairs + 1 if pairing == "consecutive" else int(np.ceil((1 + np.sqrt(1 + 8 * pairs)) / 2))
+        stations_data, truth = simulate_stations(stations, seed=seed, noise=noise, X=X, Y=Y)
+        A, B = relative_motions(stations_data["A"], stations_data["B"], pairing)
+        return {"A": A[:pairs], "B": B[:pairs]}, {"X": truth["X"]}
+
+
+def simulate_stations(stations: int, *, seed: int | None = None, noise: NoiseModel | None = None,
+                      X: np.ndarray | None = None, Y: np.ndarray | None = None) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Noisy absolute poses {"A": robot, "B": camera} of `stations` stations and the truth {"X",
+    "Y"}: exactly the ``axyb`` simulator's data, so AX=YB and AX=XB can be compared on the same
+    recordings (A_k X = Y B_k)."""
+    from handeye.problems.axyb import PROBLEM as AXYB_PROBLEM
+
+    return AXYB_PROBLEM.simulate(pairs=stations, seed=seed, noise=noise, X=X, Y=Y)
+
+
+def _pitch(T: np.ndarray, rotvec: np.ndarray) -> np.ndarray:
+    """Translation along the rotation axis, n . t, of each motion (0 where it barely rotates)."""
+    angle = np.linalg.norm(rotvec, axis=1)
+    n = rotvec / np.maximum(angle, MIN_MOTION_ANGLE)[:, None]
+    return np.where(angle > MIN_MOTION_ANGLE, np.einsum("ni,ni->n", n, T[:, :3, 3]), 0.0)
+
+
+def _outlying(gap: np.ndarray, floor: float) -> list[int]:
+    """Indices whose gap exceeds both `floor` and MISMATCH_SIGMAS robust sigmas (1.4826 MAD about 0)."""
+    sigma = 1.4826 * float(np.median(gap))
+    return np.flatnonzero(gap > max(floor, MISMATCH_SIGMAS * sigma)).tolist()
+
+
+PROBLEM = AXXB()
+
+
+@hookimpl
+def register_problems(register):
+    register(PROBLEM)
