@@ -28,11 +28,15 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-
 from handeye import hookimpl
 from handeye.errors import DegenerateDataError, InputError
-from handeye.kinematics import random_flange_poses
-from handeye.kronecker import KroneckerSystem, TranslationSums, kron_sum, overflow_error, reduce_normal_equations
+from handeye.kronecker import (
+    KroneckerSystem,
+    TranslationSums,
+    kron_sum,
+    overflow_error,
+    reduce_normal_equations,
+)
 from handeye.noise import NoiseModel
 from handeye.problem import ErrorTable, Problem, pose_errors
 from handeye.se3 import gram, inverse, rotation_angle, so3_log

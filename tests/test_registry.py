@@ -143,7 +143,7 @@ def test_solver_spec_declaration_errors():
 
 def test_unknown_names_list_the_known():
     reg = handeye.get_registry()
-    with pytest.raises(UnknownPluginError, match="unknown problem 'axxxb'; known problems: 'axyb'"):
+    with pytest.raises(UnknownPluginError, match="unknown problem 'axxxb'; known problems: 'axxb', 'axyb'"):
         reg.problem("axxxb")
     with pytest.raises(UnknownPluginError, match="unknown problem 'nope'"):
         handeye.list_solvers("nope")
