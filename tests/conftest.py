@@ -1,12 +1,13 @@
 """Shared fixtures of the test suite.
 
-- ``solver_backend``: any test that asks for it is parametrised over EVERY (solver, backend) of
-  every solver registered for problem "axyb" when the tests are collected (ids "solver/backend"),
-  so a new plugin, built in or installed by a third party, is tested without writing a test.
-- ``solver_case``: the `SolverSpec` and backend of that parameter; skips when the backend is not
-  available here, giving the solver's own reason.
+- ``solver_backend``: any test that asks for it is parametrised over EVERY (problem, solver,
+  backend) registered when the tests are collected (ids "problem:solver/backend"), so a new
+  plugin, built in or installed by a third party, is tested without writing a test; a test that
+  also asks for ``axyb_only`` gets only the problem "axyb".
+- ``solver_case``: the problem, `SolverSpec` and backend of that parameter; skips when the
+  backend is not available here, giving the solver's own reason.
 - ``solve_once``: memoised `handeye.solve` for the deterministic reference cases, so the suite
-  solves each case once per solver/backend however many tests look at the answer.
+  solves each case once per problem/solver/backend however many tests look at the answer.
 - ``runtime_plugins``: registers plugin objects at run time and removes them (and rebuilds the
   registry) after the test, even when the registration itself failed.
 - ``example_dist``: a directory holding the third-party example solver of
@@ -41,35 +42,46 @@ EXAMPLE_DIR = ROOT / "docs" / "examples" / "handeye-example-solver"
 
 @dataclasses.dataclass(frozen=True)
 class SolverCase:
+    problem: str
     name: str
     backend: str
     spec: handeye.SolverSpec
 
     @property
     def id(self) -> str:
-        return f"{self.name}/{self.backend}"
+        return f"{self.problem}:{self.name}/{self.backend}"
+
+    def solve(self, **data_and_options: Any) -> handeye.Solution:
+        return handeye.solve(self.problem, solver=self.name, backend=self.backend, **data_and_options)
 
 
-def registered_axyb_backends() -> list[tuple[str, str]]:
-    """(solver, backend) for every solver of problem "axyb" registered now, sorted."""
+def registered_backends(problem: str | None = None) -> list[tuple[str, str, str]]:
+    """(problem, solver, backend) for every solver registered now (of `problem` if given), sorted."""
     reg = handeye.get_registry()
-    return [(name, backend) for name in reg.solver_names("axyb") for backend in reg.solver(name, "axyb").backends]
+    problems = [problem] if problem else sorted(reg.problems)
+    return [(p, name, backend) for p in problems for name in reg.solver_names(p)
+            for backend in reg.solver(name, p).backends]
 
 
 def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
     if "solver_backend" in metafunc.fixturenames:
-        pairs = registered_axyb_backends()
-        metafunc.parametrize("solver_backend", pairs, ids=[f"{s}/{b}" for s, b in pairs])
+        cases = registered_backends("axyb" if "axyb_only" in metafunc.fixturenames else None)
+        metafunc.parametrize("solver_backend", cases, ids=[f"{p}:{s}/{b}" for p, s, b in cases])
 
 
 @pytest.fixture
-def solver_case(solver_backend: tuple[str, str]) -> SolverCase:
-    name, backend = solver_backend
-    spec = handeye.get_registry().solver(name, "axyb")
+def axyb_only() -> None:
+    """Marker fixture: parametrise ``solver_backend`` over the solvers of problem "axyb" only."""
+
+
+@pytest.fixture
+def solver_case(solver_backend: tuple[str, str, str]) -> SolverCase:
+    problem, name, backend = solver_backend
+    spec = handeye.get_registry().solver(name, problem)
     reason = spec.unavailable_reason(backend)
     if reason:
         pytest.skip(f"{name}/{backend} unavailable: {reason}")
-    return SolverCase(name, backend, spec)
+    return SolverCase(problem, name, backend, spec)
 
 
 @pytest.fixture(scope="session")
@@ -80,7 +92,7 @@ def solve_once() -> Callable[..., Any]:
     def solve(key: Any, case: SolverCase, data: dict[str, Any], **options: Any) -> handeye.Solution:
         k = (key, case.id)
         if k not in cache:
-            cache[k] = handeye.solve("axyb", solver=case.name, backend=case.backend, **data, **options)
+            cache[k] = case.solve(**data, **options)
         return cache[k]
 
     return solve

@@ -260,13 +260,6 @@ def _huge(factor: float = 1e160) -> dict[str, np.ndarray]:
     return {"A": A, "B": B}
 
 
-def test_huge_translations_raise_input_error_in_every_solver(solver_case):
-    """Translations ~1e160 overflow eq. 8's sums: every solver reports it as bad input (ours),
-    never as a bare numpy/scipy ValueError, FloatingPointError or LinAlgError."""
-    with pytest.raises(handeye.InputError, match="overflow float64.*larger unit"):
-        handeye.solve("axyb", solver=solver_case.name, backend=solver_case.backend, **_huge())
-
-
 def test_large_but_summable_translations_still_solve():
     data = _huge(1e140)
     sol = handeye.solve("axyb", solver="kron-lstsq", **data)
