@@ -56,9 +56,10 @@ WEAK_AXIS_SPREAD = 0.1
 WEAK_ROTATION = 0.1
 #: A motion is listed as likely mismatched when |angle(A_i) - angle(B_i)| exceeds both this
 #: floor (rad, 1 deg) and MISMATCH_SIGMAS robust standard deviations of those differences over
-#: all motions (likewise for the screw pitch, with a floor relative to the data's translations).
+#: all motions (1.4826 x their median: the noise of the angles is about the same for every
+#: motion). The screw pitch (translation along the axis, also invariant) is reported but not used
+#: to flag: its noise grows with |t| / angle, so one threshold does not fit every motion.
 MISMATCH_ANGLE_FLOOR = np.deg2rad(1.0)
-MISMATCH_PITCH_FLOOR = 1e-3
 MISMATCH_SIGMAS = 5.0
 
 
@@ -277,9 +278,8 @@ class AXXB(Problem):
         return out
 
     def diagnose(self, data: AXXBData) -> dict[str, Any]:
-        """Spread of the rotations and axes, and the motions whose rotation angle or screw pitch
-        differ between A and B (invariant under A = X B X^-1, so a difference is noise or a
-        mismatched pair)."""
+        """Spread of the rotations and axes, and the motions whose rotation angles differ between
+        A and B (invariant under A = X B X^-1, so a difference is noise or a mismatched pair)."""
         angle_A, angle_B = data.angles
         spread, largest = data.axis_spread, float(angle_A.max())
         warnings = []
@@ -298,17 +298,15 @@ class AXXB(Problem):
         angle_gap = np.abs(angle_A - angle_B)
         pitch_gap = np.abs(_pitch(data.A, data.rotation_vectors[0]) - _pitch(data.B, data.rotation_vectors[1]))
         pitch_gap[(angle_A < WEAK_ROTATION) | (angle_B < WEAK_ROTATION)] = 0.0  # axis too uncertain
-        flagged_angle = _outlying(angle_gap, MISMATCH_ANGLE_FLOOR)
-        flagged_pitch = _outlying(pitch_gap, MISMATCH_PITCH_FLOOR * data.translation_scale)
-        mismatched = sorted(set(flagged_angle) | set(flagged_pitch))
+        mismatched = _outlying(angle_gap, MISMATCH_ANGLE_FLOOR)
         if mismatched:
             listing = ", ".join(
                 f"{i} (angle {np.rad2deg(angle_A[i]):.3g} vs {np.rad2deg(angle_B[i]):.3g} deg)" for i in mismatched[:5]
             ) + (" ..." if len(mismatched) > 5 else "")
             warnings.append(
-                f"{len(mismatched)} motion(s) rotate by a different angle (or move a different "
-                f"distance along their axis) in A than in B, which a true pair cannot: {listing}. "
-                "Check that the robot and camera poses are paired in the same order"
+                f"{len(mismatched)} motion(s) rotate by a different angle for the robot (A) than "
+                f"for the camera (B), which a true pair cannot: {listing}. Check that the robot "
+                "and camera poses are paired in the same order"
             )
         return {
             "pairs": data.m,
