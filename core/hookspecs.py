@@ -31,10 +31,11 @@ def register_problems(register: Callable) -> None:
 def register_solvers(register: Callable) -> None:
     """Register solvers.
 
-    :param register: call ``register(spec)`` once per solver, with a `handeye.SolverSpec`.
+    :param register: call ``register(spec)`` once per solver spec, with a `handeye.SolverSpec`.
         Each spec names the problems it solves; a problem that no plugin registered is an error
-        at registration time. Duplicate solver names raise `PluginRegistrationError` naming
-        both plugins.
+        at registration time. One name may serve several problems: one spec naming them all,
+        or one spec per problem under the same name. The same (name, problem) registered twice
+        raises `PluginRegistrationError` naming both plugins.
 
     Called once, after every plugin's ``register_problems``.
     """

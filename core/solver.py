@@ -23,7 +23,7 @@ RunFunction = Callable[[Any, Any, str], SolverOutput]
 class SolverSpec:
     """Declaration of one solver.
 
-    name: kebab-case, unique across all plugins.
+    name: kebab-case; unique per problem (one name may serve several problems, see `Registry`).
     problems: names of the problems it solves.
     run: the solver itself.
     backends: backend name -> the importable modules it needs (checked with

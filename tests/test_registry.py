@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 import tomllib
 
+import numpy as np
 import pytest
 
 import handeye
@@ -165,6 +166,45 @@ def test_solver_of_another_problem_is_explained(runtime_plugins):
         reg.solver("test-other", "axyb")
     problems = handeye.list_problems()
     assert {"axyb", "test-other-problem"} <= set(problems) and problems == sorted(problems)
+
+
+def _run_other(data, options, backend):
+    return handeye.SolverOutput({"X": 2 * np.eye(4) - np.eye(4), "Y": np.eye(4)}, diagnostics={"which": "other"})
+
+
+def test_one_name_two_specs_for_two_problems(runtime_plugins):
+    """One spec per (name, problem): each problem gets its own run function and provider."""
+    runtime_plugins(ProblemPlugin(OtherProblem()), "other-problem")
+    runtime_plugins(SolverPlugin(SolverSpec("test-shared", ("axyb",), _run)), "shared-a")
+    runtime_plugins(SolverPlugin(SolverSpec("test-shared", ("test-other-problem",), _run_other)), "shared-b")
+    reg = handeye.get_registry()
+    assert reg.solver_problems("test-shared") == ["axyb", "test-other-problem"]
+    assert reg.solver("test-shared", "axyb").run is _run
+    assert reg.solver("test-shared", "test-other-problem").run is _run_other
+    assert (reg.provider("test-shared", "axyb").name, reg.provider("test-shared", "test-other-problem").name) == (
+        "shared-a", "shared-b")
+    assert "test-shared" in reg.solver_names("axyb") and "test-shared" in reg.solver_names("test-other-problem")
+    with pytest.raises(handeye.InputError, match="serves several problems .*name the problem"):
+        reg.solver("test-shared")
+    data, _ = OtherProblem().simulate(pairs=5, seed=1)
+    assert handeye.solve("test-other-problem", solver="test-shared", **data).diagnostics["which"] == "other"
+
+
+def test_one_spec_for_several_problems(runtime_plugins):
+    runtime_plugins(ProblemPlugin(OtherProblem()), "other-problem")
+    spec = SolverSpec("test-both", ("axyb", "test-other-problem"), _run)
+    runtime_plugins(SolverPlugin(spec), "both")
+    reg = handeye.get_registry()
+    assert reg.solver("test-both", "axyb") is spec and reg.solver("test-both", "test-other-problem") is spec
+    with pytest.raises(PluginRegistrationError, match="'test-both' for problem 'axyb' is registered by both"):
+        runtime_plugins(SolverPlugin(SolverSpec("test-both", ("axyb",), _run)), "again")
+
+
+def test_builtin_names_serve_both_problems():
+    reg = handeye.get_registry()
+    for name in ("auto", "refine", "kron-lstsq", "so3-sdp", "lmi-sdp", "opencv"):
+        if name in reg.solvers:
+            assert {"axyb", "axxb"} <= set(reg.solver_problems(name)), name
 
 
 def test_autoload_switch_keeps_builtins(monkeypatch):

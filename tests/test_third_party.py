@@ -82,13 +82,33 @@ def test_solves_noise_free_data(installed_example, seed):
     assert sol.diagnostics["singular_values_over_m"][0] == pytest.approx(1.0, abs=1e-12)
 
 
+@pytest.mark.parametrize("seed", [4, 5])
+def test_one_name_serves_both_problems(installed_example, seed):
+    """The example registers a second spec under the same name for axxb: the registry keeps
+    one per (name, problem), and each solves its own problem."""
+    from handeye.problems.axxb import PROBLEM as AXXB
+
+    reg = registry.reload()
+    assert reg.solver_problems(SOLVER) == ["axyb", "axxb"]
+    assert reg.provider(SOLVER, "axxb").distribution == "handeye-example-solver"
+    truth = AXXB.random_unknowns(np.random.default_rng(seed))
+    data, truth = AXXB.simulate(pairs=8, seed=seed, **truth)
+    sol = handeye.solve("axxb", solver=SOLVER, **data)
+    errors = AXXB.errors(sol.unknowns, truth)
+    scale = AXXB.validate(**data).translation_scale
+    assert errors["X"]["rotation"] < 1e-9 and errors["X"]["translation"] < 1e-9 * scale
+    assert set(sol.unknowns) == {"X"}
+    with pytest.raises(handeye.InputError, match="serves several problems"):
+        reg.solver(SOLVER)
+
+
 def test_listed_by_the_cli(installed_example, capsys):
     import handeye.cli as cli
 
     registry.reload()
     assert cli.main(["list"]) == 0
     out = capsys.readouterr().out
-    assert SOLVER in out
+    assert f"{SOLVER:<16} [axyb, axxb]" in out
     assert "handeye-example-solver 0.1.0" in out
 
 
