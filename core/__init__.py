@@ -5,8 +5,12 @@ Public API::
     import handeye
     sol = handeye.solve("axyb", A=A, B=B, solver="lmi-sdp", backend="picos")
     sol.X, sol.Y, sol.status, sol.diagnostics
+    from handeye.problems.axxb import motions
+    sol = handeye.solve("axxb", **motions(robot_poses, camera_poses, setup="eye-in-hand"))
+    sol.X  # T_flange_cam
 
-See docs/conventions.md for what A, B, X, Y are in eye-in-hand and eye-to-hand setups.
+See docs/conventions.md for what A, B, X, Y are in eye-in-hand and eye-to-hand setups, for both
+problems.
 """
 
 from __future__ import annotations

@@ -24,12 +24,14 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
 
     Parameters
     ----------
-    problem : registered problem name, e.g. ``"axyb"`` (see `handeye.list_problems`).
+    problem : registered problem name, ``"axyb"`` (A_i X = Y B_i) or ``"axxb"`` (A_i X = X B_i),
+        or a plugin's (see `handeye.list_problems`).
     solver : registered solver name (see `handeye.list_solvers`); default ``"auto"`` where
         registered.
     backend : one of the solver's backends; default the solver's own default.
-    **data_and_options : the problem's data fields (for ``axyb``: ``A``, ``B`` as (m, 4, 4)
-        arrays or sequences of 4x4) and the solver's options.
+    **data_and_options : the problem's data fields (for ``axyb``: absolute poses ``A``, ``B``;
+        for ``axxb``: relative motions ``A``, ``B``, e.g. from `handeye.problems.axxb.motions`;
+        each as (m, 4, 4) arrays or sequences of 4x4) and the solver's options.
 
     Returns
     -------
