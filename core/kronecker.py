@@ -12,10 +12,12 @@ it to the 24x24 (or smaller) triangular form of eqs. 10-12 (`reduce_normal_equat
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
 from .errors import DegenerateDataError, InputError
+from .se3 import gram
 
 
 def overflow_error(where: str) -> InputError:
@@ -115,3 +117,73 @@ class TranslationSums:
     def RAt_R_tB(self, R: np.ndarray) -> np.ndarray:
         """sum_i R_Ai^T R t_Bi for a 3x3 R: (3,), from C without a pass over the pairs."""
         return np.einsum("aj,jab->b", R, self.C)
+
+
+@dataclasses.dataclass(frozen=True)
+class PosePairs:
+    """Validated data of a two-stack problem: read-only float64 stacks A, B of shape (m, 4, 4),
+    with the sums over the pairs that the Kronecker systems need, each taken once (cached).
+
+    Subclasses (``AXYBData``, ``AXXBData``) state their linear system in `normal_equations`;
+    `kronecker(scale)` reduces it, once per scale.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+
+    @property
+    def m(self) -> int:
+        return len(self.A)
+
+    @functools.cached_property
+    def translation_scale(self) -> float:
+        """RMS norm of all translations of A and B: the data's length unit, for normalisation."""
+        t = np.concatenate([self.A[:, :3, 3], self.B[:, :3, 3]])
+        scale = float(np.sqrt(np.mean(np.sum(t * t, axis=1))))
+        return scale if scale > 0 else 1.0
+
+    def scaled(self, s: float):
+        """The same data (same class) with every translation divided by s."""
+        A, B = self.A.copy(), self.B.copy()
+        A[:, :3, 3] /= s
+        B[:, :3, 3] /= s
+        return type(self)(A, B)
+
+    @functools.cached_property
+    def rotation_sum(self) -> np.ndarray:
+        """S = sum_i R_Bi kron R_Ai: (9, 9), the rotation block of the normal matrices (computed
+        once; shared by the excitation checks, the normal equations and Shah's method)."""
+        return kron_sum(np.ascontiguousarray(self.B[:, :3, :3]), np.ascontiguousarray(self.A[:, :3, :3]))
+
+    @functools.cached_property
+    def rotation_gram_sum(self) -> np.ndarray:
+        """sum_i (R_Bi^T R_Bi) kron (R_Ai^T R_Ai): (9, 9), the K^T K block of the normal matrices
+        (the identity times m for exact rotations)."""
+        return kron_sum(gram(self.B[:, :3, :3]), gram(self.A[:, :3, :3]))
+
+    @functools.cached_property
+    def translation_sums(self) -> TranslationSums:
+        """The O(m) sums behind the translation rows (computed once)."""
+        return TranslationSums.of(self.A, self.B)
+
+    def normal_equations(self, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
+        """N = H^T H, g = H^T w, w^T w of the problem's linear system, translations divided by scale."""
+        raise NotImplementedError
+
+    @functools.cached_property
+    def kronecker_system(self) -> KroneckerSystem:
+        """The reduced linear system in the data's units (computed once)."""
+        return self.kronecker(1.0)
+
+    def kronecker(self, scale: float) -> KroneckerSystem:
+        """The reduced linear system with every translation divided by `scale` (cached per
+        scale), from the sums taken once: a solver normalising the units (scale =
+        `translation_scale`) copies no data and repeats no O(m) work."""
+        systems = self._kronecker_systems
+        if scale not in systems:
+            systems[scale] = reduce_normal_equations(*self.normal_equations(scale))
+        return systems[scale]
+
+    @functools.cached_property
+    def _kronecker_systems(self) -> dict[float, KroneckerSystem]:
+        return {}

@@ -30,16 +30,10 @@ from typing import Any
 import numpy as np
 from handeye import hookimpl
 from handeye.errors import DegenerateDataError, InputError
-from handeye.kronecker import (
-    KroneckerSystem,
-    TranslationSums,
-    kron_sum,
-    overflow_error,
-    reduce_normal_equations,
-)
+from handeye.kronecker import PosePairs, overflow_error
 from handeye.noise import NoiseModel
 from handeye.problem import ErrorTable, Problem, pose_errors
-from handeye.se3 import gram, inverse, rotation_angle, so3_log
+from handeye.se3 import inverse, rotation_angle, so3_log
 from handeye.validation import pose_stack, same_length
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
@@ -64,29 +58,9 @@ MISMATCH_SIGMAS = 5.0
 
 
 @dataclasses.dataclass(frozen=True)
-class AXXBData:
-    """Validated data of A_i X = X B_i: read-only float64 stacks A, B of shape (m, 4, 4)."""
-
-    A: np.ndarray
-    B: np.ndarray
-
-    @property
-    def m(self) -> int:
-        return len(self.A)
-
-    @functools.cached_property
-    def translation_scale(self) -> float:
-        """RMS norm of all translations of A and B: the data's length unit, for normalisation."""
-        t = np.concatenate([self.A[:, :3, 3], self.B[:, :3, 3]])
-        scale = float(np.sqrt(np.mean(np.sum(t * t, axis=1))))
-        return scale if scale > 0 else 1.0
-
-    def scaled(self, s: float) -> AXXBData:
-        """The same data with every translation divided by s."""
-        A, B = self.A.copy(), self.B.copy()
-        A[:, :3, 3] /= s
-        B[:, :3, 3] /= s
-        return AXXBData(A, B)
+class AXXBData(PosePairs):
+    """Validated data of A_i X = X B_i: read-only float64 stacks A, B of shape (m, 4, 4), with the
+    sums over the motions taken once (`handeye.kronecker.PosePairs`)."""
 
     @functools.cached_property
     def rotation_vectors(self) -> tuple[np.ndarray, np.ndarray]:
@@ -117,35 +91,9 @@ class AXXBData:
         lam = np.linalg.eigvalsh(n.T @ n)
         return float(2.0 * np.arctan(np.sqrt(max(lam[1], 0.0) / lam[2])))
 
-    @functools.cached_property
-    def rotation_sum(self) -> np.ndarray:
-        """S = sum_i R_Bi kron R_Ai: (9, 9)."""
-        return kron_sum(np.ascontiguousarray(self.B[:, :3, :3]), np.ascontiguousarray(self.A[:, :3, :3]))
-
-    @functools.cached_property
-    def rotation_gram_sum(self) -> np.ndarray:
-        """sum_i (R_Bi^T R_Bi) kron (R_Ai^T R_Ai): (9, 9) (m I for exact rotations)."""
-        return kron_sum(gram(self.B[:, :3, :3]), gram(self.A[:, :3, :3]))
-
-    @functools.cached_property
-    def translation_sums(self) -> TranslationSums:
-        return TranslationSums.of(self.A, self.B)
-
-    @functools.cached_property
-    def kronecker_system(self) -> KroneckerSystem:
-        """The reduced linear system (module docstring) in the data's units."""
-        return self.kronecker(1.0)
-
-    def kronecker(self, scale: float) -> KroneckerSystem:
-        """The reduced linear system with every translation divided by `scale` (cached per scale)."""
-        systems = self._kronecker_systems
-        if scale not in systems:
-            systems[scale] = reduce_normal_equations(*normal_equations(self, scale))
-        return systems[scale]
-
-    @functools.cached_property
-    def _kronecker_systems(self) -> dict[float, KroneckerSystem]:
-        return {}
+    def normal_equations(self, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
+        """The normal equations of the linear system (`normal_equations`)."""
+        return normal_equations(self, scale)
 
 
 def normal_equations(data: AXXBData, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:

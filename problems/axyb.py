@@ -27,15 +27,13 @@ from handeye.errors import DegenerateDataError, InputError
 from handeye.kinematics import random_flange_poses
 from handeye.kronecker import (
     KroneckerSystem,
-    TranslationSums,
-    kron_sum,
+    PosePairs,
     overflow_error,
     reduce_normal_equations,
 )
 from handeye.noise import NoiseModel
 from handeye.problem import ErrorTable, Problem, pose_errors
 from handeye.se3 import (
-    gram,
     inverse,
     make_pose,
     project_to_so3,
@@ -61,35 +59,9 @@ WEAK_EXCITATION = 1e-4
 
 
 @dataclasses.dataclass(frozen=True)
-class AXYBData:
-    """Validated data of A_i X = Y B_i: read-only float64 stacks A, B of shape (m, 4, 4)."""
-
-    A: np.ndarray
-    B: np.ndarray
-
-    @property
-    def m(self) -> int:
-        return len(self.A)
-
-    @functools.cached_property
-    def translation_scale(self) -> float:
-        """RMS norm of all translations of A and B: the data's length unit, for normalisation."""
-        t = np.concatenate([self.A[:, :3, 3], self.B[:, :3, 3]])
-        scale = float(np.sqrt(np.mean(np.sum(t * t, axis=1))))
-        return scale if scale > 0 else 1.0
-
-    def scaled(self, s: float) -> AXYBData:
-        """The same data with every translation divided by s."""
-        A, B = self.A.copy(), self.B.copy()
-        A[:, :3, 3] /= s
-        B[:, :3, 3] /= s
-        return AXYBData(A, B)
-
-    @functools.cached_property
-    def rotation_sum(self) -> np.ndarray:
-        """S = sum_i R_Bi kron R_Ai: (9, 9), the rotation block of eq. 8's normal matrix (computed
-        once; shared by the excitation check, the normal equations and Shah's method)."""
-        return kron_sum(np.ascontiguousarray(self.B[:, :3, :3]), np.ascontiguousarray(self.A[:, :3, :3]))
+class AXYBData(PosePairs):
+    """Validated data of A_i X = Y B_i: read-only float64 stacks A, B of shape (m, 4, 4), with the
+    sums over the pairs behind eq. 8 taken once (`handeye.kronecker.PosePairs`)."""
 
     @functools.cached_property
     def rotation_excitation(self) -> float:
@@ -103,35 +75,9 @@ class AXYBData:
         sigma = np.linalg.svd(self.rotation_sum, compute_uv=False)
         return float(max(0.0, 1.0 - sigma[1] / self.m))
 
-    @functools.cached_property
-    def rotation_gram_sum(self) -> np.ndarray:
-        """sum_i (R_Bi^T R_Bi) kron (R_Ai^T R_Ai): (9, 9), the K^T K block of eq. 8's normal matrix
-        (computed once; the identity times m for exact rotations)."""
-        return kron_sum(gram(self.B[:, :3, :3]), gram(self.A[:, :3, :3]))
-
-    @functools.cached_property
-    def translation_sums(self) -> TranslationSums:
-        """The O(m) sums behind the translation rows of eq. 8 (computed once)."""
-        return TranslationSums.of(self.A, self.B)
-
-    @functools.cached_property
-    def kronecker_system(self) -> KroneckerSystem:
-        """The reduced system of eqs. 8-12 for these data, in their units (computed once)."""
-        return self.kronecker(1.0)
-
-    def kronecker(self, scale: float) -> KroneckerSystem:
-        """The reduced system of eqs. 8-12 with every translation divided by `scale` (cached per
-        scale). Built from sums over the pairs taken once (`rotation_sum`, `rotation_gram_sum`,
-        `translation_sums`), so that a solver normalising the units (scale = `translation_scale`)
-        copies no data and repeats no O(m) work."""
-        systems = self._kronecker_systems
-        if scale not in systems:
-            systems[scale] = reduce_normal_equations(*normal_equations(self, scale))
-        return systems[scale]
-
-    @functools.cached_property
-    def _kronecker_systems(self) -> dict[float, KroneckerSystem]:
-        return {}
+    def normal_equations(self, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
+        """Eq. 8's normal equations (`normal_equations`)."""
+        return normal_equations(self, scale)
 
 
 def regression_blocks(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
