@@ -42,9 +42,10 @@ class Problem(ABC):
     def residuals(self, data: Any, unknowns: Poses) -> dict[str, np.ndarray]:
         """Per-pair residuals of the problem's equation: {"rotation": (m,), "translation": (m,)}."""
 
-    @abstractmethod
     def errors(self, unknowns: Poses, truth: Poses) -> ErrorTable:
-        """Errors of estimated unknowns against the truth (rotation angle, translation norm)."""
+        """Errors of estimated unknowns against the truth: for each unknown the angle of
+        R_cal R_true^-1 (the paper's eq. 30) and |t_cal - t_true| (eq. 31)."""
+        return pose_errors(unknowns, truth, self.unknowns)
 
     @abstractmethod
     def simulate(self, *, pairs: int, seed: int | None = None, **options: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
@@ -60,6 +61,16 @@ class Problem(ABC):
         R = random_rotations(len(self.unknowns), rng)
         t = translation_scale * rng.standard_normal((len(self.unknowns), 3))
         return {name: make_pose(R[k], t[k]) for k, name in enumerate(self.unknowns)}
+
+
+def pose_discrepancy(P: np.ndarray, Q: np.ndarray) -> dict[str, np.ndarray]:
+    """How far the poses P_i are from Q_i, both (m, 4, 4): {"rotation": angle of R_P R_Q^T (rad),
+    "translation": |t_P - t_Q|}, each (m,). The per-pair residuals of every problem are this for
+    the two sides of its equation (e.g. eqs. 32-33 for A_i X = Y B_i)."""
+    return {
+        "rotation": rotation_angle(P[:, :3, :3] @ np.swapaxes(Q[:, :3, :3], 1, 2)),
+        "translation": np.linalg.norm(P[:, :3, 3] - Q[:, :3, 3], axis=1),
+    }
 
 
 def pose_errors(unknowns: Mapping[str, np.ndarray], truth: Mapping[str, np.ndarray],

@@ -32,8 +32,8 @@ from handeye import hookimpl
 from handeye.errors import DegenerateDataError, InputError
 from handeye.kronecker import PosePairs, overflow_error
 from handeye.noise import NoiseModel
-from handeye.problem import ErrorTable, Problem, pose_errors
-from handeye.se3 import inverse, rotation_angle, so3_log
+from handeye.problem import Problem, pose_discrepancy
+from handeye.se3 import inverse, so3_log
 from handeye.validation import pose_stack, same_length
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
@@ -269,15 +269,7 @@ class AXXB(Problem):
     def residuals(self, data: AXXBData, unknowns: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Per motion: rotation angle of (A_i X)(X B_i)^-1, |t(A_i X) - t(X B_i)|."""
         X = np.asarray(unknowns["X"], dtype=float)
-        AX, XB = data.A @ X, X @ data.B
-        return {
-            "rotation": rotation_angle(AX[:, :3, :3] @ np.swapaxes(XB[:, :3, :3], 1, 2)),
-            "translation": np.linalg.norm(AX[:, :3, 3] - XB[:, :3, 3], axis=1),
-        }
-
-    def errors(self, unknowns: Mapping[str, np.ndarray], truth: Mapping[str, np.ndarray]) -> ErrorTable:
-        """Angle of R_cal R_true^-1 and |t_cal - t_true| of X."""
-        return pose_errors(unknowns, truth, self.unknowns)
+        return pose_discrepancy(data.A @ X, X @ data.B)
 
     def simulate(self, *, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
                  X: np.ndarray | None = None, Y: np.ndarray | None = None, pairing: str = "consecutive",

@@ -32,12 +32,11 @@ from handeye.kronecker import (
     reduce_normal_equations,
 )
 from handeye.noise import NoiseModel
-from handeye.problem import ErrorTable, Problem, pose_errors
+from handeye.problem import Problem, pose_discrepancy
 from handeye.se3 import (
     inverse,
     make_pose,
     project_to_so3,
-    rotation_angle,
 )
 from handeye.validation import pose_stack, same_length
 
@@ -209,16 +208,8 @@ class AXYB(Problem):
 
     def residuals(self, data: AXYBData, unknowns: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Per pair: rotation angle of (A_i X)(Y B_i)^-1 (eq. 32), |t(A_i X) - t(Y B_i)| (eq. 33)."""
-        AX = data.A @ np.asarray(unknowns["X"], dtype=float)
-        YB = np.asarray(unknowns["Y"], dtype=float) @ data.B
-        return {
-            "rotation": rotation_angle(AX[:, :3, :3] @ np.swapaxes(YB[:, :3, :3], 1, 2)),
-            "translation": np.linalg.norm(AX[:, :3, 3] - YB[:, :3, 3], axis=1),
-        }
-
-    def errors(self, unknowns: Mapping[str, np.ndarray], truth: Mapping[str, np.ndarray]) -> ErrorTable:
-        """Eq. 30: angle of R_cal R_true^-1; eq. 31: |t_cal - t_true|; per unknown."""
-        return pose_errors(unknowns, truth, self.unknowns)
+        return pose_discrepancy(data.A @ np.asarray(unknowns["X"], dtype=float),
+                                np.asarray(unknowns["Y"], dtype=float) @ data.B)
 
     def simulate(self, *, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
                  X: np.ndarray | None = None, Y: np.ndarray | None = None,
