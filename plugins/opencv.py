@@ -26,11 +26,29 @@ result is re-projected onto SO(3) by SVD (`handeye.se3.project_to_so3`) only if 
 |R^T R - I| exceeds `REPROJECT_ABOVE`; the names of re-projected unknowns are reported in
 ``diagnostics["reprojected"]`` (normally empty), so the answer is OpenCV's own whenever possible.
 
+Problem ``axxb`` (A_i X = X B_i, relative motions; a second spec under the same name,
+`SPEC_AXXB`) uses ``cv2.calibrateHandEye``. Option ``method``: ``"tsai"``, ``"park"`` (default),
+``"horaud"``, ``"andreff"`` or ``"daniilidis"`` (CALIB_HAND_EYE_*; handeye's own `tsai`, `park`,
+`horaud`, `andreff` and `daniilidis` solvers implement the same methods, equal to ~1e-13). OpenCV
+takes absolute poses G_k = T_base_gripper (gripper2base) and C_k = T_cam_target (target2cam),
+forms every pair i < j itself, A = inv(G_j) G_i and B = C_j inv(C_i), and returns X =
+T_gripper_cam (cam2gripper). Given motions A_k, B_k (k = 1..m), `absolute_chain` builds poses
+that reproduce them: G_0 = H_0 = I, G_k = G_(k-1) inv(A_k), H_k = B_k H_(k-1), so that
+inv(G_k) G_(k-1) = A_k and H_k inv(H_(k-1)) = B_k. For motions built consecutively from absolute
+poses P_k, Q_k (``motions(..., pairing="consecutive")``) the chain is G_k = inv(P_0) P_k,
+H_k = Q_k inv(Q_0), so the pairs OpenCV forms from it, inv(G_j) G_i = inv(P_j) P_i and
+H_j inv(H_i) = Q_j inv(Q_i), are exactly the motions of the original poses: the answer equals
+OpenCV's on those poses (measured <= 1e-13; tests/test_classic_handeye.py checks 1e-9). For other motions
+(e.g. pairing "all") OpenCV sees the products of consecutive ones, A_(i+1..j), not the motions
+given. Unit invariance is declared for tsai, park and horaud (rotation first, from rotations
+only); andreff and daniilidis weigh rotation rows against translation rows and change with the
+length unit on noisy data (docs/solvers/opencv.md).
+
 Availability: backend ``"opencv"`` needs the module ``cv2`` (pip install opencv-python-headless)
 *with* ``calibrateRobotWorldHandEye`` (OpenCV >= 4.5.x; opencv-python-headless 5.0.0.93's module no
-longer has it). `check` reports a missing function as the reason the backend is unavailable;
-this module never imports cv2 at import time, so the plugin always loads and ``handeye list``
-shows the reason.
+longer has it), and for ``axxb`` with ``calibrateHandEye``. `check` / `check_hand_eye` report a
+missing function as the reason the backend is unavailable; this module never imports cv2 at
+import time, so the plugin always loads and ``handeye list`` shows the reason.
 """
 
 from __future__ import annotations
@@ -38,16 +56,24 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.errors import SolverError
+from handeye.errors import DegenerateDataError, SolverError
 from handeye.options import check_choice
+from handeye.problems.axxb import AXXBData
 from handeye.problems.axyb import AXYBData
-from handeye.se3 import make_pose, orthonormality_error, project_to_so3
+from handeye.se3 import inverse, make_pose, orthonormality_error, project_to_so3
 
 #: method option -> name of OpenCV's flag (looked up on cv2 only when solving)
 METHODS = {"shah": "CALIB_ROBOT_WORLD_HAND_EYE_SHAH", "li": "CALIB_ROBOT_WORLD_HAND_EYE_LI"}
 FUNCTION = "calibrateRobotWorldHandEye"
+#: problem axxb: method option -> name of OpenCV's flag of cv2.calibrateHandEye
+HAND_EYE_METHODS = {
+    "tsai": "CALIB_HAND_EYE_TSAI", "park": "CALIB_HAND_EYE_PARK", "horaud": "CALIB_HAND_EYE_HORAUD",
+    "andreff": "CALIB_HAND_EYE_ANDREFF", "daniilidis": "CALIB_HAND_EYE_DANIILIDIS",
+}
+HAND_EYE_FUNCTION = "calibrateHandEye"
+#: methods of calibrateHandEye whose answer does not depend on the length unit (module docstring)
+HAND_EYE_UNIT_INVARIANT = ("tsai", "park", "horaud")
 #: |R^T R - I| of an OpenCV rotation above which it is re-projected onto SO(3) by SVD
 REPROJECT_ABOVE = 1e-12
 
@@ -60,20 +86,38 @@ class Options:
         check_choice("method", self.method, tuple(METHODS))
 
 
-def check(backend: str) -> str | None:
-    """Why OpenCV cannot run here (cv2 fails to import, or lacks calibrateRobotWorldHandEye)."""
+@dataclasses.dataclass(frozen=True)
+class HandEyeOptions:
+    method: str = "park"
+
+    def __post_init__(self) -> None:
+        check_choice("method", self.method, tuple(HAND_EYE_METHODS))
+
+
+def _missing(backend: str, names: tuple[str, ...], function: str) -> str | None:
+    """Why OpenCV cannot run here: cv2 fails to import, or lacks one of `names`."""
     try:
         import cv2
     except ImportError as exc:  # present (find_spec found it) but broken
         return f"backend {backend!r} of solver 'opencv': importing cv2 failed: {exc}"
-    missing = [name for name in (FUNCTION, *METHODS.values()) if not hasattr(cv2, name)]
+    missing = [name for name in names if not hasattr(cv2, name)]
     if missing:
         return (
             f"backend {backend!r} of solver 'opencv': this OpenCV ({getattr(cv2, '__version__', '?')}) "
             f"has no cv2.{', cv2.'.join(missing)}; install opencv-python-headless>=4.8,<5 "
-            "(5.0.0.93 dropped calibrateRobotWorldHandEye)"
+            f"(5.0.0.93 dropped {function})"
         )
     return None
+
+
+def check(backend: str) -> str | None:
+    """Why OpenCV cannot run here (cv2 fails to import, or lacks calibrateRobotWorldHandEye)."""
+    return _missing(backend, (FUNCTION, *METHODS.values()), FUNCTION)
+
+
+def check_hand_eye(backend: str) -> str | None:
+    """Why OpenCV cannot solve ``axxb`` here (cv2 fails to import, or lacks calibrateHandEye)."""
+    return _missing(backend, (HAND_EYE_FUNCTION, *HAND_EYE_METHODS.values()), HAND_EYE_FUNCTION)
 
 
 def calibrate(A: np.ndarray, B: np.ndarray, method: str) -> tuple[np.ndarray, np.ndarray]:
@@ -94,14 +138,42 @@ def calibrate(A: np.ndarray, B: np.ndarray, method: str) -> tuple[np.ndarray, np
     return make_pose(R_bw, np.ravel(t_bw)), make_pose(R_gc, np.ravel(t_gc))
 
 
-def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
+def absolute_chain(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Absolute poses G, H: (m + 1, 4, 4) whose consecutive motions are A, B: (m, 4, 4):
+    G_0 = H_0 = I, G_k = G_(k-1) inv(A_k), H_k = B_k H_(k-1) (module docstring)."""
+    G, H = np.empty((len(A) + 1, 4, 4)), np.empty((len(B) + 1, 4, 4))
+    G[0] = H[0] = np.eye(4)
+    A_inv = inverse(A)
+    for k in range(len(A)):
+        G[k + 1] = G[k] @ A_inv[k]
+        H[k + 1] = B[k] @ H[k]
+    return G, H
+
+
+def calibrate_hand_eye(G: np.ndarray, C: np.ndarray, method: str) -> np.ndarray:
+    """X = cam2gripper: (4, 4), straight from cv2.calibrateHandEye on the absolute poses
+    G = gripper2base, C = target2cam: (n, 4, 4) each (rotation block not re-projected)."""
     import cv2
 
-    unknowns = dict(zip(("X", "Y"), calibrate(data.A, data.B, options.method)))
+    try:
+        R, t = cv2.calibrateHandEye(
+            list(np.ascontiguousarray(G[:, :3, :3])), list(np.ascontiguousarray(G[:, :3, 3:])),
+            list(np.ascontiguousarray(C[:, :3, :3])), list(np.ascontiguousarray(C[:, :3, 3:])),
+            method=getattr(cv2, HAND_EYE_METHODS[method]),
+        )
+    except cv2.error as exc:
+        raise SolverError(f"cv2.calibrateHandEye (method {method!r}) failed: {' '.join(str(exc).split())}") from exc
+    return make_pose(R, np.ravel(t))
+
+
+def _output(unknowns: dict[str, np.ndarray], method: str) -> SolverOutput:
+    """The unknowns OpenCV returned, checked finite, re-projected only when off SO(3)."""
+    import cv2
+
     reprojected = []
     for name, T in unknowns.items():
         if not np.all(np.isfinite(T)):
-            raise SolverError(f"OpenCV ({options.method}) returned a non-finite {name}: the data "
+            raise SolverError(f"OpenCV ({method}) returned a non-finite {name}: the data "
                               "do not determine it")
         if orthonormality_error(T[:3, :3]) > REPROJECT_ABOVE:
             unknowns[name] = make_pose(project_to_so3(T[:3, :3]), T[:3, 3])
@@ -109,8 +181,23 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     return SolverOutput(
         unknowns=unknowns,
         status=Status.OPTIMAL,
-        diagnostics={"method": options.method, "opencv_version": cv2.__version__, "reprojected": reprojected},
+        diagnostics={"method": method, "opencv_version": cv2.__version__, "reprojected": reprojected},
     )
+
+
+def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
+    return _output(dict(zip(("X", "Y"), calibrate(data.A, data.B, options.method))), options.method)
+
+
+def run_hand_eye(data: AXXBData, options: HandEyeOptions, backend: str) -> SolverOutput:
+    G, H = absolute_chain(data.A, data.B)
+    X = calibrate_hand_eye(G, H, options.method)
+    if options.method == "tsai" and np.array_equal(X, np.eye(4)):  # OpenCV's "no answer" (it only logs)
+        raise DegenerateDataError(
+            "OpenCV's Tsai found fewer than 2 motion pairs rotating by 17.3 to 116.4 deg and returned no "
+            "answer: record motions with larger rotations, or use another method"
+        )
+    return _output({"X": X}, options.method)
 
 
 SPEC = SolverSpec(
@@ -129,6 +216,24 @@ SPEC = SolverSpec(
 )
 
 
+SPEC_AXXB = SolverSpec(
+    name="opencv",
+    problems=("axxb",),
+    run=run_hand_eye,
+    backends={"opencv": ("cv2",)},
+    default_backend="opencv",
+    options=HandEyeOptions,
+    summary="reference: OpenCV's calibrateHandEye, method 'park' (default), 'tsai', 'horaud', 'andreff' "
+            "or 'daniilidis'",
+    citation="OpenCV calib3d calibrateHandEye; Tsai & Lenz 1989; Park & Martin 1994; Horaud & Dornaika 1995; "
+             "Andreff, Horaud & Espiau 1999; Daniilidis 1999",
+    unit_invariant=lambda options: options.method in HAND_EYE_UNIT_INVARIANT,
+    exact=True,
+    check=check_hand_eye,
+)
+
+
 @hookimpl
 def register_solvers(register):
     register(SPEC)
+    register(SPEC_AXXB)
