@@ -241,10 +241,10 @@ def _daniilidis(A: Any, B: Any) -> tuple[np.ndarray, dict[str, Any]]:
     X = pose_from_dual_quat(dq[:4], dq[4:])
     diagnostics: dict[str, Any] = {"singular_values": sigma[-3:].tolist(), "discriminant": float(disc)}
     if disc < 0:
-        diagnostics["warnings"] = [
+        diagnostics["warnings"] = [(
             "daniilidis: the motions are too noisy for the dual-quaternion constraints to have an "
             "exact solution; the answer uses the nearest one and is less accurate. Use 'auto' instead"
-        ]
+        )]
     return X, diagnostics
 
 
