@@ -68,6 +68,11 @@ and multiplied back afterwards: the answer is unit invariant (tested to 1e-9). W
 ``normalize=True`` the translations in beta are poorly determined (the rotation rows dominate);
 combine it with ``translations="resolve"``.
 
+Problem ``axxb`` (A_i X = X B_i): a second spec, `SPEC_AXXB`, runs `handeye.plugins.lmi_sdp_axxb`:
+the same cost with the scale constraint |vec R_X|^2 = 3 that AX = XB needs (its rotation rows are
+homogeneous), as a tight SDP over a 10 x 10 Z; same backends and options, plus ``polish``
+(docs/solvers/lmi-sdp.md, section AX = XB).
+
 Statuses: solver optimal -> optimal; optimal_inaccurate (Clarabel's AlmostSolved) ->
 optimal_inaccurate; anything else (infeasible, unbounded, iteration limit, solver error) raises
 `SolverError` naming the status.
@@ -82,7 +87,6 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
-
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import InputError, SolverError
 from handeye.options import check_choice
@@ -92,7 +96,12 @@ from handeye.plugins._cvxpy_solvers import (  # noqa: F401 (sdp_cvxpy_solvers re
     resolve_cvxpy_solver,
     sdp_cvxpy_solvers,
 )
-from handeye.problems.axyb import AXYBData, KroneckerSystem, solve_translations, split_beta
+from handeye.problems.axyb import (
+    AXYBData,
+    KroneckerSystem,
+    solve_translations,
+    split_beta,
+)
 from handeye.se3 import gram_schmidt, make_pose, project_to_so3
 
 ORTHOGONALIZERS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
@@ -159,6 +168,14 @@ class Options:
             raise InputError(f"option ipopt_options={self.ipopt_options!r} must be a dict of IPOPT options")
 
 
+@dataclasses.dataclass(frozen=True)
+class AXXBOptions(Options):
+    """Options of `lmi-sdp` for ``axxb``: those of `Options` and polish: Newton steps on the
+    optimality conditions after the SDP (backends cvxpy and picos; plugins/lmi_sdp_axxb.py)."""
+
+    polish: bool = True
+
+
 # --------------------------------------------------------------------------------------------
 # eq. 14, scaled
 
@@ -198,12 +215,15 @@ class SDPResult:
     compile_seconds: float = 0.0  # compiling the cvxpy problem (its first solve in a process)
 
 
-def _status(solver_status: str, optimal: set[str], inaccurate: set[str], where: str) -> Status:
+def _status(solver_status: str, optimal: set[str], inaccurate: set[str], where: str,
+            what: str = "the LMI of eq. 14") -> Status:
+    """The `Status` of an SDP solver's status; SolverError naming it for anything but optimal or
+    inaccurate (`what`: the problem solved, for the message)."""
     if solver_status in optimal:
         return Status.OPTIMAL
     if solver_status in inaccurate:
         return Status.OPTIMAL_INACCURATE
-    raise SolverError(f"lmi-sdp: {where} returned status {solver_status!r} for the LMI of eq. 14; "
+    raise SolverError(f"lmi-sdp: {where} returned status {solver_status!r} for {what}; "
                       "no solution is returned")
 
 
@@ -405,6 +425,27 @@ SPEC = SolverSpec(
 )
 
 
+def run_axxb(data: Any, options: Options, backend: str) -> SolverOutput:
+    """``axxb``: `handeye.plugins.lmi_sdp_axxb.run` (the LMI-SDP of AX=XB, |vec R_X|^2 = 3)."""
+    from handeye.plugins.lmi_sdp_axxb import run as run_lmi_sdp_axxb
+
+    return run_lmi_sdp_axxb(data, options, backend)
+
+
+#: ``axxb``: the same cost, SDP lifted with the scale constraint |vec R_X|^2 = 3 (plugins/lmi_sdp_axxb.py),
+#: the same options and backends.
+SPEC_AXXB = dataclasses.replace(
+    SPEC,
+    problems=("axxb",),
+    run=run_axxb,
+    options=AXXBOptions,
+    summary="the paper's LMI-SDP carried over to AX=XB: Kronecker cost with |vec R_X|^2 = 3 as a "
+            "tight SDP (rank one), Gram-Schmidt; casadi: the cost under exact SO(3)",
+    citation="Pan et al., IEEE T-ASE 2022, eqs. 5-14, carried over to AX=XB (docs/solvers/lmi-sdp.md)",
+)
+
+
 @hookimpl
 def register_solvers(register):
     register(SPEC)
+    register(SPEC_AXXB)

@@ -1,19 +1,22 @@
-"""Backend ``casadi`` of `lmi-sdp`: the Kronecker cost of eq. 8 under EXACT SO(3) constraints,
-as a CasADi NLP solved by IPOPT (issue 4, item 1). A helper module, not an entry point: the
-`lmi-sdp` plugin calls `solve_casadi` for ``backend="casadi"``.
+"""Backend ``casadi`` of `lmi-sdp`: the Kronecker cost under EXACT SO(3) constraints, as a
+CasADi NLP solved by IPOPT (issue 4, item 1), for k rotations: ``axyb`` (eq. 8, k = 2,
+`solve_casadi`) and ``axxb`` (k = 1, `solve_casadi_axxb`). A helper module, not an entry point:
+the `lmi-sdp` plugin calls these for ``backend="casadi"``.
 
 Formulation (measurements: docs/solvers/lmi-sdp.md, backend casadi):
 
-1. Cost. Eq. 8 reduced by QR (eqs. 10-12): |H beta - w|^2 = |R1 beta - q1|^2 + rest, with
-   beta = [r; t], r = [vec R_X; vec R_Y] (18, column-major vec), t = [t_X; t_Y] (6). A second QR
-   of the 24 x 25 matrix [R1_t | R1_r | q1] (translation columns first) splits it into
-   |T t + U r - u|^2 + |S r - s|^2, so for any rotations the optimal translations are
-   t(r) = T^-1 (u - U r) (exactly the least squares of eqs. 20-21) and the NLP is over r only:
-   minimise |S r - s|^2 (S: 18x18 upper triangular). The reduction is O(m) and done in numpy;
-   the NLP never sees m, so ONE CasADi `nlpsol` (S, s passed as its parameters p) serves every
-   problem size and is built once per IPOPT option set (`nlp_solver`, cached at module level).
+1. Cost. |H beta - w|^2 with beta = [r; t], r = [vec R_1; ...; vec R_k] (9k, column-major vec),
+   t the k translations, is split (`handeye.rotation_cost`) into
+   |T t + U r - u|^2 + |S r - s|^2 + rest, so for any rotations the optimal translations are
+   t(r) = T^-1 (u - U r) (for ``axyb`` exactly the least squares of eqs. 20-21) and the NLP is
+   over r only: minimise |S r - s|^2 (S: 9k x 9k). ``axyb``: S from a QR of
+   [R1_t | R1_r | q1] of the reduced eq. 8 (eqs. 10-12); ``axxb``: from its normal equations
+   (its H may be rank deficient, docs/solvers/kron-lstsq.md). The reduction is O(m) and done in
+   numpy; the NLP never sees m, so ONE CasADi `nlpsol` per k (S, s passed as its parameters p)
+   serves every problem size and is built once per IPOPT option set (`nlp_solver`, cached at
+   module level).
 2. Constraints, per rotation with columns c1, c2, c3 (= entries 0-2, 3-5, 6-8 of its vec):
-   |c1|^2 = 1, |c2|^2 = 1, c1.c2 = 0, c3 = c1 x c2 (6 equations, 12 in all). Together they are
+   |c1|^2 = 1, |c2|^2 = 1, c1.c2 = 0, c3 = c1 x c2 (6 equations per rotation). Together they are
    exactly SO(3): c3 is then a unit vector orthogonal to c1, c2 and det R = c3.(c1 x c2) = +1.
    They are polynomial (smooth, exact Hessians by AD) and independent everywhere on SO(3) (the
    Jacobian has rank 6: the c3 rows are the identity in c3, the other three are 2c1, 2c2 and
@@ -22,7 +25,8 @@ Formulation (measurements: docs/solvers/lmi-sdp.md, backend casadi):
    which violates LICQ and makes IPOPT regularise its KKT matrix. A local exp-map chart
    R = R0 exp([w]) would be unconstrained but is only a chart (singular at |w| = pi) and would
    need re-centring for the random starts; the constraints need none of that.
-3. IPOPT from the `kron-lstsq` point (least squares beta, SVD projection onto SO(3)), plus
+3. IPOPT from the `kron-lstsq` point (``axyb``: least squares beta, SVD projection onto SO(3);
+   ``axxb``: least squares on the sphere |r|^2 = 3, projected), plus
    ``multistart`` seeded random starts (uniform rotations); the lowest cost of the converged
    starts wins. The cost is divided by sigma_max(S)^2 (Hessian of order 1), so IPOPT's absolute
    tolerances mean the same at every m and unit. The iterate is finally projected onto SO(3) by
@@ -34,9 +38,9 @@ Formulation (measurements: docs/solvers/lmi-sdp.md, backend casadi):
    when every start failed that way `solve_casadi` raises `SolverError` naming the statuses.
 
 Normalisation (``normalize=True``): translations are divided by the data's RMS translation
-before eq. 8 is built and the answer's translations multiplied back, so the normalised NLP is the
-same for data in mm or m and the answer is unit invariant. ``normalize=False`` is eq. 8 in the
-data's own units, as the paper has it.
+before the system is built and the answer's translations multiplied back, so the normalised NLP is the
+same for data in mm or m and the answer is unit invariant. ``normalize=False`` is the system in
+the data's own units, as the paper has it.
 """
 
 from __future__ import annotations
@@ -46,12 +50,24 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from scipy.linalg import solve_triangular
-
 from handeye import SolverOutput, Status
 from handeye.errors import InputError, SolverError
-from handeye.problems.axyb import AXYBData, KroneckerSystem, split_beta
-from handeye.se3 import make_pose, orthonormality_error, project_to_so3, random_rotations
+from handeye.problems.axxb import AXXBData
+from handeye.problems.axyb import AXYBData, split_beta
+from handeye.rotation_cost import (
+    RotationCost,
+    eliminate_translations,
+    rotation_blocks,
+    rotations_vector,
+    signed_rotations,
+    sphere_least_squares,
+)
+from handeye.se3 import (
+    make_pose,
+    orthonormality_error,
+    project_to_so3,
+    random_rotations,
+)
 
 #: IPOPT settings of every solve (ipopt_options may override or extend them). tol 1e-12 on the
 #: scaled cost (Hessian of order 1): noise-free data are recovered to ~1e-12 rad.
@@ -74,7 +90,8 @@ NOT_CONVERGED = {
     "Feasible_Point_Found", "User_Requested_Stop",
 }
 
-#: merged IPOPT options (as a sorted tuple) -> nlpsol; every m and every data set share one entry.
+#: (number of rotations, merged IPOPT options as a sorted tuple) -> nlpsol; every m and every
+#: data set of a problem share one entry.
 _CACHE: dict[tuple, Any] = {}
 _LOCK = threading.Lock()
 #: A cached nlpsol is shared: its call and the stats() read after it must not interleave.
@@ -91,31 +108,34 @@ def _option_key(ipopt_options: Mapping[str, Any] | None) -> tuple[tuple, dict[st
     return tuple(sorted((k, repr(v)) for k, v in options.items())), options
 
 
-def nlp_solver(ipopt_options: Mapping[str, Any] | None = None):
-    """The CasADi IPOPT `nlpsol` of the reduced problem, built once per option set and cached.
+def nlp_solver(ipopt_options: Mapping[str, Any] | None = None, rotations: int = 2):
+    """The CasADi IPOPT `nlpsol` of the reduced problem over `rotations` rotations (2: ``axyb``,
+    1: ``axxb``), built once per (rotations, option set) and cached.
 
-    x: (18,) = [vec R_X; vec R_Y]; p: (342,) = [vec S (column-major, 324); s (18)], the cost
-    |S x - s|^2 scaled as the caller wishes; g: (12,) the SO(3) equations, all = 0.
+    x: (9k,) = [vec R_1; ...; vec R_k]; p: (81k^2 + 9k,) = [vec S (column-major); s], the cost
+    |S x - s|^2 scaled as the caller wishes; g: (6k,) the SO(3) equations, all = 0.
     `ipopt_options` (names with or without the "ipopt." prefix) override `IPOPT_DEFAULTS`.
     """
-    key, options = _option_key(ipopt_options)
+    option_key, options = _option_key(ipopt_options)
+    key = (rotations, option_key)
     with _LOCK:
         solver = _CACHE.get(key)
         if solver is None:
-            solver = _build(options)
+            solver = _build(options, rotations)
             _CACHE[key] = solver
     return solver
 
 
-def _build(options: Mapping[str, Any]):
+def _build(options: Mapping[str, Any], rotations: int):
     import casadi as ca
 
-    x = ca.SX.sym("r", 18)
-    p = ca.SX.sym("p", 18 * 18 + 18)
-    S = ca.reshape(p[: 18 * 18], 18, 18)
-    e = ca.mtimes(S, x) - p[18 * 18:]
+    n = 9 * rotations
+    x = ca.SX.sym("r", n)
+    p = ca.SX.sym("p", n * n + n)
+    S = ca.reshape(p[: n * n], n, n)
+    e = ca.mtimes(S, x) - p[n * n:]
     g = []
-    for k in (0, 9):  # R_X, then R_Y; columns of the column-major vec
+    for k in range(0, n, 9):  # each rotation; columns of the column-major vec
         c1, c2, c3 = x[k:k + 3], x[k + 3:k + 6], x[k + 6:k + 9]
         g += [ca.dot(c1, c1) - 1, ca.dot(c2, c2) - 1, ca.dot(c1, c2), c3 - ca.cross(c1, c2)]
     nlp = {"x": x, "p": p, "f": ca.dot(e, e), "g": ca.vertcat(*g)}
@@ -128,28 +148,17 @@ def _build(options: Mapping[str, Any]):
         raise InputError(f"lmi-sdp/casadi: IPOPT rejected ipopt_options {dict(options)}: {detail}") from None
 
 
-def eliminate_translations(system: KroneckerSystem) -> dict[str, np.ndarray]:
-    """QR of [R1_t | R1_r | q1] (24 x 25), translations first: |R1 beta - q1|^2 =
-    |T t + U r - u|^2 + |S r - s|^2. Returns S (18, 18), s (18,), T (6, 6), U (6, 18), u (6,)."""
-    R1, q1 = system.R1, system.q1
-    R = np.linalg.qr(np.concatenate([R1[:, 18:], R1[:, :18], q1[:, None]], axis=1), mode="r")
-    return {"S": R[6:, 6:24], "s": R[6:, 24], "T": R[:6, :6], "U": R[:6, 6:24], "u": R[:6, 24]}
-
-
-def _rotations(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    return r[:9].reshape(3, 3, order="F"), r[9:18].reshape(3, 3, order="F")
-
-
-def _vec(RX: np.ndarray, RY: np.ndarray) -> np.ndarray:
-    return np.concatenate([RX.reshape(9, order="F"), RY.reshape(9, order="F")])
-
-
 def _constraint_violation(r: np.ndarray) -> float:
     out = []
-    for k in (0, 9):
+    for k in range(0, len(r), 9):
         c1, c2, c3 = r[k:k + 3], r[k + 3:k + 6], r[k + 6:k + 9]
         out += [c1 @ c1 - 1, c2 @ c2 - 1, c1 @ c2, *(c3 - np.cross(c1, c2))]
     return float(np.max(np.abs(out)))
+
+
+def _check_multistart(multistart: Any) -> None:
+    if isinstance(multistart, bool) or not isinstance(multistart, (int, np.integer)) or multistart < 0:
+        raise InputError(f"option multistart={multistart!r} must be an integer >= 0")
 
 
 def solve_casadi(data: AXYBData, *, normalize: bool, multistart: int = 0, seed: int | None = None,
@@ -169,26 +178,55 @@ def solve_casadi(data: AXYBData, *, normalize: bool, multistart: int = 0, seed: 
     ``translation_scale``, ``sigma_min_R1`` (of R1 of eq. 10, normalised data when normalize),
     ``warnings``. Raises SolverError when no start gave an iterate.
     """
-    if isinstance(multistart, bool) or not isinstance(multistart, (int, np.integer)) or multistart < 0:
-        raise InputError(f"option multistart={multistart!r} must be an integer >= 0")
+    _check_multistart(multistart)
     scale = data.translation_scale if normalize else 1.0
     system = data.kronecker(scale)
-    red = eliminate_translations(system)
-    S, s = red["S"], red["s"]
+    cost = eliminate_translations(system)
+    MX, MY, _, _ = split_beta(system.least_squares())
+    (RX, RY), (tX, tY), status, diagnostics = solve_rotations(
+        cost, [project_to_so3(MX), project_to_so3(MY)], multistart=multistart, seed=seed,
+        ipopt_options=ipopt_options)
+    diagnostics.update(translation_scale=scale, sigma_min_R1=system.smallest_singular_value(),
+                       normalized=bool(normalize))
+    return SolverOutput(unknowns={"X": make_pose(RX, tX * scale), "Y": make_pose(RY, tY * scale)},
+                        status=status, diagnostics=diagnostics)
+
+
+def solve_casadi_axxb(data: AXXBData, *, normalize: bool, multistart: int = 0, seed: int | None = None,
+                      ipopt_options: Mapping[str, Any] | None = None) -> SolverOutput:
+    """``axxb``: minimise |H beta - w|^2 of A_i X = X B_i over SE(3) with IPOPT, from the
+    kron-lstsq point (least squares on |vec R_X|^2 = 3, projected) plus ``multistart`` random
+    starts. Arguments, result and diagnostics as `solve_casadi` (``cost`` is |H beta - w|^2 of
+    the ``axxb`` system; no ``sigma_min_R1``: this H may be rank deficient)."""
+    _check_multistart(multistart)
+    scale = data.translation_scale if normalize else 1.0
+    cost = RotationCost.from_normal_equations(*data.normal_equations(scale), rotations=1)
+    start, _ = signed_rotations(cost, sphere_least_squares(cost).x)
+    (RX,), (tX,), status, diagnostics = solve_rotations(cost, start, multistart=multistart, seed=seed,
+                                                       ipopt_options=ipopt_options)
+    diagnostics.update(translation_scale=scale, normalized=bool(normalize))
+    return SolverOutput(unknowns={"X": make_pose(RX, tX * scale)}, status=status, diagnostics=diagnostics)
+
+
+def solve_rotations(cost: RotationCost, start: list[np.ndarray], *, multistart: int = 0,
+                    seed: int | None = None, ipopt_options: Mapping[str, Any] | None = None
+                    ) -> tuple[list[np.ndarray], tuple[np.ndarray, ...], Status, dict[str, Any]]:
+    """Minimise |S r - s|^2 + rest of `cost` over k rotations (exactly SO(3)) with IPOPT from the
+    rotations `start` (k of them) and ``multistart`` random starts: (rotations, their optimal
+    translations t(r) in the units of `cost`, status, diagnostics as listed in `solve_casadi`
+    without the problem's own entries). Raises SolverError when no start gave an iterate."""
+    k = cost.rotations
+    S, s = cost.S, cost.s
     weight = float(np.linalg.norm(S, 2)) ** 2  # sigma_max(S)^2: the NLP's Hessian is of order 1
+    weight = weight if weight > 0 else 1.0
     p = np.concatenate([S.reshape(-1, order="F"), s]) / np.sqrt(weight)
 
-    def cost(r: np.ndarray) -> float:
-        e = S @ r - s
-        return float(e @ e + system.rest)
-
-    MX, MY, _, _ = split_beta(system.least_squares())
-    starts = [_vec(project_to_so3(MX), project_to_so3(MY))]
+    starts = [rotations_vector(*start)]
     if multistart:
-        R = random_rotations(2 * int(multistart), np.random.default_rng(seed))
-        starts += [_vec(R[2 * k], R[2 * k + 1]) for k in range(int(multistart))]
+        R = random_rotations(k * int(multistart), np.random.default_rng(seed))
+        starts += [rotations_vector(*R[k * j:k * j + k]) for j in range(int(multistart))]
 
-    solver = nlp_solver(ipopt_options)
+    solver = nlp_solver(ipopt_options, rotations=k)
     runs = []
     for r0 in starts:
         try:
@@ -197,7 +235,7 @@ def solve_casadi(data: AXYBData, *, normalize: bool, multistart: int = 0, seed: 
                 stats = solver.stats()
         except RuntimeError as exc:  # a crash inside CasADi / IPOPT: a hard failure of this start
             detail = str(exc).strip().splitlines()[-1]
-            runs.append({"status": f"exception: {detail}", "iterations": 0, "r": np.full(18, np.nan),
+            runs.append({"status": f"exception: {detail}", "iterations": 0, "r": np.full(9 * k, np.nan),
                          "finite": False})
             continue
         r = np.asarray(result["x"], dtype=float).ravel()
@@ -216,7 +254,7 @@ def solve_casadi(data: AXYBData, *, normalize: bool, multistart: int = 0, seed: 
             f"{len(runs)} start(s); return statuses {[run['status'] for run in runs]} "
             "(check ipopt_options, or the data: see diagnose)"
         )
-    costs = [cost(run["r"]) if run["finite"] else float("nan") for run in runs]
+    costs = [cost.value(run["r"]) if run["finite"] else float("nan") for run in runs]
     # lowest cost wins; starts that reach the same minimum (equal to TIE_RTOL) keep the earliest,
     # so the kron-lstsq start is reported whenever a random start only reproduces its optimum
     lowest = min(costs[i] for i in candidates)
@@ -225,36 +263,29 @@ def solve_casadi(data: AXYBData, *, normalize: bool, multistart: int = 0, seed: 
     status = SUCCESS.get(chosen["status"], Status.NOT_CONVERGED)
 
     r_raw = chosen["r"]
-    RX, RY = (project_to_so3(M) for M in _rotations(r_raw))
-    r = _vec(RX, RY)
-    t = solve_triangular(red["T"], red["u"] - red["U"] @ r, lower=False) * scale
+    Rs = [project_to_so3(M) for M in rotation_blocks(r_raw)]
+    r = rotations_vector(*Rs)
     warnings = []
     if status is Status.NOT_CONVERGED:
         warnings.append(f"lmi-sdp/casadi: IPOPT did not converge ({chosen['status']}); the answer "
                         "is its last iterate projected onto SO(3)")
     elif status is Status.OPTIMAL_INACCURATE:
         warnings.append("lmi-sdp/casadi: IPOPT stopped at its acceptable (looser) tolerance")
-    return SolverOutput(
-        unknowns={"X": make_pose(RX, t[:3]), "Y": make_pose(RY, t[3:])},
-        status=status,
-        diagnostics={
-            "backend_solver": "ipopt",
-            "ipopt_status": chosen["status"],
-            "solver_status": chosen["status"],
-            "success": chosen["status"] == "Solve_Succeeded",
-            "iterations": chosen["iterations"],
-            "iterations_total": sum(run["iterations"] for run in runs),
-            "cost": cost(r),
-            "start_cost": cost(starts[0]),
-            "starts_tried": len(runs),
-            "best_start": best,
-            "start_statuses": [run["status"] for run in runs],
-            "start_costs": costs,
-            "constraint_violation": _constraint_violation(r_raw),
-            "orthonormality_error": float(max(orthonormality_error(RX), orthonormality_error(RY))),
-            "translation_scale": scale,
-            "sigma_min_R1": system.smallest_singular_value(),
-            "normalized": bool(normalize),
-            "warnings": warnings,
-        },
-    )
+    diagnostics = {
+        "backend_solver": "ipopt",
+        "ipopt_status": chosen["status"],
+        "solver_status": chosen["status"],
+        "success": chosen["status"] == "Solve_Succeeded",
+        "iterations": chosen["iterations"],
+        "iterations_total": sum(run["iterations"] for run in runs),
+        "cost": cost.value(r),
+        "start_cost": cost.value(starts[0]),
+        "starts_tried": len(runs),
+        "best_start": best,
+        "start_statuses": [run["status"] for run in runs],
+        "start_costs": costs,
+        "constraint_violation": _constraint_violation(r_raw),
+        "orthonormality_error": float(max(orthonormality_error(R) for R in Rs)),
+        "warnings": warnings,
+    }
+    return Rs, cost.translations(r), status, diagnostics

@@ -148,7 +148,7 @@ def test_hard_failure_raises(monkeypatch):
         def stats(self):
             return {"return_status": "Invalid_Number_Detected", "iter_count": 3}
 
-    monkeypatch.setattr(lc, "nlp_solver", lambda options=None: Failing())
+    monkeypatch.setattr(lc, "nlp_solver", lambda options=None, rotations=2: Failing())
     with pytest.raises(SolverError, match="Invalid_Number_Detected"):
         lc.solve_casadi(_data(6)[0], normalize=True)
 

@@ -57,7 +57,7 @@ def test_translation_elimination_matches_eq8():
 
 @pytest.mark.parametrize("redundant", [True, False])
 def test_constraints_hold_on_so3_only(redundant):
-    A, b = so3_sdp.constraint_matrices(redundant)
+    A, b = so3_sdp.constraint_matrices(2, redundant)
     assert np.linalg.matrix_rank(A.reshape(len(A), -1)) == len(A)  # independent
     rng = np.random.default_rng(0)
     RX, RY = random_rotations(2, rng)
