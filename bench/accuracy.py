@@ -1,4 +1,4 @@
-"""Issue 4's accuracy benchmark: every solver against the "oracle" on the harness's accuracy study.
+"""The accuracy benchmark of ``axyb``: every solver against the "oracle" on the harness's accuracy study.
 
 Study (`handeye.harness.accuracy_study`): noise on both A and B (B: 0.002 rad, 0.5 mm; A: 0.0002 rad,
 0.05 mm) and a heavy level ten times that, m = 8, 16, 50, random X and Y per trial. The oracle is
@@ -8,7 +8,7 @@ plugin (mapping of docs/conventions.md: A -> world2cam, B -> base2gripper, X <- 
 Y <- gripper2cam), so this benchmark does not depend on how the `opencv` plugin names its options.
 
 The study is run twice, with the data in mm and in m (the harness reports errors in mm either way),
-and the script checks issue 4's targets:
+and the script checks the accuracy targets:
 
 - `auto` within 3% of the oracle's median rotation and translation errors of X and Y, every cell;
 - `auto` better (lower median) than OpenCV SHAH and LI in every cell and metric;
@@ -38,7 +38,7 @@ from handeye.registry import get_registry, register_plugin
 from handeye.se3 import make_pose
 
 METRICS = ("err_rot_X", "err_trans_X", "err_rot_Y", "err_trans_Y")
-#: auto's median may exceed the oracle's by at most this fraction (issue 4)
+#: auto's median may exceed the oracle's by at most this fraction (accuracy target)
 ORACLE_MARGIN = 0.03
 #: relative difference of per-trial errors between the mm and the m run that counts as identical
 #: (8 significant digits; the iterative solvers stop at ~1e-11 rad, so errors of ~1e-3 rad agree
@@ -197,14 +197,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"report: {paths['errors']}")
 
     misses = check_targets(cells, result=result_mm)
-    spec_of = get_registry().solvers
+    registry = get_registry()
     if not args.no_units:
         result_m = run_study(study.replace(units="m"), jobs=args.jobs, progress=False)
         diffs = unit_differences(result_mm, result_m)
         print(f"mm vs m: largest relative difference of any per-trial error ({result_m.seconds:.0f} s)")
         for label, d in diffs.items():
             spec = next(s for s in study.specs if s.label == label)
-            invariant = spec_of[spec.solver].is_unit_invariant(spec.options)
+            invariant = registry.solver(spec.solver, "axyb").is_unit_invariant(spec.options)
             print(f"  {label:18s} {d:.2e}  {'(declares unit_invariant)' if invariant else ''}")
             if invariant and d > UNIT_TOLERANCE:
                 misses.append(f"{label} declares unit_invariant but mm and m differ by {d:.2e}")

@@ -1,6 +1,8 @@
-"""Speed benchmark of every registered ``axyb`` solver/backend against OpenCV SHAH and LI.
+"""Speed benchmark of every registered solver/backend of a problem against OpenCV: ``axyb``
+(default) beside OpenCV SHAH and LI, ``axxb`` beside ``cv2.calibrateHandEye``'s five methods.
 
     python bench/speed.py [--pairs 10,16,100,1000,10000] [--repeats 7] [--solvers kron-lstsq,lmi-sdp/cvxpy]
+    python bench/speed.py --problem axxb       # m = 16, 100, 1000
 
 The same as ``handeye bench`` (the code is `handeye.cli.bench_cmd`, whose docstring says what is
 timed and how); bench/README.md holds figures measured with it.

@@ -1,9 +1,17 @@
 """Reading and writing calibration data files (pose stacks, optional truth, metadata).
 
 One file holds the data stacks of one problem (for ``axyb``: ``A``, ``B``, each (m, 4, 4),
-with A_i X = Y B_i), optionally the true unknowns (for simulated data) and a little metadata
-(``units``, ``setup``, ``description``, ``source``, ``license``). docs/formats.md describes
-each format; docs/conventions.md says what A, B, X, Y are.
+with A_i X = Y B_i; for ``axxb``: the relative motions ``A``, ``B`` with A_i X = X B_i),
+optionally the true unknowns (for simulated data) and a little metadata (``units``, ``setup``,
+``pairing``, ``description``, ``source``, ``license``). docs/formats.md describes each format;
+docs/conventions.md says what A, B, X, Y are.
+
+Instead of its data fields, the file of a problem listed in `FROM_POSES` (``axyb``, ``axxb``) may
+hold the absolute poses a robot cell records, one per station: ``robot_poses`` (T_base_flange)
+and ``camera_poses`` (T_cam_target, the board pose solvePnP gives), with ``setup`` (and for
+``axxb`` ``pairing``) in the file or passed to `load_file`. They are turned into the problem's
+data fields on reading (``axyb``: `absolute_pairs`; ``axxb``: `handeye.problems.axxb.motions`),
+so one file of stations can be solved as AX=YB and as AX=XB; `PoseFile.poses` keeps them as read.
 
 Formats are chosen by file extension through `FORMATS`: each entry is a reader
 ``(path) -> RawFile`` and a writer ``(path, PoseFile) -> None``. A new format (CSV, YAML,
@@ -19,24 +27,59 @@ data are solved.
 from __future__ import annotations
 
 import dataclasses
+import importlib
 import json
 import zipfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from .errors import InputError
+from .errors import HandEyeError, InputError
 from .registry import get_registry
+from .se3 import inverse
 from .validation import pose_stack
 
 #: metadata keys a file may carry (all optional, all strings)
-METADATA_KEYS = ("units", "setup", "description", "source", "license")
+METADATA_KEYS = ("units", "setup", "pairing", "description", "source", "license")
 #: accepted values of the ``units`` metadata (length unit of every translation in the file)
 UNITS = ("m", "cm", "mm")
 #: accepted values of the ``setup`` metadata (see docs/conventions.md)
 SETUPS = ("eye-in-hand", "eye-to-hand")
+#: accepted values of the ``pairing`` metadata: which stations' absolute poses form a motion
+#: (``consecutive``: station i with i + 1; ``all``: every i < j, as OpenCV's calibrateHandEye)
+PAIRINGS = ("consecutive", "all")
+#: pairing used for absolute poses when neither the file nor the caller names one
+DEFAULT_PAIRING = "consecutive"
+#: the absolute poses of the stations, the alternative to a problem's data fields (docs/formats.md):
+#: robot_poses = T_base_flange, camera_poses = T_cam_target (the board pose solvePnP gives)
+POSE_FIELDS = ("robot_poses", "camera_poses")
+
+
+class PoseConversion(NamedTuple):
+    """How a problem's data fields are made from `POSE_FIELDS`: ``function`` ("module:function",
+    imported when needed) is called ``f(robot_poses, camera_poses, setup=..., pairing=...)``;
+    ``pairing``: whether it forms motions between stations (so that a pairing applies);
+    ``cell_truth``: setup -> {unknown of the problem: the unknown of `CELL_UNKNOWNS` it is}, so
+    that a file of stations whose truth is the cell's (X and Y of AX=YB) serves this problem too."""
+
+    function: str
+    pairing: bool
+    cell_truth: Mapping[str, Mapping[str, str]] | None = None
+
+
+#: a file of absolute poses may carry the truth of the whole cell as the unknowns of AX=YB
+#: (eye-in-hand: X = T_flange_cam, Y = T_base_target; eye-to-hand: X = T_flange_target,
+#: Y = T_base_cam), whatever problem reads it
+CELL_UNKNOWNS = ("X", "Y")
+#: problems whose files may hold `POSE_FIELDS` instead of their data fields
+FROM_POSES = {
+    "axyb": PoseConversion("handeye.io:absolute_pairs", pairing=False),
+    # axxb's X is the camera's pose: AX=YB's X eye-in-hand (T_flange_cam), its Y eye-to-hand (T_base_cam)
+    "axxb": PoseConversion("handeye.problems.axxb:motions", pairing=True,
+                           cell_truth={"eye-in-hand": {"X": "X"}, "eye-to-hand": {"X": "Y"}}),
+}
 #: suffix of truth keys in flat formats (NPZ): ``X_true``, ``Y_true``
 TRUTH_SUFFIX = "_true"
 
@@ -45,14 +88,21 @@ TRUTH_SUFFIX = "_true"
 class PoseFile:
     """The content of a data file.
 
-    data: data field -> (m, 4, 4) float64 (e.g. ``{"A": ..., "B": ...}``).
+    data: data field -> (m, 4, 4) float64 (e.g. ``{"A": ..., "B": ...}``); for a file of
+        absolute poses, the data fields made from them (``axyb``: one pair per station; ``axxb``:
+        the m motions).
     truth: unknown -> (4, 4) float64, or None when the file has no truth.
-    metadata: str -> str, a subset of `METADATA_KEYS`.
+    metadata: str -> str, a subset of `METADATA_KEYS`; for a file of absolute poses ``setup``
+        (and for ``axxb`` ``pairing``) are the ones used (the caller's when given, else the
+        file's, else the default pairing).
+    poses: for a file of absolute poses, ``{"robot_poses": (n, 4, 4), "camera_poses": (n, 4, 4)}``
+        as read (n stations); None for a file of data fields.
     """
 
     data: dict[str, np.ndarray]
     truth: dict[str, np.ndarray] | None
     metadata: dict[str, str]
+    poses: dict[str, np.ndarray] | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,35 +119,42 @@ class RawFile:
 # ----------------------------------------------------------------------------- public API
 
 
-def load_data(path: str | Path, problem: str = "axyb") -> tuple[dict[str, np.ndarray], dict[str, np.ndarray] | None]:
+def load_data(path: str | Path, problem: str = "axyb", *, setup: str | None = None,
+              pairing: str | None = None) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray] | None]:
     """Read a data file: ``(data, truth)``; truth is None when the file holds none.
 
     data: e.g. ``{"A": (m, 4, 4), "B": (m, 4, 4)}`` for problem ``"axyb"``;
     truth: e.g. ``{"X": (4, 4), "Y": (4, 4)}``.
+    setup, pairing: for a file of absolute poses (``robot_poses``, ``camera_poses``), override
+    the file's ``setup`` / ``pairing`` (pairing: ``axxb`` only); refused for a file of data fields.
 
     Raises InputError for a missing file, an unsupported extension (lists the supported ones),
     unparsable content, missing or unexpected keys, or poses that are not rigid motions.
     """
-    pose_file = load_file(path, problem)
+    pose_file = load_file(path, problem, setup=setup, pairing=pairing)
     return pose_file.data, pose_file.truth
 
 
-def load_file(path: str | Path, problem: str = "axyb") -> PoseFile:
-    """Like `load_data`, also returning the file's metadata (units, setup, ...)."""
+def load_file(path: str | Path, problem: str = "axyb", *, setup: str | None = None,
+              pairing: str | None = None) -> PoseFile:
+    """Like `load_data`, also returning the file's metadata (units, setup, ...) and, for a file
+    of absolute poses, the poses as read (`PoseFile.poses`)."""
     path = Path(path)
     reader, _ = _format(path)
     if not path.is_file():
         raise InputError(f"data file not found: {str(path)!r}")
-    return _finish(reader(path), path, problem)
+    return _finish(reader(path), path, problem, setup=setup, pairing=pairing)
 
 
 def save_data(path: str | Path, data: Mapping[str, Any], truth: Mapping[str, Any] | None = None, *,
               metadata: Mapping[str, str] | None = None, problem: str = "axyb") -> Path:
     """Write data (and optionally truth and metadata) in the format given by the extension.
 
-    data: data field -> (m, 4, 4); truth: unknown -> (4, 4); metadata: keys of
-    `METADATA_KEYS`. Everything is validated as `load_data` would, so a file written here always
-    reads back (floats are written with full precision: the round trip is exact).
+    data: data field -> (m, 4, 4), or for a problem of `FROM_POSES` the absolute poses
+    ``{"robot_poses": (n, 4, 4), "camera_poses": (n, 4, 4)}`` (then metadata must name the
+    ``setup``; for ``axxb`` ``pairing`` defaults to `DEFAULT_PAIRING`); truth: unknown -> (4, 4); metadata:
+    keys of `METADATA_KEYS`. Everything is validated as `load_data` would, so a file written here
+    always reads back (floats are written with full precision: the round trip is exact).
     Returns the path written.
     """
     path = Path(path)
@@ -106,6 +163,33 @@ def save_data(path: str | Path, data: Mapping[str, Any], truth: Mapping[str, Any
     pose_file = _finish(raw, path, problem, writing=True)
     writer(path, pose_file)
     return path
+
+
+def from_poses(robot_poses: Any, camera_poses: Any, problem: str = "axxb", *, setup: str | None = None,
+               pairing: str | None = None, truth: Mapping[str, Any] | None = None,
+               metadata: Mapping[str, str] | None = None, source: str = "absolute poses") -> PoseFile:
+    """A `PoseFile` of `problem` (one of `FROM_POSES`) made from absolute poses, as reading a file
+    holding them would make it: robot_poses (n, 4, 4) T_base_flange, camera_poses (n, 4, 4)
+    T_cam_target; setup and pairing override the metadata's (setup is required in one of them).
+    `source` names the data in error messages."""
+    if problem not in FROM_POSES:
+        raise InputError(f"problem {problem!r} does not read absolute poses; problems that do: {sorted(FROM_POSES)}")
+    raw = RawFile({"robot_poses": robot_poses, "camera_poses": camera_poses},
+                  None if truth is None else dict(truth), dict(metadata or {}))
+    return _finish(raw, Path(source), problem, setup=setup, pairing=pairing)
+
+
+def absolute_pairs(robot_poses: Any, camera_poses: Any, setup: str = "eye-in-hand",
+                   pairing: str | None = None) -> dict[str, np.ndarray]:
+    """The ``axyb`` pairs {"A", "B"} of the stations' absolute poses (docs/conventions.md):
+    A_i = robot_poses[i] = T_base_flange; B_i = camera_poses[i]^-1 = T_target_cam eye-in-hand,
+    B_i = camera_poses[i] = T_cam_target eye-to-hand. `pairing` does not apply (every station is
+    one pair) and is ignored."""
+    if setup not in SETUPS:
+        raise InputError(f"setup={setup!r} is not one of {', '.join(SETUPS)}")
+    robot = pose_stack(robot_poses, "robot_poses")
+    camera = pose_stack(camera_poses, "camera_poses")
+    return {"A": np.array(robot), "B": inverse(camera) if setup == "eye-in-hand" else np.array(camera)}
 
 
 def supported_extensions() -> list[str]:
@@ -126,31 +210,53 @@ def _format(path: Path) -> tuple[Callable[[Path], RawFile], Callable[[Path, Pose
     return FORMATS[ext]
 
 
-def _finish(raw: RawFile, path: Path, problem: str, writing: bool = False) -> PoseFile:
-    """Check keys against the problem's fields and unknowns, validate poses and metadata."""
+def _finish(raw: RawFile, path: Path, problem: str, writing: bool = False, *,
+            setup: str | None = None, pairing: str | None = None) -> PoseFile:
+    """Check keys against the problem's fields and unknowns, validate poses and metadata, and
+    turn absolute poses into the problem's data fields."""
     spec = get_registry().problem(problem)
     fields, unknowns = tuple(spec.data_fields), tuple(spec.unknowns)
     where = f"{str(path)!r}"
     if raw.unexpected:
         raise InputError(
             f"{where}: unexpected key(s) {sorted(raw.unexpected)}; a {problem!r} file holds "
-            f"{_key_listing(path, fields, unknowns)}"
+            f"{_key_listing(path, problem, fields, unknowns)}"
         )
-    missing = [f for f in fields if f not in raw.data]
-    if missing:
-        raise InputError(
-            f"{where}: missing data key(s) {missing} for problem {problem!r}; found "
-            f"{sorted(raw.data) or 'none'}; expected {_key_listing(path, fields, unknowns)}"
-        )
-    extra = sorted(set(raw.data) - set(fields))
-    if extra:
-        raise InputError(f"{where}: unexpected data key(s) {extra}; problem {problem!r} has data {list(fields)}")
-    data = {f: _poses(raw.data[f], f, where) for f in fields}
+    metadata = _metadata(raw.metadata, where)
+    if any(f in raw.data for f in POSE_FIELDS) and problem in FROM_POSES:
+        data, poses, metadata = _from_poses(raw.data, metadata, where, problem, fields, setup, pairing)
+    else:
+        for name, value in (("setup", setup), ("pairing", pairing)):
+            if value is not None:
+                raise InputError(
+                    f"{where}: {name} applies to a file of absolute poses ({', '.join(POSE_FIELDS)}), "
+                    f"but this file holds the data fields {list(fields)}; drop the {name}"
+                )
+        missing = [f for f in fields if f not in raw.data]
+        if missing:
+            raise InputError(
+                f"{where}: missing data key(s) {missing} for problem {problem!r}; found "
+                f"{sorted(raw.data) or 'none'}; expected {_key_listing(path, problem, fields, unknowns)}"
+            )
+        extra = sorted(set(raw.data) - set(fields))
+        if extra:
+            hint = ""
+            if set(extra) & set(POSE_FIELDS):
+                hint = (f"; absolute poses ({', '.join(POSE_FIELDS)}) are read for problem(s) "
+                        f"{sorted(FROM_POSES)} only")
+            raise InputError(f"{where}: unexpected data key(s) {extra}; problem {problem!r} has data {list(fields)}{hint}")
+        data, poses = {f: _poses(raw.data[f], f, where) for f in fields}, None
 
     truth = None
     if raw.truth is not None:
         if not isinstance(raw.truth, Mapping):
             raise InputError(f"{where}: truth must map unknown names {list(unknowns)} to 4x4 poses")
+        cell = FROM_POSES[problem].cell_truth if poses is not None else None
+        if cell and set(raw.truth) == set(CELL_UNKNOWNS) and set(raw.truth) != set(unknowns):
+            # the cell's truth (AX=YB's X, Y) in a file of stations: this problem's unknowns from it
+            _poses(raw.truth[CELL_UNKNOWNS[0]], "truth X", where, single=True)  # validate both
+            _poses(raw.truth[CELL_UNKNOWNS[1]], "truth Y", where, single=True)
+            raw = dataclasses.replace(raw, truth={u: raw.truth[c] for u, c in cell[metadata["setup"]].items()})
         missing = [u for u in unknowns if u not in raw.truth]
         extra = sorted(set(raw.truth) - set(unknowns))
         if missing or extra:
@@ -159,18 +265,69 @@ def _finish(raw: RawFile, path: Path, problem: str, writing: bool = False) -> Po
                 f"{problem!r}; missing {missing}, unexpected {extra}"
             )
         truth = {u: _poses(raw.truth[u], f"truth {u}", where, single=True) for u in unknowns}
+    return PoseFile(data, truth, metadata, poses)
 
+
+def _metadata(raw: Mapping[str, Any], where: str) -> dict[str, str]:
+    """The metadata, checked: known keys, string values, allowed units / setup / pairing."""
     metadata = {}
-    for key, value in raw.metadata.items():
+    for key, value in raw.items():
         if key not in METADATA_KEYS:
             raise InputError(f"{where}: unknown metadata key {key!r}; known: {list(METADATA_KEYS)}")
         if not isinstance(value, str):
             raise InputError(f"{where}: metadata {key!r} must be a string, got {value!r}")
         metadata[key] = value
-    for key, allowed in (("units", UNITS), ("setup", SETUPS)):
+    for key, allowed in (("units", UNITS), ("setup", SETUPS), ("pairing", PAIRINGS)):
         if key in metadata and metadata[key] not in allowed:
             raise InputError(f"{where}: {key} must be one of {list(allowed)}, got {metadata[key]!r}")
-    return PoseFile(data, truth, metadata)
+    return metadata
+
+
+def _from_poses(values: Mapping[str, Any], metadata: dict[str, str], where: str, problem: str,
+                fields: tuple[str, ...], setup: str | None, pairing: str | None,
+                ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, str]]:
+    """(data fields, absolute poses, metadata with the setup and pairing used) of a file of
+    absolute poses of problem `problem` (one of `FROM_POSES`)."""
+    both = [f for f in fields if f in values]
+    if both:
+        raise InputError(
+            f"{where}: the file holds both data field(s) {both} and absolute poses "
+            f"({', '.join(f for f in POSE_FIELDS if f in values)}); keep one or the other"
+        )
+    missing = [f for f in POSE_FIELDS if f not in values]
+    if missing:
+        raise InputError(
+            f"{where}: absolute poses need both {' and '.join(POSE_FIELDS)}; missing {missing}"
+        )
+    extra = sorted(set(values) - set(POSE_FIELDS))
+    if extra:
+        raise InputError(f"{where}: unexpected data key(s) {extra} beside the absolute poses {list(POSE_FIELDS)}")
+    conversion = FROM_POSES[problem]
+    for name, value, allowed in (("setup", setup, SETUPS), ("pairing", pairing, PAIRINGS)):
+        if value is not None and value not in allowed:
+            raise InputError(f"{name} must be one of {list(allowed)}, got {value!r}")
+    if pairing is not None and not conversion.pairing:
+        raise InputError(f"pairing applies to problems that form motions between stations "
+                         f"({sorted(p for p, c in FROM_POSES.items() if c.pairing)}), not to {problem!r}, "
+                         "where every station is one pair; drop it")
+    setup = setup or metadata.get("setup")
+    if setup is None:
+        raise InputError(
+            f"{where}: absolute poses need the setup ({' or '.join(SETUPS)}), which decides what "
+            "X is (docs/conventions.md); put \"setup\" in the file or pass it (handeye solve --setup)"
+        )
+    if conversion.pairing:
+        pairing = pairing or metadata.get("pairing") or DEFAULT_PAIRING
+        metadata = {**metadata, "pairing": pairing}
+    poses = {f: _poses(values[f], f, where) for f in POSE_FIELDS}
+    module, _, function = conversion.function.partition(":")
+    convert = getattr(importlib.import_module(module), function)
+    try:
+        data = convert(poses["robot_poses"], poses["camera_poses"], setup=setup, pairing=pairing)
+    except HandEyeError as exc:
+        raise type(exc)(f"{where}: {exc}") from None
+    data = {f: np.array(data[f]) for f in fields}
+    return data, poses, {**metadata, "setup": setup}
 
 
 def _poses(value: Any, name: str, where: str, single: bool = False) -> np.ndarray:
@@ -194,11 +351,15 @@ def _as_float(value: Any, name: str, where: str) -> np.ndarray:
         raise InputError(f"{where}: {name} must be a 4x4 array of numbers ({exc})") from None
 
 
-def _key_listing(path: Path, fields: tuple[str, ...], unknowns: tuple[str, ...]) -> str:
+def _key_listing(path: Path, problem: str, fields: tuple[str, ...], unknowns: tuple[str, ...]) -> str:
+    alternative = ""
+    if problem in FROM_POSES:
+        alternative = (f" (or the absolute poses {', '.join(POSE_FIELDS)} with setup"
+                       + (" and pairing)" if FROM_POSES[problem].pairing else ")"))
     if path.suffix.lower() == ".npz":
         truth = ", ".join(u + TRUTH_SUFFIX for u in unknowns)
-        return f"arrays {', '.join(fields)}; optionally {truth} and {', '.join(METADATA_KEYS)}"
-    return (f"keys {', '.join(repr(f) for f in fields)}; optionally 'truth' "
+        return f"arrays {', '.join(fields)}{alternative}; optionally {truth} and {', '.join(METADATA_KEYS)}"
+    return (f"keys {', '.join(repr(f) for f in fields)}{alternative}; optionally 'truth' "
             f"({{{', '.join(repr(u) for u in unknowns)}}}) and {', '.join(repr(k) for k in METADATA_KEYS)}")
 
 
@@ -206,8 +367,8 @@ def _key_listing(path: Path, fields: tuple[str, ...], unknowns: tuple[str, ...])
 
 
 def _read_npz(path: Path) -> RawFile:
-    """NPZ: one array per data field (``A``, ``B``), ``<unknown>_true`` (``X_true``), and
-    0-d string arrays for metadata. Object arrays are refused (no pickle)."""
+    """NPZ: one array per data field (``A``, ``B``) or absolute pose stack (``robot_poses``,
+    ``camera_poses``), ``<unknown>_true`` (``X_true``), and 0-d string arrays for metadata. Object arrays are refused (no pickle)."""
     try:
         with np.load(path, allow_pickle=False) as npz:
             arrays = {key: npz[key] for key in npz.files}
@@ -227,7 +388,7 @@ def _read_npz(path: Path) -> RawFile:
 
 
 def _write_npz(path: Path, pose_file: PoseFile) -> None:
-    arrays: dict[str, np.ndarray] = dict(pose_file.data)
+    arrays: dict[str, np.ndarray] = dict(pose_file.poses if pose_file.poses is not None else pose_file.data)
     for name, T in (pose_file.truth or {}).items():
         arrays[name + TRUTH_SUFFIX] = T
     for key, value in pose_file.metadata.items():
@@ -266,7 +427,8 @@ def _write_json(path: Path, pose_file: PoseFile) -> None:
         return json.dumps(np.asarray(T, dtype=float).tolist())
 
     parts = [f"  {json.dumps(k)}: {json.dumps(v)}" for k, v in pose_file.metadata.items()]
-    for name, stack in pose_file.data.items():
+    stacks = pose_file.poses if pose_file.poses is not None else pose_file.data
+    for name, stack in stacks.items():
         rows = ",\n".join("    " + pose(T) for T in stack)
         parts.append(f"  {json.dumps(name)}: [\n{rows}\n  ]")
     if pose_file.truth is not None:

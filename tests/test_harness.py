@@ -421,3 +421,109 @@ def test_dask_executor_without_dask_says_how_to_install(monkeypatch):
     monkeypatch.setattr(builtins, "__import__", no_distributed)
     with pytest.raises(InputError, match=r"handeye\[dask\]"):
         run_study(tiny_study(), progress=False, executor="dask", scheduler="tcp://127.0.0.1:1")
+
+
+# --- problem axxb ------------------------------------------------------------------------------
+
+def axxb_solver() -> str:
+    """kron-lstsq for axxb (closed form, fast), else any registered axxb solver."""
+    names = list_solvers("axxb")
+    assert names, "no solver is registered for problem axxb"
+    return "kron-lstsq" if "kron-lstsq" in names else names[0]
+
+
+def tiny_axxb_study(**changes: Any) -> Study:
+    """1 solver x 2 noise levels x 2 motion counts x 2 trials = 8 records, noise on robot and camera."""
+    study = Study(name="tiny-axxb", problem="axxb", specs=(Spec(axxb_solver()),),
+                  noise=NoiseModel({"A": (0.0005, 0.05), "B": (0.005, 0.5)}),
+                  sweeps=(Sweep("noise", levels=(0.0, 1.0), pairs=(4, 8)),), trials=2, seed=3, warmup=False)
+    return dataclasses.replace(study, **changes)
+
+
+def test_axxb_study_rows_per_solver_and_trial_and_deterministic(tmp_path):
+    result = run_study(tiny_axxb_study(), jobs=1, progress=False)
+    rows = result.records
+    assert len(rows) == 8 and {r["label"] for r in rows} == {axxb_solver()}
+    assert sorted((r["level"], r["pairs"], r["trial"]) for r in rows) == [
+        (lv, m, t) for lv in (0.0, 1.0) for m in (4, 8) for t in (0, 1)]
+    assert all(r["status"] == "optimal" for r in rows)
+    assert "err_rot_X" in rows[0] and "err_rot_Y" not in rows[0]  # the unknowns of axxb
+    assert max(r["err_rot_X"] for r in rows if r["level"] == 0.0) < 1e-8
+    assert min(r["err_rot_X"] for r in rows if r["level"] == 1.0) > 1e-6
+    again = run_study(tiny_axxb_study(), jobs=1, progress=False)
+    assert [(r["seed"], r["err_rot_X"], r["err_trans_X"]) for r in again.records] == [
+        (r["seed"], r["err_rot_X"], r["err_trans_X"]) for r in rows]
+    csv_rows = read_csv(result.to_csv(tmp_path / "axxb.csv"))
+    assert len(csv_rows) == 8 and [float(r["err_rot_X"]) for r in csv_rows] == [r["err_rot_X"] for r in rows]
+    table = error_table(result)
+    assert f"| noise | 1 | 8 | {axxb_solver()} |" in table and "err_rot_Y" not in table
+
+
+def test_axxb_pairing_reaches_the_simulator():
+    from handeye.harness.runner import simulate
+
+    study = tiny_axxb_study(simulation={"pairing": "all"})
+    cell = next(c for c in study.cells() if c.pairs == 8 and c.level == 1.0)
+    data, truth, _ = simulate(study, cell, 0)
+    assert data["A"].shape == (8, 4, 4) and set(truth) == {"X"}
+    consecutive, _, _ = simulate(tiny_axxb_study(), cell, 0)
+    assert not np.allclose(data["A"][1], consecutive["A"][1])  # motion 1: stations (0, 2), not (1, 2)
+    assert load_study_text('problem = "axxb"\nsimulation = { pairing = "all" }\n').simulation == {"pairing": "all"}
+
+
+def load_study_text(text: str) -> Study:
+    import tomllib
+
+    from handeye.harness import study_from_dict
+
+    return study_from_dict(tomllib.loads(text))
+
+
+def test_axxb_default_specs_have_opencvs_five_methods():
+    from handeye.registry import get_registry
+
+    specs = default_specs("axxb")
+    assert {s.solver for s in specs} <= set(list_solvers("axxb"))
+    opencv = [s for s in specs if s.solver == "opencv"]
+    spec = get_registry().solvers.get("opencv", {}).get("axxb")
+    if spec is None or spec.unavailable_reason(spec.default_backend):
+        assert opencv == []
+        return
+    assert [(s.label, s.options) for s in opencv] == [
+        (f"opencv ({m})", {"method": m}) for m in ("tsai", "park", "horaud", "andreff", "daniilidis")]
+    assert all(s.solver != "opencv" for s in default_specs("axyb") if "(" in s.label)  # axyb: one opencv
+
+
+def test_axxb_accuracy_study_runs_every_solver_against_the_oracle():
+    from handeye.harness import accuracy_study
+
+    study = accuracy_study(problem="axxb")
+    assert study.problem == "axxb" and [c.pairs for c in study.cells()][:3] == [8, 16, 50]
+    assert study.noise.sigmas == {"A": (0.0002, 0.05), "B": (0.002, 0.5)}
+    if "refine" not in list_solvers("axxb"):
+        pytest.skip("refine does not solve axxb here: no oracle")
+    assert study.specs[-1].label == "oracle" and study.specs[-1].init_from_truth
+    tiny = study.replace(specs=(Spec(axxb_solver()), study.specs[-1]), trials=2,
+                         sweeps=(Sweep("accuracy", (1.0,), (8,)),))
+    result = run_study(tiny, jobs=1, progress=False)
+    assert [r["status"] for r in result.records] == ["optimal"] * 4, [r["error"] for r in result.records]
+    oracle = result.select(label="oracle")
+    assert all(0 < r["err_rot_X"] < 0.01 for r in oracle)
+    assert "(1." in error_table(result, reference="oracle") or "(0." in error_table(result, reference="oracle")
+
+
+def test_compare_axxb_default_sweeps_and_flags(tmp_path, capsys):
+    from handeye.cli import main
+
+    code = main(["compare", "--problem", "axxb", "--solvers", axxb_solver(), "--trials", "1", "--jobs", "1",
+                 "--no-progress", "--pairing", "all", "-o", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "8 runs (0 failed)" in out  # noise sweep: 4 levels at m = 16; pairs sweep: m = 8, 16, 32, 64
+    doc = json.loads((tmp_path / "study_summary.json").read_text())
+    assert doc["study"]["problem"] == "axxb" and doc["study"]["simulation"] == {"pairing": "all"}
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == ["study_noise_vs_noise_m16.png",
+                                                              "study_pairs_vs_pairs_level0.05.png"]
+    assert main(["compare", "--paper", str(tmp_path / "p"), "--problem", "axxb"]) == 2
+    assert main(["compare", "--pairing", "all", "-o", str(tmp_path / "q")]) == 2  # axyb has no pairing
+    assert "the paper's study of problem 'axyb'" in capsys.readouterr().err

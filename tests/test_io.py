@@ -6,7 +6,6 @@ import json
 
 import numpy as np
 import pytest
-
 from handeye.errors import InputError
 from handeye.io import load_data, load_file, save_data, supported_extensions
 from handeye.noise import NoiseModel
@@ -140,3 +139,118 @@ def test_save_validates_before_writing(tmp_path, simulated):
     with pytest.raises(InputError, match="NaN"):
         save_data(tmp_path / "d.json", bad)
     assert not (tmp_path / "d.json").exists()
+
+
+# --- problem axxb: relative motions or the stations' absolute poses ------------------------------
+
+@pytest.fixture(scope="module")
+def stations():
+    """8 noise-free eye-in-hand stations: robot poses T_base_flange, camera poses T_cam_target, X."""
+    from handeye.problems.axxb import simulate_stations
+    from handeye.se3 import inverse
+
+    poses, truth = simulate_stations(8, seed=5)
+    return {"robot_poses": poses["A"], "camera_poses": inverse(poses["B"])}, {"X": truth["X"]}
+
+
+@pytest.mark.parametrize("ext", [".npz", ".json"])
+def test_axxb_absolute_poses_round_trip_and_become_motions(tmp_path, stations, ext):
+    from handeye.problems.axxb import motions
+
+    poses, truth = stations
+    path = save_data(tmp_path / f"s{ext}", poses, truth, problem="axxb",
+                     metadata={"setup": "eye-in-hand", "units": "mm"})
+    loaded = load_file(path, "axxb")
+    assert loaded.metadata == {"setup": "eye-in-hand", "units": "mm", "pairing": "consecutive"}
+    for name in ("robot_poses", "camera_poses"):
+        np.testing.assert_array_equal(loaded.poses[name], poses[name])
+    expected = motions(poses["robot_poses"], poses["camera_poses"], "eye-in-hand", "consecutive")
+    for name in ("A", "B"):
+        np.testing.assert_array_equal(loaded.data[name], expected[name])
+    X = loaded.truth["X"]
+    assert set(loaded.truth) == {"X"}
+    assert np.abs(loaded.data["A"] @ X - X @ loaded.data["B"]).max() < 1e-9  # A_i X = X B_i
+    data, _ = load_data(path, "axxb", pairing="all")  # the caller's pairing wins
+    assert data["A"].shape == (28, 4, 4)
+    raw = json.loads(path.read_text()) if ext == ".json" else dict(np.load(path))
+    assert set(raw) >= {"robot_poses", "camera_poses", "setup", "pairing"} and "A" not in raw
+
+
+def test_axxb_setup_from_the_caller_and_from_poses(stations):
+    from handeye.io import from_poses
+
+    poses, _ = stations
+    hand = from_poses(poses["robot_poses"], poses["camera_poses"], setup="eye-in-hand", pairing="all")
+    fixed = from_poses(poses["robot_poses"], poses["camera_poses"], setup="eye-to-hand")
+    assert hand.metadata == {"setup": "eye-in-hand", "pairing": "all"} and len(hand.data["A"]) == 28
+    assert fixed.metadata["pairing"] == "consecutive" and len(fixed.data["A"]) == 7
+    assert not np.allclose(hand.data["A"][0], fixed.data["A"][0])  # eye-to-hand inverts the robot poses
+    pairs = from_poses(poses["robot_poses"], poses["camera_poses"], "axyb", setup="eye-in-hand")
+    assert len(pairs.data["A"]) == 8 and pairs.metadata == {"setup": "eye-in-hand"}
+
+
+def test_axxb_motion_file_round_trip(tmp_path):
+    from handeye.problems.axxb import PROBLEM as AXXB
+
+    data, truth = AXXB.simulate(pairs=5, seed=2)
+    path = save_data(tmp_path / "m.json", data, truth, problem="axxb", metadata={"pairing": "all"})
+    loaded = load_file(path, "axxb")
+    assert loaded.poses is None and loaded.metadata == {"pairing": "all"}
+    np.testing.assert_array_equal(loaded.data["B"], data["B"])
+    np.testing.assert_array_equal(loaded.truth["X"], truth["X"])
+
+
+def test_axxb_bad_files_say_what_is_wrong(tmp_path, stations):
+    poses, _ = stations
+    robot, camera = poses["robot_poses"].tolist(), poses["camera_poses"].tolist()
+    base = {"robot_poses": robot, "camera_poses": camera, "setup": "eye-in-hand"}
+    cases = [
+        ({"robot_poses": robot, "setup": "eye-in-hand"}, r"need both robot_poses and camera_poses; missing \['camera_poses'\]"),
+        ({**base, "A": robot[1:], "B": camera[1:]}, r"both data field\(s\) \['A', 'B'\] and absolute poses"),
+        ({**base, "setup": "hand-on-eye"}, r"setup must be one of \['eye-in-hand', 'eye-to-hand'\]"),
+        ({**base, "pairing": "every"}, r"pairing must be one of \['consecutive', 'all'\]"),
+        ({**base, "camera_poses": camera[:-1]}, r"same length.*'robot_poses': 8, 'camera_poses': 7"),
+        ({k: v for k, v in base.items() if k != "setup"}, r"need the setup \(eye-in-hand or eye-to-hand\)"),
+        ({"A": robot, "B": camera, "truth": {"X": np.eye(4).tolist(), "Y": np.eye(4).tolist()}},
+         r"truth must hold exactly the unknowns \['X'\]"),
+        ({"A": robot}, r"missing data key\(s\) \['B'\].*or the absolute poses robot_poses, camera_poses"),
+    ]
+    for obj, message in cases:
+        (tmp_path / "d.json").write_text(json.dumps(obj))
+        with pytest.raises(InputError, match=message):
+            load_data(tmp_path / "d.json", "axxb")
+    (tmp_path / "d.json").write_text(json.dumps({**base, "setup": "eye-to-hand"}))
+    with pytest.raises(InputError, match="setup must be one of"):
+        load_data(tmp_path / "d.json", "axxb", setup="upside-down")
+    (tmp_path / "m.json").write_text(json.dumps({"A": robot, "B": camera}))
+    with pytest.raises(InputError, match="pairing applies to a file of absolute poses"):
+        load_data(tmp_path / "m.json", "axxb", pairing="all")
+    (tmp_path / "y.json").write_text(json.dumps({"A": robot, "B": camera, "robot_poses": robot}))
+    with pytest.raises(InputError, match=r"both data field\(s\) \['A', 'B'\] and absolute poses"):
+        load_data(tmp_path / "y.json", "axyb")
+    (tmp_path / "s.json").write_text(json.dumps(base))
+    with pytest.raises(InputError, match="pairing applies to problems that form motions"):
+        load_data(tmp_path / "s.json", "axyb", pairing="all")
+    with pytest.raises(InputError, match="need the setup"):
+        save_data(tmp_path / "s.npz", poses, problem="axxb")
+
+
+@pytest.mark.parametrize("setup", ["eye-in-hand", "eye-to-hand"])
+def test_one_file_of_stations_serves_axyb_and_axxb_with_the_cells_truth(tmp_path, stations, setup):
+    """A file of absolute poses reads as AX=YB pairs (A = robot poses, B = camera poses^-1
+    eye-in-hand, as they are eye-to-hand) and as AX=XB motions; its truth, the cell's X and Y of
+    AX=YB, gives axxb's X = X eye-in-hand and Y eye-to-hand (docs/conventions.md)."""
+    from handeye.se3 import inverse
+
+    poses, _ = stations
+    X, Y = np.eye(4), np.eye(4)
+    X[:3, 3], Y[:3, 3] = (1.0, 2.0, 3.0), (4.0, 5.0, 6.0)
+    path = save_data(tmp_path / "s.json", poses, {"X": X, "Y": Y}, metadata={"setup": setup})
+    pairs = load_file(path, "axyb")
+    np.testing.assert_array_equal(pairs.data["A"], poses["robot_poses"])
+    expected_B = inverse(poses["camera_poses"]) if setup == "eye-in-hand" else poses["camera_poses"]
+    np.testing.assert_allclose(pairs.data["B"], expected_B)
+    assert set(pairs.truth) == {"X", "Y"} and "pairing" not in pairs.metadata
+    motions = load_file(path, "axxb")
+    assert len(motions.data["A"]) == 7 and motions.metadata["pairing"] == "consecutive"
+    np.testing.assert_array_equal(motions.truth["X"], X if setup == "eye-in-hand" else Y)

@@ -31,7 +31,8 @@ EXIT_OK, EXIT_SOLVER_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="handeye",
-        description="Robot hand-eye / robot-world calibration, A_i X = Y B_i (docs/conventions.md).",
+        description="Robot hand-eye / robot-world calibration: A_i X = Y B_i (problem axyb) and A_i X = X B_i "
+                    "(problem axxb); docs/conventions.md.",
         epilog="exit codes: 0 success; 2 bad input (file, data, unknown name or option); 1 solver "
                "failure (including a solve whose status is not_converged or failed: the result is "
                "printed, do not use it) or internal error. Errors are one line on stderr.",
@@ -60,7 +61,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _fail(exc, EXIT_BAD_INPUT)
     except KeyboardInterrupt:
         return _fail("interrupted", 130)
-    except Exception as exc:  # a bug (ours or a plugin's): one line, no traceback, still exit 1
+    except Exception as exc:  # noqa: BLE001 - a bug (ours or a plugin's): one line, no traceback, exit 1
         message = " ".join(str(exc).split())
         print(f"handeye: internal error: {type(exc).__name__}: {message} (please report)", file=sys.stderr)
         return EXIT_SOLVER_FAILED

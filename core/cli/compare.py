@@ -2,11 +2,17 @@
 a tidy CSV, a JSON summary, PNG figures and markdown tables of times and errors.
 
 The study comes from flags (``--solvers``, ``--noise-levels``, ``--pairs``, ...), from a study
-file (``--study FILE.toml``, docs/harness.md), or is one of the built-in studies: ``--paper
-OUTDIR`` (the paper's Sec. IV-A: Fig. 3, Fig. 4, Table I; docs/reproducing-the-paper.md) or
-``--accuracy OUTDIR`` (issue 4: realistic noise on A and B, m = 8, 16, 50, every solver against a
-refinement started at the truth when ``refine`` is installed). ``--trials``, ``--seed``,
-``--solvers``, ``--units`` and ``--truth`` override what the study says.
+file (``--study FILE.toml``, docs/harness.md), or is one of the built-in studies: without grid
+flags, ``-o OUTDIR`` runs a noise sweep (m = 16) and a pair-count sweep (level 0.05) of every
+registered solver of ``--problem``; ``--paper OUTDIR`` is the paper's Sec. IV-A (Fig. 3, Fig. 4,
+Table I; docs/reproducing-the-paper.md); ``--accuracy OUTDIR`` the accuracy study (realistic
+noise on A and B, m = 8, 16, 50, every solver against a refinement started at the truth when
+``refine`` is installed). ``--trials``, ``--seed``, ``--solvers``, ``--units`` and ``--truth``
+override what the study says.
+
+``--problem axxb`` (A_i X = X B_i) compares the AX=XB solvers the same way: the simulator puts
+the noise on the robot poses (A) and the camera poses (B) of the stations, then forms the
+motions (``--pairing consecutive`` or ``all``); OpenCV's five methods are five contenders.
 """
 
 from __future__ import annotations
@@ -31,10 +37,13 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     which = parser.add_mutually_exclusive_group()
     which.add_argument("--paper", metavar="OUTDIR", help="run the paper's study (Fig. 3, Fig. 4, Table I) into OUTDIR")
-    which.add_argument("--accuracy", metavar="OUTDIR", help="run issue 4's accuracy study into OUTDIR")
+    which.add_argument("--accuracy", metavar="OUTDIR",
+                       help="run the accuracy study (every solver against the oracle) into OUTDIR")
     which.add_argument("--study", metavar="FILE", help="study file (TOML, docs/harness.md)")
     parser.add_argument("-o", "--output", metavar="OUTDIR", help="output directory (not with --paper/--accuracy)")
-    parser.add_argument("--problem", default="axyb", help="problem (default axyb)")
+    parser.add_argument("--problem", default="axyb", help="problem: axyb (default) or axxb")
+    parser.add_argument("--pairing", choices=("consecutive", "all"),
+                        help="axxb: motions between consecutive stations (default) or all pairs i < j")
     parser.add_argument("--solvers", metavar="LIST",
                         help="comma-separated: name, name/backend, name/* (every backend) or all "
                              "(default: every registered solver, every lmi-sdp backend; with --paper: "
@@ -48,7 +57,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--noise-on", default=None, metavar="B|A|both",
                         help="data stack(s) the base noise goes on (default both for the paper's reading, "
                              "B with --noise-rot/--noise-trans)")
-    parser.add_argument("--pairs", metavar="LIST", help="pair counts, '10,20' or start:stop:step (default 16)")
+    parser.add_argument("--pairs", metavar="LIST",
+                        help="pair counts, '10,20' or start:stop:step (default: a noise sweep at 16 and a "
+                             "pair-count sweep 8, 16, 32, 64; with other grid flags 16)")
     parser.add_argument("--paper-pairs", type=int, default=None, metavar="M",
                         help="m of the paper's noise sweep (Fig. 3; default 16)")
     parser.add_argument("--trials", type=int, help="trials per cell (default 5; --accuracy 20)")
@@ -82,6 +93,7 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
         parse_floats,
         parse_ints,
         parse_specs,
+        sweep_study,
     )
 
     grid_flags = [f for f in ("noise_levels", "pairs", "noise_rot", "noise_trans", "noise_on") if getattr(args, f) is not None]
@@ -96,6 +108,9 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
     if not (args.paper or args.accuracy) and not args.output:
         raise InputError("give an output directory with -o OUTDIR (or use --paper/--accuracy OUTDIR)")
     specs = parse_specs(args.solvers, args.problem) if args.solvers else ()
+    if args.paper and args.problem != "axyb":
+        raise InputError(f"--paper is the paper's study of problem 'axyb', not {args.problem!r}; use "
+                         "--accuracy or -o OUTDIR for it")
 
     if args.paper:
         study = paper_study(specs=specs, **({"pairs": args.paper_pairs} if args.paper_pairs else {}))
@@ -105,10 +120,13 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
             print(f"note: the paper's method(s) {', '.join(missing)} are not registered here; "
                   "the study runs without them", file=sys.stderr)
     elif args.accuracy:
-        study = accuracy_study(specs=specs)
+        study = accuracy_study(problem=args.problem, specs=specs)
         outdir = args.accuracy
     elif args.study:
         study = load_study(args.study)
+        outdir = args.output
+    elif not grid_flags:
+        study = sweep_study(args.problem, name=args.name or "study")
         outdir = args.output
     else:
         if args.noise_rot is None and args.noise_trans is None:
@@ -129,8 +147,13 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
             changes[name] = getattr(args, name)
     if args.timeout is not None:
         changes["timeout"] = args.timeout if args.timeout > 0 else None
-    if args.problem != "axyb" and builtin:
+    if args.problem != "axyb" and args.study:
         changes["problem"] = args.problem
+    if args.pairing is not None:
+        problem = changes.get("problem", study.problem)
+        if problem != "axxb":
+            raise InputError(f"--pairing applies to problem 'axxb' (its motions), not {problem!r}")
+        changes["simulation"] = {**study.simulation, "pairing": args.pairing}
     return (study.replace(**changes) if changes else study), Path(outdir)
 
 

@@ -3,6 +3,16 @@
 For ``axyb`` this is the paper's simulation (Sec. IV-A): A_i from the forward kinematics of an
 LR Mate 200iD-like arm at random joints (mm), the paper's X and Y, B_i = Y^-1 A_i X, then
 Gaussian noise (`handeye.noise.NoiseModel`) on B, A or both.
+
+For ``axxb`` the same arm and cell (eye-in-hand) record absolute poses at stations, noise goes on
+the robot poses (``--noise-on A``), the camera poses (``B``, the default) or both, and the file
+holds the relative motions A, B made from them (``--pairs M`` motions, ``--pairing``
+consecutive or all). The truth is X = T_flange_cam.
+
+With ``--stations N`` (``axyb`` and ``axxb``) the file holds the N stations' absolute poses
+themselves, as a cell records them (robot_poses = T_base_flange, camera_poses = T_cam_target,
+setup eye-in-hand; docs/formats.md), so the same file can be solved as AX=YB
+(``--problem axyb``) and as AX=XB (``--problem axxb``).
 """
 
 from __future__ import annotations
@@ -11,23 +21,33 @@ import argparse
 from typing import Any
 
 from ..errors import InputError
-from ..io import save_data, supported_extensions
+from ..io import DEFAULT_PAIRING, FROM_POSES, PAIRINGS, save_data, supported_extensions
 from ..noise import NoiseModel
 from ..registry import get_registry
+from ..se3 import inverse
 
 NAME = "simulate"
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
-    parser = subparsers.add_parser(NAME, help="write simulated data with truth", description=__doc__)
-    parser.add_argument("--problem", default="axyb", help="problem to simulate (default axyb)")
-    parser.add_argument("--pairs", type=int, default=16, help="number of pose pairs (default 16)")
+    parser = subparsers.add_parser(NAME, help="write simulated data with truth", description=__doc__,
+                                   formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--problem", default="axyb", help="problem to simulate: axyb (default) or axxb")
+    parser.add_argument("--pairs", type=int, default=None,
+                        help="number of pose pairs (axxb: of motions) (default 16)")
+    parser.add_argument("--stations", type=int, default=None, metavar="N",
+                        help="write the absolute poses of N stations (robot_poses, camera_poses) instead of "
+                             "pairs (axyb) or motions (axxb)")
+    parser.add_argument("--pairing", choices=PAIRINGS, default=None,
+                        help=f"axxb: motions between consecutive stations or all pairs i < j (default {DEFAULT_PAIRING}); "
+                             "with --stations it is recorded in the file")
     parser.add_argument("--noise-rot", type=float, default=0.0, metavar="RAD",
                         help="rotation noise std, rad (default 0)")
     parser.add_argument("--noise-trans", type=float, default=0.0, metavar="MM",
                         help="translation noise std, mm (default 0)")
     parser.add_argument("--noise-on", default="B", metavar="B|A|both",
-                        help="data stack(s) the noise is added to: a data field, or 'both' (default B)")
+                        help="data stack(s) the noise is added to: a data field, or 'both' (default B; "
+                             "axxb: A = the robot poses, B = the camera poses)")
     parser.add_argument("--seed", type=int, default=None, help="random seed (default: fresh)")
     parser.add_argument("-o", "--output", required=True,
                         help=f"output file ({', '.join(supported_extensions())})")
@@ -50,13 +70,37 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if not value >= 0 or value == float("inf"):
             raise InputError(f"--{name.replace('_', '-')} must be a finite number >= 0, got {value}")
+    if args.problem not in FROM_POSES and args.stations is not None:
+        raise InputError(f"--stations applies to problems {sorted(FROM_POSES)}, not {args.problem!r}")
+    motions = args.problem in FROM_POSES and FROM_POSES[args.problem].pairing
+    if args.pairing is not None and not motions:
+        raise InputError(f"--pairing applies to problems whose data are motions "
+                         f"({sorted(p for p, c in FROM_POSES.items() if c.pairing)}), not {args.problem!r}")
+    if args.stations is not None and args.pairs is not None:
+        raise InputError("give --pairs (motions) or --stations (absolute poses), not both")
     noise = NoiseModel.on(stacks, args.noise_rot, args.noise_trans)
-    data, truth = problem.simulate(pairs=args.pairs, seed=args.seed, noise=noise)
-    description = (f"handeye simulate --problem {args.problem} --pairs {args.pairs} --noise-rot "
-                   f"{args.noise_rot} --noise-trans {args.noise_trans} --noise-on {args.noise_on} "
-                   f"--seed {args.seed}")
-    path = save_data(args.output, data, truth, problem=args.problem,
-                     metadata={"units": "mm", "setup": "eye-in-hand", "description": description,
-                               "source": "simulated by handeye"})
-    print(f"wrote {args.pairs} {args.problem} pairs with truth to {path}")
+    metadata = {"units": "mm", "setup": "eye-in-hand", "source": "simulated by handeye"}
+    options = {"pairing": args.pairing} if args.pairing is not None else {}
+    if args.stations is not None:
+        # the axyb simulator's stations: noise "A" on the robot poses, "B" on the camera poses
+        from ..problems.axxb import simulate_stations
+
+        stations, truth = simulate_stations(args.stations, seed=args.seed, noise=noise)
+        data = {"robot_poses": stations["A"], "camera_poses": inverse(stations["B"])}
+        count, what, size = args.stations, "stations", f"--stations {args.stations}"
+    else:
+        pairs = 16 if args.pairs is None else args.pairs
+        data, truth = problem.simulate(pairs=pairs, seed=args.seed, noise=noise, **options)
+        count, what, size = pairs, ("motions" if motions else "pairs"), f"--pairs {pairs}"
+    if motions:
+        metadata["pairing"] = args.pairing or DEFAULT_PAIRING
+    metadata["description"] = (
+        f"handeye simulate --problem {args.problem} {size}"
+        + (f" --pairing {metadata['pairing']}" if "pairing" in metadata else "")
+        + f" --noise-rot {args.noise_rot} --noise-trans {args.noise_trans} --noise-on {args.noise_on} --seed {args.seed}")
+    # a file of stations carries the cell's truth (X, Y of AX=YB) and serves every problem reading
+    # absolute poses (docs/formats.md); it is validated as the axyb data it also is
+    path = save_data(args.output, data, truth, problem="axyb" if args.stations is not None else args.problem,
+                     metadata=metadata)
+    print(f"wrote {count} {args.problem} {what} with truth to {path}")
     return 0

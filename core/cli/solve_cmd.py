@@ -1,9 +1,17 @@
 """``handeye solve``: calibrate from a data file (or a bundled example) and report the answer.
 
-Prints X and Y, the per-pair residual summary of A_i X = Y B_i (rotation angle of
-(A_i X)(Y B_i)^-1, eq. 32, and translation distance, eq. 33), status, solver time, warnings
-and, when the data come with a truth, the errors against it (eqs. 30-31). ``--json`` prints
-the same as one JSON object.
+Prints the unknowns with the frames they are in your cell (from the setup: eye-in-hand or
+eye-to-hand, docs/conventions.md), the residuals of the problem's equation over the pairs
+(``axyb``, A_i X = Y B_i: rotation angle of (A_i X)(Y B_i)^-1, eq. 32, and translation distance,
+eq. 33; ``axxb``, A_i X = X B_i: the same with X B_i, per motion), their summary and the largest
+of them, status, solver time, warnings and, when the data come with a truth, the errors against
+it (eqs. 30-31). ``--json`` prints the same as one JSON object, with every residual.
+
+Besides A, B (pairs for ``axyb``, relative motions for ``axxb``), a file may hold the absolute
+poses the cell recorded (robot_poses = T_base_flange, camera_poses = T_cam_target as solvePnP
+gives them), which are turned into the problem's data with the file's (or ``--setup``'s) setup,
+and for ``axxb`` its (or ``--pairing``'s) pairing (docs/formats.md): the same file of stations
+solves as AX=YB and as AX=XB. ``--problem axxb --example`` solves the bundled example's stations.
 
 Exit code 0 for status optimal, optimal_inaccurate and uncertified (a valid answer that the
 solver could not certify globally optimal; the output says so). Exit code 1 for not_converged
@@ -23,8 +31,18 @@ import numpy as np
 from ..api import solve
 from ..errors import InputError
 from ..examples import DEFAULT_EXAMPLE, list_examples, load_example
-from ..io import load_file, supported_extensions
+from ..io import (
+    DEFAULT_PAIRING,
+    FROM_POSES,
+    PAIRINGS,
+    SETUPS,
+    PoseFile,
+    from_poses,
+    load_file,
+    supported_extensions,
+)
 from ..registry import get_registry
+from ..se3 import inverse
 from ..solution import Status
 from ._common import dump_json, format_pose, parse_key_values
 
@@ -33,6 +51,20 @@ NAME = "solve"
 DEFAULT_SOLVERS = ("auto", "kron-lstsq")
 #: statuses whose unknowns must not be used: printed, but the exit code is 1 (solver failure)
 UNUSABLE = (Status.NOT_CONVERGED, Status.FAILED)
+#: (problem, setup) -> unknown -> (frame name, what it is), as docs/conventions.md states them
+FRAMES: dict[tuple[str, str], dict[str, tuple[str, str]]] = {
+    ("axyb", "eye-in-hand"): {"X": ("T_flange_cam", "camera in the flange frame"),
+                              "Y": ("T_base_target", "target in the robot base frame")},
+    ("axyb", "eye-to-hand"): {"X": ("T_flange_target", "target in the flange frame"),
+                              "Y": ("T_base_cam", "camera in the robot base frame")},
+    ("axxb", "eye-in-hand"): {"X": ("T_flange_cam", "camera in the flange frame")},
+    ("axxb", "eye-to-hand"): {"X": ("T_base_cam", "camera in the robot base frame")},
+}
+#: problem -> its equation and what one data pair is, for the residual lines
+EQUATIONS = {"axyb": ("A_i X = Y B_i", "pair", "eqs. 32-33"), "axxb": ("A_i X = X B_i", "motion", "")}
+#: the residuals are listed one by one up to this many pairs; beyond, the LISTED_LARGEST largest
+LIST_ALL_UP_TO = 20
+LISTED_LARGEST = 10
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -41,7 +73,14 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--example", nargs="?", const=DEFAULT_EXAMPLE, metavar="NAME",
                         help=f"solve a bundled example instead of a file: {', '.join(list_examples())} "
                              f"(default {DEFAULT_EXAMPLE})")
-    parser.add_argument("--problem", default="axyb", help="problem (default axyb)")
+    parser.add_argument("--problem", default="axyb", help="problem: axyb (A_i X = Y B_i, default) or axxb "
+                                                          "(A_i X = X B_i, relative motions); see handeye list")
+    parser.add_argument("--setup", choices=SETUPS,
+                        help="file of absolute poses: eye-in-hand (camera on the flange) or eye-to-hand (camera "
+                             "fixed); decides what X (and Y) are, docs/conventions.md; overrides the file's setup")
+    parser.add_argument("--pairing", choices=PAIRINGS,
+                        help=f"axxb, file of absolute poses: motions between consecutive stations or between "
+                             f"all pairs i < j (as OpenCV); overrides the file's (default {DEFAULT_PAIRING})")
     parser.add_argument("--solver", help="solver (default: 'auto' if installed, else 'kron-lstsq'); see handeye list")
     parser.add_argument("--backend", help="backend of the solver (default: the solver's default)")
     parser.add_argument("--option", action="append", metavar="KEY=VALUE",
@@ -64,14 +103,12 @@ def run(args: argparse.Namespace) -> int:
     if (args.file is None) == (args.example is None):
         raise InputError("give either a data FILE or --example [NAME] (not both, not neither)")
     if args.example is not None:
-        if args.problem != "axyb":
-            raise InputError(f"the bundled examples are 'axyb' data, not {args.problem!r}")
-        data, truth, metadata = load_example(args.example)
+        pose_file = example_file(args.example, args.problem, setup=args.setup, pairing=args.pairing)
         source = f"example {args.example!r}"
     else:
-        pose_file = load_file(args.file, problem=args.problem)
-        data, truth, metadata = pose_file.data, pose_file.truth, pose_file.metadata
+        pose_file = load_file(args.file, problem=args.problem, setup=args.setup, pairing=args.pairing)
         source = args.file
+    data, truth, metadata = pose_file.data, pose_file.truth, pose_file.metadata
     options = parse_key_values(args.option)
     clash = sorted(set(options) & set(data))
     if clash:
@@ -82,24 +119,69 @@ def run(args: argparse.Namespace) -> int:
     problem = get_registry().problem(args.problem)
     residuals = problem.residuals(problem.validate(**data), solution.unknowns)
     errors = problem.errors(solution.unknowns, truth) if truth is not None else None
+    frames = FRAMES.get((args.problem, metadata.get("setup", "")), {})
     report = {
         "source": source,
+        "problem": args.problem,
         "units": metadata.get("units"),
         "setup": metadata.get("setup"),
-        "pairs": int(len(next(iter(data.values())))),
+        "pairs": len(next(iter(data.values()))),
+        **_stations(pose_file, args.problem),
         "options": options,
         **solution.to_dict(),
+        "frames": {name: frames[name][0] for name in solution.unknowns if name in frames},
         "residuals": {k: _summary(v) for k, v in residuals.items()},
         "residuals_per_pair": {k: np.asarray(v).tolist() for k, v in residuals.items()},
         "errors": errors,
         "warnings": solution.warnings,
     }
-    print(dump_json(report) if args.json else _text(report))
+    print(dump_json(report) if args.json else _text(report, frames))
     if solution.status in UNUSABLE:
-        print(f"handeye: error: solver {solver!r} ended with status {solution.status}: its X, Y "
-              "(printed above) are not an answer; try another solver or init", file=sys.stderr)
+        print(f"handeye: error: solver {solver!r} ended with status {solution.status}: its "
+              f"{', '.join(solution.unknowns)} (printed above) are not an answer; try another solver or init",
+              file=sys.stderr)
         return 1
     return 0
+
+
+def example_file(name: str, problem: str, *, setup: str | None = None, pairing: str | None = None) -> PoseFile:
+    """A bundled example (``axyb`` data) as data of `problem`: as it is for ``axyb``; for another
+    problem that reads absolute poses (``axxb``), its stations: robot_poses = A_i, camera_poses =
+    T_cam_target (B_i^-1 eye-in-hand, B_i eye-to-hand; docs/conventions.md), with its truth X
+    (eye-in-hand: the ``axyb`` X = T_flange_cam; eye-to-hand: the ``axyb`` Y = T_base_cam)."""
+    data, truth, metadata = load_example(name)
+    if problem == "axyb":
+        if setup is not None or pairing is not None:
+            raise InputError("--setup and --pairing apply to files of absolute poses (robot_poses, camera_poses); "
+                             "the bundled examples hold 'axyb' pairs A, B")
+        return PoseFile(data, truth, metadata)
+    if problem not in FROM_POSES:
+        raise InputError(f"the bundled examples are 'axyb' data (or stations for {sorted(FROM_POSES)}), "
+                         f"not {problem!r}")
+    own_setup = metadata.get("setup", "eye-in-hand")
+    camera = inverse(data["B"]) if own_setup == "eye-in-hand" else data["B"]
+    if truth is not None and setup in (None, own_setup):
+        truth = {"X": truth["X"] if own_setup == "eye-in-hand" else truth["Y"]}
+    else:
+        truth = None  # another setup than the recording's: its X has no known truth
+    return from_poses(data["A"], camera, problem, setup=setup, pairing=pairing, truth=truth,
+                      metadata=metadata, source=f"example {name}")
+
+
+def _stations(pose_file: PoseFile, problem: str) -> dict[str, Any]:
+    """For absolute poses: the number of stations, the pairing and which stations (i, j) each
+    motion joins (pairing consecutive: (i, i + 1); all: every i < j, i outer)."""
+    if pose_file.poses is None:
+        return {}
+    n = len(pose_file.poses["robot_poses"])
+    if not FROM_POSES[problem].pairing:  # one pair per station (axyb)
+        return {"stations": n}
+    pairing = pose_file.metadata["pairing"]
+    if pairing == "consecutive":
+        joined = [(i, i + 1) for i in range(n - 1)]
+    else:
+        joined = [(int(i), int(j)) for i, j in zip(*np.triu_indices(n, k=1))]
+    return {"stations": n, "pairing": pairing, "motions": joined}
 
 
 def _summary(values: np.ndarray) -> dict[str, float]:
@@ -108,18 +190,27 @@ def _summary(values: np.ndarray) -> dict[str, float]:
             "max": float(np.max(values))}
 
 
-def _text(r: dict[str, Any]) -> str:
+def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
     unit = r["units"] or "data units"
-    head = f"{r['source']}: {r['pairs']} pairs"
-    extras = ", ".join(x for x in (r["setup"], f"lengths in {unit}" if r["units"] else None) if x)
+    equation, item, equations = EQUATIONS.get(r["problem"], ("the problem's equation", "pair", ""))
+    head = f"{r['source']}: {r['pairs']} {item}s"
+    if "pairing" in r:
+        head += f" from {r['stations']} stations"
+    pairing = f"{r['pairing']} pairs" if "pairing" in r else None
+    extras = ", ".join(x for x in (pairing, r["setup"], f"lengths in {unit}" if r["units"] else None) if x)
     lines = [head + (f" ({extras})" if extras else ""),
              f"solver {r['solver']} (backend {r['backend']}): status {r['status']}, "
              f"solver time {_ms(r['seconds'])}" + _setup_note(r["diagnostics"])]
     for name, T in r["unknowns"].items():
-        lines += ["", f"{name} =", format_pose(np.array(T))]
-    lines += ["", "residuals of A_i X = Y B_i over the pairs (eqs. 32-33):"]
+        frame = f" = {frames[name][0]} ({frames[name][1]})" if name in frames else ""
+        lines += ["", f"{name}{frame} =", format_pose(np.array(T))]
+    if not frames:
+        lines += ["", ("(no setup given: docs/conventions.md says which frames the unknowns are for "
+                       "eye-in-hand and eye-to-hand data)")]
+    lines += ["", f"residuals of {equation} over the {item}s" + (f" ({equations})" if equations else "") + ":"]
     for kind, s in r["residuals"].items():
         lines.append(f"  {kind:<12}" + "   ".join(f"{stat} {_value(kind, s[stat], unit)}" for stat in ("median", "rms", "max")))
+    lines += _per_pair(r, item, unit)
     if r["errors"]:
         lines += ["", "errors against the file's truth (eqs. 30-31):"]
         for name, e in r["errors"].items():
@@ -129,14 +220,35 @@ def _text(r: dict[str, Any]) -> str:
                if k not in ("warnings", "data") and isinstance(v, (int, float, str, bool)) and not isinstance(v, bool)}
     if scalars:
         lines += ["", "diagnostics: " + ", ".join(f"{k}={_short(v)}" for k, v in scalars.items())]
+    names = ", ".join(r["unknowns"])
     if r["status"] in UNUSABLE:
-        lines.append(f"warning: status {r['status']}: the solver did not reach its answer; do not use X, Y")
+        lines.append(f"warning: status {r['status']}: the solver did not reach its answer; do not use {names}")
     elif r["status"] == Status.UNCERTIFIED:
         lines.append("note: status uncertified: a valid answer, but the solver could not prove it "
                      "globally optimal")
     for w in r["warnings"]:
         lines.append(f"warning: {w}")
     return "\n".join(lines)
+
+
+def _per_pair(r: dict[str, Any], item: str, unit: str) -> list[str]:
+    """The residual of every pair (motion), or of the `LISTED_LARGEST` largest when there are
+    more than `LIST_ALL_UP_TO` (largest: the sum of each residual relative to its median)."""
+    rot = np.asarray(r["residuals_per_pair"]["rotation"], dtype=float)
+    trans = np.asarray(r["residuals_per_pair"]["translation"], dtype=float)
+    m = len(rot)
+    if m <= LIST_ALL_UP_TO:
+        shown, title = np.arange(m), f"per {item}:"
+    else:
+        score = rot / max(float(np.median(rot)), 1e-300) + trans / max(float(np.median(trans)), 1e-300)
+        shown = np.sort(np.argsort(-score, kind="stable")[:LISTED_LARGEST])
+        title = f"the {LISTED_LARGEST} largest of the {m} {item}s (--json lists every one):"
+    joined = r.get("motions")
+    lines = [f"  {title}", f"  {item:>14}   {'rotation [deg]':>14}   {'translation [' + unit + ']':>18}"]
+    for i in shown:
+        name = f"{i}" + (f" ({joined[i][0]}->{joined[i][1]})" if joined else "")
+        lines.append(f"  {name:>14}   {np.degrees(rot[i]):14.4g}   {trans[i]:18.4g}")
+    return lines
 
 
 def _value(kind: str, v: float, unit: str) -> str:

@@ -8,9 +8,11 @@
     result = run_study(study, jobs=2)          # StudyResult: .records, .summary(), .to_csv()
     write_report(result, "out/")               # CSV, JSON summary, PNG figures, markdown tables
 
-`study` defines studies (and the paper's and issue 4's), `runner` runs them (processes or
-dask), `result` holds the records, `report` draws and tabulates. docs/harness.md has the study
-file format and the record columns; docs/reproducing-the-paper.md the paper's study.
+`study` defines studies (and the built-in ones: the paper's, the default sweeps, the accuracy
+study of any problem), `runner` runs them (processes or dask), `result` holds the records,
+`report` draws and tabulates. Every part is generic over the registered problems (``axyb``,
+``axxb``, a third party's). docs/harness.md has the study file format and the record columns;
+docs/reproducing-the-paper.md the paper's study.
 """
 
 from __future__ import annotations
@@ -20,7 +22,9 @@ from .result import StudyResult, read_csv
 from .runner import data_seed, run_study, run_unit, units_of
 from .study import (
     ACCURACY_NOISE,
+    ACCURACY_PAIRS,
     CENTERS,
+    OPTION_VARIANTS,
     PAPER_METHODS,
     PAPER_MM_PER_RAD,
     PAPER_OPTIONS,
@@ -41,11 +45,43 @@ from .study import (
     parse_ints,
     parse_specs,
     study_from_dict,
+    sweep_study,
 )
 
 __all__ = [
-    "ACCURACY_NOISE", "CENTERS", "PAPER_METHODS", "PAPER_MM_PER_RAD", "PAPER_OPTIONS", "PAPER_PAIRS", "UNITS",
-    "Cell", "Spec", "Study", "StudyResult", "Sweep", "accuracy_study", "data_seed", "default_specs",
-    "error_table", "load_study", "missing_paper_methods", "paper_noise", "paper_specs", "paper_study", "parse_floats", "parse_ints", "parse_specs", "plot_study", "read_csv", "run_study",
-    "run_unit", "study_from_dict", "time_table", "units_of", "write_report",
+    "ACCURACY_NOISE",
+    "ACCURACY_PAIRS",
+    "CENTERS",
+    "OPTION_VARIANTS",
+    "PAPER_METHODS",
+    "PAPER_MM_PER_RAD",
+    "PAPER_OPTIONS",
+    "PAPER_PAIRS",
+    "UNITS",
+    "Cell",
+    "Spec",
+    "Study",
+    "StudyResult",
+    "Sweep",
+    "accuracy_study",
+    "data_seed",
+    "default_specs",
+    "error_table",
+    "load_study",
+    "missing_paper_methods",
+    "paper_noise",
+    "paper_specs",
+    "paper_study",
+    "parse_floats",
+    "parse_ints",
+    "parse_specs",
+    "plot_study",
+    "read_csv",
+    "run_study",
+    "run_unit",
+    "study_from_dict",
+    "sweep_study",
+    "time_table",
+    "units_of",
+    "write_report",
 ]

@@ -1,5 +1,9 @@
 """Running a `Study`: work units, seeds, executors, and the per-trial records.
 
+Generic over problems: the data come from the study's problem's simulator, the error columns from
+its unknowns (``err_*_X``, ``err_*_Y`` for ``axyb``; ``err_*_X`` for ``axxb``), the residuals from
+its equation, and the oracle's truth (`Spec.init_from_truth`) is its unknowns.
+
 One work unit is one (cell, trial): it simulates the data once and runs every spec on them, so
 every solver of a cell sees the same data and process overhead is paid once per unit, not per
 solve. The data seed of a unit comes from the master seed and the unit's indices,
@@ -91,7 +95,7 @@ def simulate(study: Study, cell: Cell, trial: int) -> tuple[dict[str, np.ndarray
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(1,)))
         poses = random_poses(len(problem.unknowns), rng, RANDOM_TRUTH_MM)
         truth_kwargs = dict(zip(problem.unknowns, poses))
-    data, truth = problem.simulate(pairs=cell.pairs, seed=seed, noise=cell.noise, **truth_kwargs)
+    data, truth = problem.simulate(pairs=cell.pairs, seed=seed, noise=cell.noise, **study.simulation, **truth_kwargs)
     return data, truth, seed
 
 

@@ -7,9 +7,14 @@ A noise *level* is a multiplier of the base model's standard deviations (so with
 1 rad and 1 mm a level is the paper's sigma_N, Sec. IV-A); a sweep may carry its own base model
 instead, which is how explicit noise models are expressed.
 
+Nothing here is specific to one problem: the unknowns (X and Y for ``axyb``, X for ``axxb``)
+come from the registered problem, the data from its simulator (``Study.simulation`` passes extra
+options to it, e.g. the pairing of ``axxb``'s motions), the contenders from the registry.
+
 Studies come from Python, from CLI flags (`parse_specs`, `parse_floats`) or from a TOML file
 (`load_study`, format in docs/harness.md). `paper_study` is the paper's Sec. IV-A (Fig. 3, Fig. 4,
-Table I) and `accuracy_study` the issue-4 accuracy study with its ground-truth "oracle" hook.
+Table I), `sweep_study` the default noise and pair-count sweeps of ``handeye compare`` and
+`accuracy_study` the accuracy study of any problem with its ground-truth "oracle" hook.
 """
 
 from __future__ import annotations
@@ -42,10 +47,11 @@ class Spec:
     solver: registered solver name; backend: one of its backends (None: the solver's default).
     options: keyword options passed to `handeye.solve` (JSON-able values).
     label: the name rows, plots and tables use (default ``solver`` or ``solver/backend``).
-    init_from_truth: pass the ground truth, ``{"X": 4x4, "Y": 4x4}`` in the data's units, as the
-        option named `truth_option` (default ``init``): the "oracle" of a refinement started at the
-        truth, i.e. the accuracy floor of the data (issue 4). A solver that does not accept it
-        is recorded as failed, with the reason.
+    init_from_truth: pass the ground truth, the problem's unknowns (``{"X": 4x4, "Y": 4x4}`` for
+        ``axyb``, ``{"X": 4x4}`` for ``axxb``) in the data's units, as the option named
+        `truth_option` (default ``init``): the "oracle" of a refinement started at the truth, i.e.
+        the accuracy floor of the data. A solver that does not accept it is recorded as failed,
+        with the reason.
     """
 
     solver: str
@@ -126,6 +132,8 @@ class Study:
         center: ``"median"`` (figures: median and interquartile band) or ``"mean"`` (mean +- std).
     timeout: seconds one solve may take before it is stopped and recorded as failed
         (`handeye.harness.runner.time_limit`: process workers and ``jobs=1``, not dask); None: no limit.
+    simulation: extra keyword options of the problem's simulator (JSON-able), e.g.
+        ``{"pairing": "all"}`` for ``axxb``'s motions; empty: its defaults.
     """
 
     name: str = "study"
@@ -141,9 +149,13 @@ class Study:
     level_label: str = "noise level (multiplier of the base noise)"
     center: str = "median"
     timeout: float | None = 30.0
+    simulation: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "specs", tuple(self.specs))
+        if not isinstance(self.simulation, Mapping):
+            raise InputError(f"simulation must be a table/dict of simulator options, got {self.simulation!r}")
+        object.__setattr__(self, "simulation", dict(self.simulation))
         object.__setattr__(self, "sweeps", tuple(self.sweeps))
         if isinstance(self.trials, bool) or not isinstance(self.trials, int) or self.trials < 1:
             raise InputError(f"trials must be an integer >= 1, got {self.trials!r}")
@@ -197,7 +209,7 @@ class Study:
         return {
             "name": self.name, "problem": self.problem, "trials": self.trials, "seed": self.seed,
             "truth": self.truth, "units": self.units, "warmup": self.warmup, "level_label": self.level_label,
-            "center": self.center, "timeout": self.timeout,
+            "center": self.center, "timeout": self.timeout, "simulation": dict(self.simulation),
             "noise": _noise_dict(self.noise),
             "sweeps": [{"name": s.name, "levels": list(s.levels), "pairs": list(s.pairs),
                         **({"noise": _noise_dict(s.noise)} if s.noise is not None else {})}
@@ -234,26 +246,40 @@ def paper_noise(level: float = 1.0, mm_per_rad: float = PAPER_MM_PER_RAD,
 
 def default_specs(problem: str = "axyb") -> tuple[Spec, ...]:
     """Every registered solver of `problem` with its default backend, plus every other backend of
-    ``lmi-sdp`` (the paper's method: its backends are part of the comparison). Backends that
-    cannot run here are left out."""
+    ``lmi-sdp`` (the paper's method: its backends are part of the comparison) and, where a solver
+    wraps several methods behind an option (`OPTION_VARIANTS`: OpenCV's five AX=XB methods), one
+    spec per method. Backends that cannot run here are left out."""
     registry = get_registry()
-    return tuple(spec for name in registry.solver_names(problem) for spec in _solver_specs(name, registry.solver(name, problem)))
+    return tuple(spec for name in registry.solver_names(problem)
+                 for spec in _solver_specs(name, registry.solver(name, problem), problem=problem))
+
+
+#: solvers that enter a default study once per value of one option rather than once:
+#: (solver, problem) -> (option, values); labels are ``solver (value)``
+OPTION_VARIANTS: dict[tuple[str, str], tuple[str, tuple[str, ...]]] = {
+    ("opencv", "axxb"): ("method", ("tsai", "park", "horaud", "andreff", "daniilidis")),
+}
 
 
 def _solver_specs(name: str, solver: Any, options: Mapping[str, Any] | None = None,
-                  suffix: str = "") -> list[Spec]:
+                  suffix: str = "", problem: str = "axyb") -> list[Spec]:
     """Specs of registered solver `name` on its default backend, or for ``lmi-sdp`` on every
     backend (default first, labelled ``lmi-sdp/<backend>``), leaving out backends that cannot run
-    here; `suffix` is appended to every label."""
+    here; one spec per value of `OPTION_VARIANTS` for `problem` (labelled ``name (value)``);
+    `suffix` is appended to every label."""
     if name == "lmi-sdp":
         backends = sorted(solver.backends, key=lambda b: b != solver.default_backend)
     else:
         backends = [solver.default_backend]
+    variants: list[tuple[str, dict[str, Any]]] = [("", dict(options or {}))]
+    if (name, problem) in OPTION_VARIANTS:
+        key, values = OPTION_VARIANTS[name, problem]
+        variants = [(f" ({value})", {**(options or {}), key: value}) for value in values]
     specs = []
     for backend in backends:
         if solver.unavailable_reason(backend) is None:
             label = f"{name}/{backend}" if name == "lmi-sdp" and len(solver.backends) > 1 else name
-            specs.append(Spec(name, backend, options or {}, label=label + suffix))
+            specs += [Spec(name, backend, opts, label=label + variant + suffix) for variant, opts in variants]
     return specs
 
 
@@ -280,7 +306,7 @@ def paper_specs(problem: str = "axyb") -> tuple[Spec, ...]:
         fields = {f.name for f in dataclasses.fields(solver.options)} if dataclasses.is_dataclass(solver.options) else set()
         options = PAPER_OPTIONS.get(name, {})
         options = {k: v for k, v in options.items() if k in fields}  # a replacement plugin may lack them
-        specs += _solver_specs(name, solver, options, " (raw)" if options else "")
+        specs += _solver_specs(name, solver, options, " (raw)" if options else "", problem)
     return tuple(specs)
 
 
@@ -309,23 +335,47 @@ def paper_study(*, trials: int = 5, seed: int = 0, pairs: int = PAPER_PAIRS,
 #: 0.5 s); a solver stuck past it is recorded as failed and the study goes on
 PAPER_TIMEOUT = 10.0
 
-#: issue 4: realistic noise, camera (B) ten times noisier than the robot (A); rad and mm
+#: realistic noise of the accuracy study, camera (B) ten times noisier than the robot (A); rad and
+#: mm. For ``axxb`` the same on the absolute poses the motions are made of ("A": robot, "B": camera).
 ACCURACY_NOISE = NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)})
+#: pair counts of the accuracy study
+ACCURACY_PAIRS = (8, 16, 50)
 
 
-def accuracy_study(*, trials: int = 20, seed: int = 0, specs: Sequence[Spec] = (),
+def accuracy_study(*, problem: str = "axyb", trials: int = 20, seed: int = 0, specs: Sequence[Spec] = (),
                    oracle: bool | None = None, units: str = "mm") -> Study:
-    """Issue 4's accuracy study: noise on A and B (`ACCURACY_NOISE`) and ten times that, m = 8,
-    16, 50, random X and Y per trial. With `oracle` (default: when ``refine`` is registered) an
-    extra spec ``oracle`` runs ``refine`` started at the ground truth (`Spec.init_from_truth`)."""
-    specs = tuple(specs) or default_specs("axyb")
+    """The accuracy study of `problem`: noise on A and B (`ACCURACY_NOISE`) and ten times that,
+    m = 8, 16, 50 (`ACCURACY_PAIRS`), random unknowns per trial, every registered solver
+    (`default_specs`). With `oracle` (default: when ``refine`` solves `problem`) an extra spec
+    ``oracle`` runs ``refine`` started at the ground truth (`Spec.init_from_truth`: init =
+    ``{"X": ..., "Y": ...}`` for ``axyb``, ``{"X": ...}`` for ``axxb``)."""
+    specs = tuple(specs) or default_specs(problem)
     if oracle is None:
-        oracle = "refine" in get_registry().solver_names("axyb")
+        oracle = "refine" in get_registry().solver_names(problem)
     if oracle:
         specs += (Spec("refine", label="oracle", init_from_truth=True),)
-    return Study(name="accuracy", specs=specs, noise=ACCURACY_NOISE,
-                 sweeps=(Sweep("accuracy", (1.0, 10.0), (8, 16, 50)),),
+    return Study(name="accuracy" if problem == "axyb" else f"accuracy-{problem}", problem=problem, specs=specs,
+                 noise=ACCURACY_NOISE, sweeps=(Sweep("accuracy", (1.0, 10.0), ACCURACY_PAIRS),),
                  trials=trials, seed=seed, truth="random", units=units)
+
+
+#: the default sweeps of `sweep_study`: noise levels (the paper's sigma_N reading) at m = 16, and
+#: pair counts at level 0.05
+SWEEP_LEVELS = (0.0, 0.02, 0.05, 0.1)
+SWEEP_PAIRS = (8, 16, 32, 64)
+SWEEP_LEVEL = 0.05
+
+
+def sweep_study(problem: str = "axyb", *, name: str = "study", specs: Sequence[Spec] = (),
+                noise: NoiseModel | None = None) -> Study:
+    """``handeye compare``'s default study of `problem`: a noise sweep (`SWEEP_LEVELS` at m = 16)
+    and a pair-count sweep (m = `SWEEP_PAIRS` at level `SWEEP_LEVEL`), noise on both data stacks
+    (default the paper's reading, `paper_noise`: sigma_N rad and sigma_N mm on A and B; for
+    ``axxb`` on the robot and camera poses), every registered solver of `problem` by default."""
+    return Study(name=name, problem=problem, specs=tuple(specs), noise=noise or paper_noise(1.0),
+                 sweeps=(Sweep("noise", SWEEP_LEVELS, (PAPER_PAIRS,)), Sweep("pairs", (SWEEP_LEVEL,), SWEEP_PAIRS)),
+                 level_label=("sigma_N  (rotations: sigma_N rad, translations: sigma_N mm)" if noise is None
+                              else "noise level (multiplier of the base noise)"))
 
 
 # --------------------------------------------------------------------------------------------
@@ -385,7 +435,7 @@ def parse_ints(text: str, what: str) -> tuple[int, ...]:
 
 
 _STUDY_KEYS = {"name", "problem", "trials", "seed", "truth", "units", "warmup", "level_label", "center", "timeout", "noise", "levels",
-               "pairs", "sweep", "solver"}
+               "pairs", "sweep", "solver", "simulation"}
 _SWEEP_KEYS = {"name", "levels", "pairs", "noise"}
 _SOLVER_KEYS = {"name", "backend", "options", "label", "init_from_truth", "truth_option"}
 
@@ -404,7 +454,8 @@ def load_study(path: str | Path) -> Study:
 def study_from_dict(doc: Mapping[str, Any], source: str = "study") -> Study:
     """A `Study` from the parsed TOML structure (see docs/harness.md)."""
     _check_keys(doc, _STUDY_KEYS, source)
-    kwargs: dict[str, Any] = {k: doc[k] for k in ("name", "problem", "trials", "seed", "truth", "units", "warmup", "level_label", "center", "timeout")
+    kwargs: dict[str, Any] = {k: doc[k] for k in ("name", "problem", "trials", "seed", "truth", "units", "warmup", "level_label", "center", "timeout",
+                                                   "simulation")
                               if k in doc}
     if kwargs.get("timeout") == 0:  # TOML has no null: 0 means no time limit
         kwargs["timeout"] = None
