@@ -6,11 +6,16 @@ from __future__ import annotations
 import handeye
 import numpy as np
 import pytest
+from handeye import nlls
 from handeye.errors import InputError, UnknownPluginError
 from handeye.noise import NoiseModel
 from handeye.plugins import refine as R
+from handeye.problems.axxb import PROBLEM as AXXB
+from handeye.problems.axxb_geometry import AXXBModel
 from handeye.problems.axyb import PROBLEM, random_truth
+from handeye.problems.axyb_geometry import AXYBModel
 from handeye.se3 import make_pose, rotation_angle, so3_exp
+from handeye.whitening import estimate_sigmas
 
 NOISE = NoiseModel({"B": (0.002, 0.5), "A": (0.0002, 0.05)})
 
@@ -46,7 +51,7 @@ def test_noise_free_recovery_from_perturbed_init():
 def test_residual_definition_matches_problem_residuals(noisy16):
     data, truth = noisy16
     d = PROBLEM.validate(**data)
-    e = R.residuals(R.Pairs.of(d), truth["X"], truth["Y"])
+    e = AXYBModel(d).residuals((truth["X"], truth["Y"]))
     ref = PROBLEM.residuals(d, truth)
     np.testing.assert_allclose(np.linalg.norm(e[:, :3], axis=1), ref["rotation"], rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(np.linalg.norm(e[:, 3:], axis=1), ref["translation"], rtol=1e-12)
@@ -60,19 +65,19 @@ def test_analytic_jacobian_matches_finite_differences(residual_angle):
     truth = random_truth(rng)
     data, _ = PROBLEM.simulate(pairs=6, seed=11, X=truth["X"], Y=truth["Y"])
     d = PROBLEM.validate(**data)
-    P = R.Pairs.of(d)
+    P = AXYBModel(d)
     X = make_pose(truth["X"][:3, :3] @ so3_exp(residual_angle * np.array([0.6, -0.48, 0.64])),
                   truth["X"][:3, 3] + 30.0 * rng.standard_normal(3))
     Y = _perturb(truth["Y"], rng, rot=0.01, trans=10.0)
-    e = R.residuals(P, X, Y)
-    J = R.jacobian(P, X, Y, e)
+    e = P.residuals((X, Y))
+    J = P.jacobian((X, Y), e)
     h = 1e-6
     Jfd = np.zeros_like(J)
     for k in range(12):
         xi = np.zeros(12)
         xi[k] = h
-        ep = R.residuals(P, R.retract(X, xi[:6]), R.retract(Y, xi[6:]))
-        em = R.residuals(P, R.retract(X, -xi[:6]), R.retract(Y, -xi[6:]))
+        ep = P.residuals(nlls.retract_all((X, Y), xi))
+        em = P.residuals(nlls.retract_all((X, Y), -xi))
         Jfd[:, :, k] = (ep - em) / (2 * h)
     np.testing.assert_allclose(J, Jfd, atol=1e-6 * max(1.0, np.abs(J).max()), rtol=1e-6)
 
@@ -246,7 +251,7 @@ def test_init_as_mapping_of_poses(noisy16):
 
 
 def _profile_objective(P, X, Y, scale):
-    return R.objective(R.residuals(P, X, Y), None, "profile", "linear", 1.0, scale)[0]
+    return nlls.objective(P.residuals((X, Y)), None, "profile", "linear", 1.0, scale)[0]
 
 
 def test_estimated_weights_are_the_profile_likelihood_optimum(noisy16):
@@ -255,8 +260,8 @@ def test_estimated_weights_are_the_profile_likelihood_optimum(noisy16):
     data, _ = noisy16
     sol = handeye.solve("axyb", solver="refine", init="kron-lstsq", **data)
     d = PROBLEM.validate(**data)
-    P = R.Pairs.of(d)
-    e = R.residuals(P, sol.X, sol.Y)
+    P = AXYBModel(d)
+    e = P.residuals((sol.X, sol.Y))
     m = len(e)
     assert sol.diagnostics["sigma_rot"] == pytest.approx(np.sqrt(np.sum(e[:, :3] ** 2) / (3 * m)), rel=1e-12)
     assert sol.diagnostics["sigma_trans"] == pytest.approx(np.sqrt(np.sum(e[:, 3:] ** 2) / (3 * m)), rel=1e-12)
@@ -266,8 +271,8 @@ def test_estimated_weights_are_the_profile_likelihood_optimum(noisy16):
     for k in range(12):
         xi = np.zeros(12)
         xi[k] = 1e-3 * std[k]
-        up = _profile_objective(P, R.retract(sol.X, xi[:6]), R.retract(sol.Y, xi[6:]), d.translation_scale)
-        down = _profile_objective(P, R.retract(sol.X, -xi[:6]), R.retract(sol.Y, -xi[6:]), d.translation_scale)
+        up = _profile_objective(P, *nlls.retract_all((sol.X, sol.Y), xi), d.translation_scale)
+        down = _profile_objective(P, *nlls.retract_all((sol.X, sol.Y), -xi), d.translation_scale)
         slope = (up - down) / 2e-3  # dL per std
         assert abs(slope) < 1e-4, (k, slope)
         assert up + down - 2 * sol.diagnostics["final_cost"] > 0  # a minimum, not a saddle
@@ -280,7 +285,7 @@ def test_initial_estimate_and_three_pairs_use_the_start_residuals(noisy16):
     assert a.diagnostics["weight_mode"] == b.diagnostics["weight_mode"] == "initial"
     assert a.diagnostics["sigma_rot"] != b.diagnostics["sigma_rot"]  # from the start: differ
     d = PROBLEM.validate(**data)
-    e0 = R.residuals(R.Pairs.of(d), truth["X"], truth["Y"])
+    e0 = AXYBModel(d).residuals((truth["X"], truth["Y"]))
     assert b.diagnostics["sigma_trans"] == pytest.approx(np.sqrt(np.sum(e0[:, 3:] ** 2) / (3 * len(e0))), rel=1e-12)
     # with m = 3 the translations can be fitted exactly (unbounded likelihood): "initial"
     three = {k: v[:3] for k, v in data.items()}
@@ -293,18 +298,157 @@ def test_initial_estimate_and_three_pairs_use_the_start_residuals(noisy16):
 
 @pytest.mark.parametrize("loss,mode", [("linear", "profile"), ("linear", "fixed"), ("cauchy", "irls")])
 def test_block_normal_equations_equal_the_jacobian_ones(loss, mode):
-    """`model_sigmas` (closed-form sums, no (m, 6, 12) Jacobian) against J^T W J, J^T W e from
-    `jacobian`, away from the optimum (rotation residuals up to ~1 rad)."""
+    """`AXYBModel.normal_equations` (closed-form sums, no (m, 6, 12) Jacobian) against J^T W J,
+    J^T W e from `jacobian`, away from the optimum (rotation residuals up to ~1 rad)."""
     rng = np.random.default_rng(8)
     truth = random_truth(rng)
     data, _ = PROBLEM.simulate(pairs=9, seed=8, noise=NoiseModel.on("B", 0.3, 40.0), X=truth["X"], Y=truth["Y"])
     d = PROBLEM.validate(**data)
-    P = R.Pairs.of(d)
+    P = AXYBModel(d)
     X, Y = _perturb(truth["X"], rng, rot=0.4), _perturb(truth["Y"], rng, rot=0.4)
-    e = R.residuals(P, X, Y)
-    W = R.estimate_sigmas(e, d.translation_scale, robust=loss != "linear")
-    fast = R.model_sigmas(P, X, Y, e, W, mode, loss, 2.0, d.translation_scale)
-    ref = R._model(e, R.jacobian(P, X, Y, e), W, mode, loss, 2.0, d.translation_scale)
+    e = P.residuals((X, Y))
+    W = estimate_sigmas(e, d.translation_scale, robust=loss != "linear")
+    fast = nlls._sums_model(P, (X, Y), e, W, mode, loss, 2.0, d.translation_scale)
+    ref = nlls._jacobian_model(e, P.jacobian((X, Y), e), W, mode, loss, 2.0, d.translation_scale)
     for a, b in zip(fast[:3], ref[:3]):  # g, H, Hw
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * np.abs(b).max())
     assert fast[3] == pytest.approx(ref[3], rel=1e-12)
+
+
+# --------------------------------------------------------------------------- axxb (A_i X = X B_i)
+
+def _axxb_exact(m, seed):
+    """Exact motions of a random X (`random_unknowns`), and the truth."""
+    rng = np.random.default_rng(seed)
+    X = AXXB.random_unknowns(rng, 100.0)["X"]
+    data, truth = AXXB.simulate(pairs=m, seed=seed, X=X)
+    return data, truth, rng
+
+
+def _independent_motions(m, seed, noise):
+    """Motions with independent noise on each motion (the model refine assumes), and the truth."""
+    data, truth = AXXB.simulate(pairs=m, seed=seed)
+    rng = np.random.default_rng(seed + 1000)
+    return {k: noise.apply(k, v, rng) for k, v in data.items()}, truth
+
+
+def test_axxb_noise_free_recovery_from_perturbed_init():
+    data, truth, rng = _axxb_exact(10, 41)
+    X0 = _perturb(truth["X"], rng, rot=0.3, trans=50.0)
+    sol = handeye.solve("axxb", solver="refine", init_X=X0, **data)
+    scale = AXXB.validate(**data).translation_scale
+    err = AXXB.errors(sol.unknowns, truth)["X"]
+    assert sol.status == handeye.Status.OPTIMAL and sol.diagnostics["converged"]
+    assert sol.diagnostics["init"] == "given" and set(sol.unknowns) == {"X"}
+    assert err["rotation"] < 1e-9 and err["translation"] < 1e-9 * scale
+    res = AXXB.residuals(AXXB.validate(**data), sol.unknowns)
+    assert res["rotation"].max() < 1e-9 and res["translation"].max() < 1e-9 * scale
+
+
+@pytest.mark.parametrize("residual_angle", [0.0, 0.3, 2.5])
+def test_axxb_analytic_jacobian_matches_finite_differences(residual_angle):
+    """Central differences of e_i(X exp(xi)) against `AXXBModel.jacobian`, and the Jacobian is
+    A X = Y B's at Y = X with the X and Y columns added (the chain rule)."""
+    data, truth, rng = _axxb_exact(6, 13)
+    d = AXXB.validate(**data)
+    P = AXXBModel(d)
+    X = make_pose(truth["X"][:3, :3] @ so3_exp(residual_angle * np.array([0.6, -0.48, 0.64])),
+                  truth["X"][:3, 3] + 30.0 * rng.standard_normal(3))
+    e = P.residuals((X,))
+    J = P.jacobian((X,), e)
+    h = 1e-6
+    Jfd = np.zeros_like(J)
+    for k in range(6):
+        xi = np.zeros(6)
+        xi[k] = h
+        Jfd[:, :, k] = (P.residuals(nlls.retract_all((X,), xi)) - P.residuals(nlls.retract_all((X,), -xi))) / (2 * h)
+    np.testing.assert_allclose(J, Jfd, atol=1e-6 * max(1.0, np.abs(J).max()), rtol=1e-6)
+    J2 = AXYBModel(d).jacobian((X, X), e)
+    np.testing.assert_allclose(J, J2[:, :, :6] + J2[:, :, 6:], rtol=0, atol=1e-12 * np.abs(J).max())
+
+
+@pytest.mark.parametrize("loss,mode", [("linear", "profile"), ("cauchy", "irls")])
+def test_axxb_block_normal_equations_equal_the_jacobian_ones(loss, mode):
+    data, truth, rng = _axxb_exact(9, 8)
+    d = AXXB.validate(**data)
+    P = AXXBModel(d)
+    X = _perturb(truth["X"], rng, rot=0.4)
+    e = P.residuals((X,))
+    W = estimate_sigmas(e, d.translation_scale, robust=loss != "linear")
+    fast = nlls._sums_model(P, (X,), e, W, mode, loss, 2.0, d.translation_scale)
+    ref = nlls._jacobian_model(e, P.jacobian((X,), e), W, mode, loss, 2.0, d.translation_scale)
+    for a, b in zip(fast[:3], ref[:3]):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * np.abs(b).max())
+
+
+def test_axxb_robust_losses_reject_a_gross_outlier_motion():
+    noise = NoiseModel({"A": (0.0, 0.1), "B": (0.002, 0.2)})
+    data, truth = _independent_motions(20, 21, noise)
+    A = np.array(data["A"])
+    A[4] = make_pose(A[4, :3, :3] @ so3_exp([0.5, 0.0, 0.0]), A[4, :3, 3] + [100.0, 0.0, 0.0])
+    data = {"A": A, "B": data["B"]}
+    X0 = _perturb(truth["X"], np.random.default_rng(2), rot=0.05, trans=10.0)
+    errs = {}
+    for loss in ("linear", "huber", "cauchy"):
+        sol = handeye.solve("axxb", solver="refine", init_X=X0, loss=loss, **data)
+        assert sol.status == handeye.Status.OPTIMAL
+        e = AXXB.errors(sol.unknowns, truth)["X"]
+        errs[loss] = (e["rotation"], e["translation"])
+    for loss in ("huber", "cauchy"):
+        assert errs[loss][0] < 0.25 * errs["linear"][0], errs
+        assert errs[loss][1] < 0.25 * errs["linear"][1], errs
+
+
+def test_axxb_covariance_matches_the_spread_over_seeds():
+    """Motions with independent noise (refine's model): over 50 seeds the predicted RMS error
+    of R_X and of t_X (sqrt of the mean predicted variance) is within 30% of the observed one."""
+    noise = NoiseModel({"A": (0.0, 0.1), "B": (0.002, 0.2)})
+    err, pred = [], []
+    for seed in range(50):
+        data, truth = _independent_motions(20, 300 + seed, noise)
+        sol = handeye.solve("axxb", solver="refine", init_X=truth["X"], **data)
+        e = AXXB.errors(sol.unknowns, truth)["X"]
+        err.append([e["rotation"], e["translation"]])
+        pred.append([sol.diagnostics["std"]["X"]["rotation"], sol.diagnostics["std"]["X"]["translation"]])
+        C = np.array(sol.diagnostics["covariance"]["X"])
+        np.testing.assert_array_equal(C, np.array(sol.diagnostics["covariance_X"]))
+    observed = np.sqrt(np.mean(np.square(err), axis=0))
+    predicted = np.sqrt(np.mean(np.square(pred), axis=0))
+    assert np.all(np.abs(observed / predicted - 1.0) < 0.3), (observed, predicted)
+
+
+@pytest.mark.parametrize("loss", ["linear", "huber"])
+def test_axxb_unit_invariance(loss):
+    data, truth = AXXB.simulate(pairs=12, seed=5, noise=NoiseModel.on(("A", "B"), 0.002, 0.2))
+    X0 = _perturb(truth["X"], np.random.default_rng(5), rot=0.05, trans=10.0)
+    base = handeye.solve("axxb", solver="refine", init_X=X0, loss=loss, **data)
+    for s in (1e-3, 1e3):
+        scaled = {k: np.array(v) for k, v in data.items()}
+        for v in scaled.values():
+            v[:, :3, 3] *= s
+        X0s = np.array(X0)
+        X0s[:3, 3] *= s
+        sol = handeye.solve("axxb", solver="refine", init_X=X0s, loss=loss, **scaled)
+        assert rotation_angle(sol.X[:3, :3] @ base.X[:3, :3].T) < 1e-9
+        np.testing.assert_allclose(sol.X[:3, 3], s * base.X[:3, 3], rtol=0, atol=1e-9 * s * np.linalg.norm(base.X[:3, 3]))
+
+
+def test_axxb_options_and_weights():
+    data, truth = AXXB.simulate(pairs=8, seed=9, noise=NoiseModel.on(("A", "B"), 0.002, 0.2))
+    a = handeye.solve("axxb", solver="refine", init={"X": truth["X"]}, **data)
+    b = handeye.solve("axxb", solver="refine", init_X=truth["X"], **data)
+    np.testing.assert_array_equal(a.X, b.X)
+    assert a.diagnostics["weight_mode"] == "profile" and "covariance_X" in a.diagnostics
+    stated = handeye.solve("axxb", solver="refine", init_X=truth["X"], sigma_rot=a.diagnostics["sigma_rot"],
+                           sigma_trans=a.diagnostics["sigma_trans"], **data)
+    assert stated.diagnostics["weights"] == "stated"
+    np.testing.assert_allclose(stated.X, a.X, atol=1e-9 * 100)
+    cov = handeye.solve("axxb", solver="refine", init_X=truth["X"], covariance=np.diag([4e-6] * 3 + [0.04] * 3), **data)
+    assert cov.diagnostics["weights"] == "covariance" and "sigma_rot" not in cov.diagnostics
+    two = {k: v[:2] for k, v in data.items()}  # two motions: the profile likelihood is unbounded
+    assert handeye.solve("axxb", solver="refine", init_X=truth["X"], **two).diagnostics["weight_mode"] == "initial"
+    for bad in ({"init_Y": truth["X"]}, {"init": {"X": truth["X"], "Y": truth["X"]}}, {"init": "refine"},
+                {"init_X": np.eye(3)}, {"loss": "l1"}):
+        with pytest.raises((InputError, UnknownPluginError)):
+            handeye.solve("axxb", solver="refine", **bad, **data)
+    assert R.default_init("axxb") in R.STARTS["axxb"]

@@ -1,0 +1,38 @@
+"""Robust losses of the nonlinear least-squares engine (`handeye.nlls`), shared by every problem.
+
+A loss rho acts on s = |e_i|^2, the squared norm of one pair's whitened residual 6-vector, and the
+objective is F = 1/2 sum_i rho(s_i) (rho(s) = s is least squares):
+
+    linear   rho(s) = s
+    huber    rho(s) = s for sqrt(s) <= c,  2 c sqrt(s) - c^2 beyond
+    cauchy   rho(s) = c^2 log(1 + s / c^2)
+
+c (`loss_scale`) is where a robust loss departs from least squares, in units of that norm; the
+default is the 95% quantile of the norm of a 6-vector of standard normal noise. Gauss-Newton on F
+weights pair i by rho'(s_i) (iteratively re-weighted least squares).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InputError
+
+LOSSES = ("linear", "huber", "cauchy")
+#: sqrt of the 95% quantile of chi^2 with 6 degrees of freedom: a pair whose whitened 6-vector is
+#: longer than this is an outlier at the 5% level; the default threshold of the robust losses.
+DEFAULT_LOSS_SCALE = 3.5484626592
+
+
+def loss_terms(s: np.ndarray, loss: str, c: float) -> tuple[np.ndarray, np.ndarray]:
+    """rho(s) and rho'(s) of squared whitened norms s: (m,) (rho(s) = s for "linear")."""
+    if loss == "linear":
+        return s, np.ones_like(s)
+    c2 = c * c
+    if loss == "huber":
+        root = np.sqrt(s)
+        inlier = s <= c2
+        return np.where(inlier, s, 2.0 * c * root - c2), np.where(inlier, 1.0, c / np.maximum(root, c))
+    if loss == "cauchy":
+        return c2 * np.log1p(s / c2), 1.0 / (1.0 + s / c2)
+    raise InputError(f"unknown loss {loss!r}; known: {', '.join(LOSSES)}")

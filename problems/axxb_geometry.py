@@ -1,0 +1,77 @@
+"""The geometric model of A_i X = X B_i for the least-squares engine (`handeye.nlls`): residuals
+and Jacobians on SE(3).
+
+One 6-vector per motion:
+
+    r_i = log(R_Ai R_X R_Bi^T R_X^T)            rotation vector of the discrepancy [rad]
+    t_i = R_Ai t_X + t_Ai - R_X t_Bi - t_X       t(A_i X) - t(X B_i)              [data units]
+
+This is the model of A_i X = Y B_i (`axyb_geometry`) on the diagonal Y = X, which is how it is
+built: `AXXBModel` shares `AXYBModel`'s arrangement of the data and its residuals (called with
+(X, X)). X is perturbed on the right, X <- X exp(xi), xi = (omega, v). With
+Q_i = R_A R_X R_B^T R_X^T = exp([r_i]_x), X exp(omega) changes Q to
+exp([R_A R_X omega]_x) Q exp(-[R_X omega]_x) to first order, so (derivation in
+docs/solvers/refine.md, checked against central differences in tests/test_refine.py)
+
+    d r / d omega = Jl^-1(r) R_A R_X - Jr^-1(r) R_X      d r / d v = 0
+    d t / d omega = R_X [t_B]_x                          d t / d v = (R_A - I) R_X
+
+i.e. the sum of the X and Y columns of A X = Y B's Jacobian at Y = X (the chain rule), and the
+closed-form normal equations are those of A X = Y B folded the same way:
+g = g_X + g_Y, H = H_XX + H_XY + H_YX + H_YY.
+
+The ML weights treat the motions as independent. Motions differenced from absolute poses
+(`problems.axxb.relative_motions`) share the noise of a station, so they are correlated; the
+estimate stays consistent, but is not the exact ML estimate of such data and its covariance is
+approximate (docs/solvers/refine.md measures both).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from handeye import so3_fast
+from handeye.nlls import Poses
+from handeye.problems.axxb import AXXBData
+from handeye.problems.axyb_geometry import AXYBModel
+
+#: fewest motions for the profile likelihood: the translation residuals (3m numbers) depend on 6
+#: parameters (R_X, t_X), so with m = 2 they can be fitted exactly and the likelihood with an
+#: unknown translation variance is unbounded (sigma_trans -> 0).
+PROFILE_MIN_PAIRS = 3
+
+
+class AXXBModel(AXYBModel):
+    """A_i X = X B_i on X: `AXYBModel` restricted to Y = X (module docstring)."""
+
+    unknowns = ("X",)
+    profile_min_pairs = PROFILE_MIN_PAIRS
+
+    def __init__(self, data: AXXBData) -> None:
+        super().__init__(data)  # the same fields A, B and translation_scale
+
+    def residuals(self, poses: Poses) -> np.ndarray:
+        """e: (m, 6) = [r_i; t_i] at X."""
+        X, = poses
+        return super().residuals((X, X))
+
+    def jacobian(self, poses: Poses, e: np.ndarray) -> np.ndarray:
+        """J: (m, 6, 6) = d e_i / d (omega, v) at X, e from `residuals`: rotation rows
+        [Jl^-1(r) R_A R_X - Jr^-1(r) R_X, 0], translation rows [R_X [t_B]_x, R_A R_X - R_X]."""
+        X, = poses
+        m = self.m
+        RX = X[:3, :3]
+        RAX = (self.RA9 @ RX).reshape(m, 3, 3)
+        Jl_inv, Jr_inv = so3_fast.inverse_jacobians(e[:, :3])
+        J = np.empty((m, 6, 6))
+        J[:, :3, 0:3] = Jl_inv @ RAX - (Jr_inv.reshape(3 * m, 3) @ RX).reshape(m, 3, 3)
+        J[:, :3, 3:6] = 0.0
+        J[:, 3:, 0:3] = (RX @ self.TBx_T).reshape(3, m, 3).transpose(1, 0, 2)
+        J[:, 3:, 3:6] = RAX - RX
+        return J
+
+    def normal_equations(self, poses: Poses, e: np.ndarray, wr: float, wt: float,
+                         d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A X = Y B's closed-form sums at (X, X), folded onto X (module docstring)."""
+        X, = poses
+        g_rot, g_trans, H = super().normal_equations((X, X), e, wr, wt, d)
+        return g_rot[:6] + g_rot[6:], g_trans[:6] + g_trans[6:], H[:6, :6] + H[:6, 6:] + H[6:, :6] + H[6:, 6:]
