@@ -51,7 +51,7 @@ SETUPS = ("eye-in-hand", "eye-to-hand")
 #: (``consecutive``: station i with i + 1; ``all``: every i < j, as OpenCV's calibrateHandEye)
 PAIRINGS = ("consecutive", "all")
 #: pairing used for absolute poses when neither the file nor the caller names one
-DEFAULT_PAIRING = "consecutive"
+DEFAULT_PAIRING = "all"
 #: the absolute poses of the stations, the alternative to a problem's data fields (docs/formats.md):
 #: robot_poses = T_base_flange, camera_poses = T_cam_target (the board pose solvePnP gives)
 POSE_FIELDS = ("robot_poses", "camera_poses")

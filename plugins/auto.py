@@ -75,6 +75,8 @@ class Options:
 
 def run(data: Any, options: Options, backend: str) -> SolverOutput:
     problem = _refine.problem_of(data)
+    if problem == "axxb" and data.stations is not None and _weights_are_estimated(options):
+        return _run_on_stations(data, options, backend)
     start, poses, init_status, init_diag, warnings = _refine.start(data, options.init)
     warnings = [f"auto: {w}" for w in warnings]
     certificate = {k: init_diag[k] for k in CERTIFICATE_KEYS if k in init_diag}
@@ -122,6 +124,29 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
     if warnings:
         diagnostics["warnings"] = warnings
     return SolverOutput(unknowns=dict(zip(ropts.UNKNOWNS, poses)), status=status, diagnostics=diagnostics)
+
+
+def _weights_are_estimated(options: Options) -> bool:
+    """No start, noise level or covariance stated: those describe the motions, not stations."""
+    return options.init is None and options.sigma_rot is None and options.covariance is None
+
+
+def _run_on_stations(data: Any, options: Options, backend: str) -> SolverOutput:
+    """A_i X = X B_i whose motions are every pair of n stations (`AXXBData.stations`): solved as
+    A_k X = Y B_k on the stations, the maximum-likelihood answer for independent noise on each
+    station. The motions share the stations' noise, which the per-motion model of `refine`
+    cannot represent: on them its answer is 2-14% less accurate and its uncertainty 3-6x too
+    small (docs/solvers/auto.md); on the stations both are right, and the answer is the same in
+    the user's frames (Y, the first station's pose pair, absorbs the common origin)."""
+    from handeye.problems.axyb import PROBLEM as AXYB
+
+    A_abs, B_abs = data.stations
+    output = run(AXYB.validate(A=A_abs, B=B_abs), options, backend)
+    diagnostics = dict(output.diagnostics)
+    diagnostics["formulation"] = (f"A_k X = Y B_k on the {len(A_abs)} stations the {data.m} motions were made "
+                                  "from (maximum likelihood for independent noise on each station)")
+    diagnostics["pipeline"] = ["stations", *diagnostics["pipeline"]]
+    return SolverOutput(unknowns={"X": output.unknowns["X"]}, status=output.status, diagnostics=diagnostics)
 
 
 SPECS = (

@@ -32,15 +32,18 @@ Problem ``axxb`` (A_i X = X B_i, relative motions; a second spec under the same 
 `horaud`, `andreff` and `daniilidis` solvers implement the same methods, equal to ~1e-13). OpenCV
 takes absolute poses G_k = T_base_gripper (gripper2base) and C_k = T_cam_target (target2cam),
 forms every pair i < j itself, A = inv(G_j) G_i and B = C_j inv(C_i), and returns X =
-T_gripper_cam (cam2gripper). Given motions A_k, B_k (k = 1..m), `absolute_chain` builds poses
-that reproduce them: G_0 = H_0 = I, G_k = G_(k-1) inv(A_k), H_k = B_k H_(k-1), so that
-inv(G_k) G_(k-1) = A_k and H_k inv(H_(k-1)) = B_k. For motions built consecutively from absolute
-poses P_k, Q_k (``motions(..., pairing="consecutive")``) the chain is G_k = inv(P_0) P_k,
-H_k = Q_k inv(Q_0), so the pairs OpenCV forms from it, inv(G_j) G_i = inv(P_j) P_i and
-H_j inv(H_i) = Q_j inv(Q_i), are exactly the motions of the original poses: the answer equals
-OpenCV's on those poses (measured <= 1e-13; tests/test_classic_handeye.py checks 1e-9). For other motions
-(e.g. pairing "all") OpenCV sees the products of consecutive ones, A_(i+1..j), not the motions
-given. Unit invariance is declared for tsai, park and horaud (rotation first, from rotations
+T_gripper_cam (cam2gripper). Given motions, `stations` rebuilds absolute poses whose pairs are
+those motions, so that the answer equals OpenCV's on the user's own poses (measured <= 1e-13;
+tests/test_classic_handeye.py checks 1e-9):
+- motions of every pair of n stations in OpenCV's order (``motions(..., pairing="all")``, the
+  default): the stations rebuilt by `AXXBData.stations` (G_0 = H_0 = I, G_j = inv(A_(0,j)),
+  H_j = B_(0,j) from the first n - 1 motions, checked against all of them);
+- otherwise the chain of `absolute_chain`: G_0 = H_0 = I, G_k = G_(k-1) inv(A_k),
+  H_k = B_k H_(k-1), so that inv(G_k) G_(k-1) = A_k and H_k inv(H_(k-1)) = B_k. For motions built
+  consecutively from absolute poses P_k, Q_k (``pairing="consecutive"``) the chain is
+  G_k = inv(P_0) P_k, H_k = Q_k inv(Q_0), whose pairs are exactly the motions of the original
+  poses. For any other set of motions OpenCV then also sees the products of consecutive ones,
+  A_(i+1..j) (``diagnostics["stations"]`` says which way was used). Unit invariance is declared for tsai, park and horaud (rotation first, from rotations
 only); andreff and daniilidis weigh rotation rows against translation rows and change with the
 length unit on noisy data (docs/solvers/opencv.md).
 
@@ -150,6 +153,16 @@ def absolute_chain(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return G, H
 
 
+def stations(data: AXXBData) -> tuple[np.ndarray, np.ndarray, str]:
+    """Absolute poses G (gripper2base), H (target2cam) whose pairs, as OpenCV forms them, are the
+    motions of `data`, and how they were found: "all pairs" (`AXXBData.stations`: G = A_abs,
+    H = inv(B_abs)) or "chain" (`absolute_chain`); module docstring."""
+    if data.stations is not None:
+        A_abs, B_abs = data.stations
+        return A_abs, inverse(B_abs), "all pairs"
+    return (*absolute_chain(data.A, data.B), "chain")
+
+
 def calibrate_hand_eye(G: np.ndarray, C: np.ndarray, method: str) -> np.ndarray:
     """X = cam2gripper: (4, 4), straight from cv2.calibrateHandEye on the absolute poses
     G = gripper2base, C = target2cam: (n, 4, 4) each (rotation block not re-projected)."""
@@ -190,14 +203,16 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
 
 
 def run_hand_eye(data: AXXBData, options: HandEyeOptions, backend: str) -> SolverOutput:
-    G, H = absolute_chain(data.A, data.B)
+    G, H, how = stations(data)
     X = calibrate_hand_eye(G, H, options.method)
     if options.method == "tsai" and np.array_equal(X, np.eye(4)):  # OpenCV's "no answer" (it only logs)
         raise DegenerateDataError(
             "OpenCV's Tsai found fewer than 2 motion pairs rotating by 17.3 to 116.4 deg and returned no "
             "answer: record motions with larger rotations, or use another method"
         )
-    return _output({"X": X}, options.method)
+    output = _output({"X": X}, options.method)
+    output.diagnostics["stations"] = how
+    return output
 
 
 SPEC = SolverSpec(

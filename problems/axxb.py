@@ -54,6 +54,9 @@ WEAK_ROTATION = 0.1
 #: motion). The screw pitch (translation along the axis, also invariant) is reported but not used
 #: to flag: its noise grows with |t| / angle, so one threshold does not fit every motion.
 MISMATCH_ANGLE_FLOOR = np.deg2rad(1.0)
+#: relative tolerance of `AXXBData.stations`: motions of one set of stations agree to rounding
+#: (~1e-13 of the translations); independent motions miss by their noise.
+STATIONS_TOL = 1e-9
 MISMATCH_SIGMAS = 5.0
 
 
@@ -94,6 +97,32 @@ class AXXBData(PosePairs):
     def normal_equations(self, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
         """The normal equations of the linear system (`normal_equations`)."""
         return normal_equations(self, scale)
+
+    @functools.cached_property
+    def stations(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The absolute poses the motions were made from, when they are every pair of n stations
+        in `relative_motions` order ("all", the default of `motions`); else None.
+
+        With station 0 as the origin on both sides, A_abs_j = inv(A_(0,j)), B_abs_j =
+        inv(B_(0,j)) (j = 1 .. n-1; A_abs_0 = B_abs_0 = I) give A_abs_j X = Y B_abs_j with Y = X
+        for exact data; every motion is checked to be inv(A_abs_j) A_abs_i to rounding
+        (STATIONS_TOL), which motions made from one set of stations are and independent motions
+        are not. These are the user's stations up to one common pose on each side, which an
+        AX=YB solve absorbs into Y: its residuals, hence its maximum-likelihood X and covariance,
+        are those of the original stations.
+        """
+        m = self.m
+        n = int(round((1 + np.sqrt(1 + 8 * m)) / 2))
+        if n * (n - 1) // 2 != m or n < 3:
+            return None
+        A_abs = np.concatenate([np.eye(4)[None], inverse(self.A[:n - 1])])
+        B_abs = np.concatenate([np.eye(4)[None], inverse(self.B[:n - 1])])
+        i, j = np.triu_indices(n, k=1)
+        tol = STATIONS_TOL * max(self.translation_scale, 1.0)
+        for T_abs, T in ((A_abs, self.A), (B_abs, self.B)):
+            if np.abs(inverse(T_abs[j]) @ T_abs[i] - T).max() > tol:
+                return None
+        return A_abs, B_abs
 
 
 def normal_equations(data: AXXBData, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
@@ -150,12 +179,18 @@ def solve_translation(data: AXXBData, RX: np.ndarray) -> np.ndarray:
         ) from None
 
 
-def relative_motions(A_abs: np.ndarray, B_abs: np.ndarray, pairing: str = "consecutive") -> tuple[np.ndarray, np.ndarray]:
+def relative_motions(A_abs: np.ndarray, B_abs: np.ndarray, pairing: str = "all") -> tuple[np.ndarray, np.ndarray]:
     """Motions A_ij = inv(A_j) A_i, B_ij = inv(B_j) B_i of absolute poses with A_k X = Y B_k.
 
-    Then A_ij X = inv(A_j) Y B_i = X inv(B_j) B_i = X B_ij. pairing "consecutive": (i, i + 1)
-    for i = 0 .. n-2; "all": every i < j, i outer and j inner (the order of OpenCV's
-    ``calibrateHandEye``, which forms these pairs itself).
+    Then A_ij X = inv(A_j) Y B_i = X inv(B_j) B_i = X B_ij. pairing "all" (default): every
+    i < j, i outer and j inner (the order of OpenCV's ``calibrateHandEye``, which forms these
+    pairs itself); "consecutive": (i, i + 1) for i = 0 .. n-2.
+
+    Why "all" by default (docs/when-to-use-which.md): with independent noise on each station (a
+    board pose from solvePnP, a robot pose from the controller) every pair carries information,
+    and all pairs gave lower errors than consecutive ones in every cell of that study; with a
+    drifting camera (visual odometry: the error of a pose accumulates along the recording) only
+    consecutive motions are accurate, and "consecutive" is the right choice.
     """
     if pairing not in PAIRINGS:
         raise InputError(f"pairing={pairing!r} is not one of {', '.join(PAIRINGS)}")
@@ -168,7 +203,7 @@ def relative_motions(A_abs: np.ndarray, B_abs: np.ndarray, pairing: str = "conse
 
 
 def motions(robot_poses: Any, camera_poses: Any, setup: str = "eye-in-hand",
-            pairing: str = "consecutive") -> dict[str, np.ndarray]:
+            pairing: str = "all") -> dict[str, np.ndarray]:
     """Relative motions {"A", "B"} for `axxb` from the absolute poses a cell records.
 
     robot_poses: (n, 4, 4) T_base_flange, the flange pose in the robot base (OpenCV's
@@ -177,7 +212,8 @@ def motions(robot_poses: Any, camera_poses: Any, setup: str = "eye-in-hand",
     setup: "eye-in-hand" (camera on the flange): X = T_flange_cam (OpenCV's ``cam2gripper``);
         "eye-to-hand" (camera fixed, board on the flange): X = T_base_cam (what OpenCV returns
         when given base2gripper poses).
-    pairing: "consecutive" (station i with i + 1) or "all" (every pair, OpenCV's choice).
+    pairing: "all" (every pair i < j, OpenCV's choice; the default) or "consecutive" (station i
+        with i + 1, for drifting cameras): see `relative_motions`.
 
     With the absolute poses A_k = T_base_flange (eye-in-hand) or T_flange_base (eye-to-hand) and
     B_k = T_target_cam, A_k X = Y B_k holds with a constant Y (T_base_target, T_flange_target),
@@ -272,27 +308,27 @@ class AXXB(Problem):
         return pose_discrepancy(data.A @ X, X @ data.B)
 
     def simulate(self, *, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
-                 X: np.ndarray | None = None, Y: np.ndarray | None = None, pairing: str = "consecutive",
+                 X: np.ndarray | None = None, Y: np.ndarray | None = None, pairing: str = "all",
                  **options: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
-        """`pairs` motions of an eye-in-hand cell, with the noise on the absolute poses.
+        """The motions of an eye-in-hand cell that records `pairs` robot/camera pose pairs
+        (stations, as ``axyb``'s `pairs`), with the noise on those absolute poses.
 
-        Absolute poses as the ``axyb`` simulator makes them (`simulate_stations`): robot poses
-        A_k of the paper's arm at random joints (mm), B_k = Y^-1 A_k X, noise (`NoiseModel`: "A"
-        on the robot poses, "B" on the camera poses) applied to them, then differenced
-        (`relative_motions`), so consecutive motions share a station's noise. pairing
-        "consecutive" uses pairs + 1 stations; "all" the fewest stations n with n (n - 1) / 2 >=
-        pairs, keeping the first `pairs` motions. X, Y default to the paper's (Sec. IV-A).
+        Absolute poses as the ``axyb`` simulator makes them (`simulate_stations`, the same seed
+        gives the same stations): robot poses A_k of the paper's arm at random joints (mm),
+        B_k = Y^-1 A_k X, noise (`NoiseModel`: "A" on the robot poses, "B" on the camera poses)
+        applied to them, then differenced (`relative_motions`), so motions that share a station
+        share its noise: pairs (pairs - 1) / 2 motions with pairing "all" (default), pairs - 1
+        with "consecutive". X, Y default to the paper's (Sec. IV-A).
         """
         if options:
             raise InputError(f"unknown simulate option(s) {sorted(options)}; known: pairs, seed, noise, X, Y, pairing")
-        if pairs < 1:
-            raise InputError(f"pairs must be >= 1, got {pairs}")
+        if pairs < 2:
+            raise InputError(f"pairs must be >= 2 (stations; motions are made between them), got {pairs}")
         if pairing not in PAIRINGS:
             raise InputError(f"pairing={pairing!r} is not one of {', '.join(PAIRINGS)}")
-        stations = pairs + 1 if pairing == "consecutive" else int(np.ceil((1 + np.sqrt(1 + 8 * pairs)) / 2))
-        stations_data, truth = simulate_stations(stations, seed=seed, noise=noise, X=X, Y=Y)
-        A, B = relative_motions(stations_data["A"], stations_data["B"], pairing)
-        return {"A": A[:pairs], "B": B[:pairs]}, {"X": truth["X"]}
+        stations, truth = simulate_stations(pairs, seed=seed, noise=noise, X=X, Y=Y)
+        A, B = relative_motions(stations["A"], stations["B"], pairing)
+        return {"A": A, "B": B}, {"X": truth["X"]}
 
 
 def simulate_stations(stations: int, *, seed: int | None = None, noise: NoiseModel | None = None,

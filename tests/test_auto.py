@@ -155,7 +155,7 @@ def test_auto_axxb_noise_free():
     start = _axxb_start_or_skip()
     rng = np.random.default_rng(23)
     X = AXXB.random_unknowns(rng, 100.0)["X"]
-    data, truth = AXXB.simulate(pairs=10, seed=23, X=X)
+    data, truth = AXXB.simulate(pairs=11, seed=23, X=X, pairing="consecutive")
     sol = handeye.solve("axxb", **data)
     assert sol.solver == "auto" and sol.status == Status.OPTIMAL and set(sol.unknowns) == {"X"}
     assert sol.diagnostics["pipeline"][-1] == "refine" and sol.diagnostics["init"] == start
@@ -165,8 +165,9 @@ def test_auto_axxb_noise_free():
 
 def test_auto_axxb_noisy_against_truth_and_oracle():
     _axxb_start_or_skip()
-    data, truth = AXXB.simulate(pairs=16, seed=17, noise=AXXB_NOISE)
+    data, truth = AXXB.simulate(pairs=17, seed=17, noise=AXXB_NOISE, pairing="consecutive")
     sol = handeye.solve("axxb", **data)
+    assert "formulation" not in sol.diagnostics  # consecutive motions: the per-motion model
     err = AXXB.errors(sol.unknowns, truth)["X"]
     assert err["rotation"] < AXXB_NOISY_BOUNDS["rotation"] and err["translation"] < AXXB_NOISY_BOUNDS["translation"], err
     d = sol.diagnostics
@@ -184,7 +185,7 @@ def test_auto_axxb_uncertified_start_triggers_a_second_start(monkeypatch):
     other = refine.fallback_init("axxb", start)
     if start != refine.STARTS["axxb"][0] or other is None:
         pytest.skip("the certifiable start or a second start is not available for axxb")
-    data, truth = AXXB.simulate(pairs=16, seed=18, noise=AXXB_NOISE)
+    data, truth = AXXB.simulate(pairs=17, seed=18, noise=AXXB_NOISE, pairing="consecutive")
     real_init = refine.run_init
 
     def uncertified(name, d):
@@ -200,3 +201,29 @@ def test_auto_axxb_uncertified_start_triggers_a_second_start(monkeypatch):
     assert [s["init"] for s in d["starts"]] == [start, other] and not d["init_certified"]
     err = AXXB.errors(sol.unknowns, truth)["X"]
     assert err["rotation"] < AXXB_NOISY_BOUNDS["rotation"]
+
+
+def test_auto_axxb_on_every_pair_of_stations_solves_the_stations():
+    """Motions that are every pair of n stations (the default of motions()) share the stations'
+    noise: auto rebuilds the stations and solves A_k X = Y B_k on them, the maximum-likelihood
+    answer, equal to auto for axyb on the user's own stations (a common origin is absorbed by Y)."""
+    from handeye.problems.axxb import motions, simulate_stations
+    from handeye.se3 import inverse
+
+    stations, truth = simulate_stations(12, seed=31, noise=AXXB_NOISE)
+    data = motions(stations["A"], inverse(stations["B"]))  # robot poses, board poses in the camera
+    sol = handeye.solve("axxb", **data)
+    assert "12 stations the 66 motions" in sol.diagnostics["formulation"]
+    assert sol.diagnostics["pipeline"][0] == "stations"
+    on_stations = handeye.solve("axyb", A=stations["A"], B=stations["B"])
+    np.testing.assert_allclose(sol.X[:3, :3], on_stations.X[:3, :3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sol.X[:3, 3], on_stations.X[:3, 3], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(sol.diagnostics["refine"]["std"]["X"]["rotation"],
+                               on_stations.diagnostics["refine"]["std"]["X"]["rotation"], rtol=1e-5)
+    err = AXXB.errors(sol.unknowns, truth)["X"]
+    assert err["rotation"] < AXXB_NOISY_BOUNDS["rotation"] and err["translation"] < AXXB_NOISY_BOUNDS["translation"]
+    refined = handeye.solve("axxb", solver="refine", **data)
+    assert any("every pair of 12 stations" in w and "'auto'" in w for w in refined.warnings)
+    # stated weights describe the motions: then the per-motion model is used
+    stated = handeye.solve("axxb", sigma_rot=0.003, sigma_trans=0.3, **data)
+    assert "formulation" not in stated.diagnostics

@@ -231,7 +231,7 @@ def test_so3_sdp_weak_relaxation_is_not_certified():
     """Without the redundant constraints the relaxation is over O(3): rank one at a reflection
     (ratio ~1e-9), caught by the gap (docs/solvers/so3-sdp.md: 39 of 150 such draws)."""
     # seed 9 of that study: ratio 4e-8, relative gap 1.6
-    raw, _ = PROBLEM.simulate(pairs=2, seed=9, noise=NoiseModel.on(("A", "B"), 0.2, 20.0),
+    raw, _ = PROBLEM.simulate(pairs=3, seed=9, noise=NoiseModel.on(("A", "B"), 0.2, 20.0), pairing="consecutive",
                               **PROBLEM.random_unknowns(np.random.default_rng(10_009)))
     weak = solve(raw, "so3-sdp", redundant=False)
     assert weak.status is Status.UNCERTIFIED and weak.diagnostics["relative_gap"] > 1e-2

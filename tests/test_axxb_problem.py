@@ -30,13 +30,13 @@ def _beta(X: np.ndarray) -> np.ndarray:
 @pytest.fixture(scope="module")
 def exact():
     truth = PROBLEM.random_unknowns(np.random.default_rng(7))
-    data, truth = PROBLEM.simulate(pairs=9, seed=7, **truth)
+    data, truth = PROBLEM.simulate(pairs=10, seed=7, pairing="consecutive", **truth)
     return PROBLEM.validate(**data), truth
 
 
 @pytest.fixture(scope="module")
 def noisy():
-    data, truth = PROBLEM.simulate(pairs=25, seed=8, noise=NoiseModel.on(("A", "B"), 0.01, 1.0))
+    data, truth = PROBLEM.simulate(pairs=26, seed=8, noise=NoiseModel.on(("A", "B"), 0.01, 1.0), pairing="consecutive")
     return PROBLEM.validate(**data), truth
 
 
@@ -242,7 +242,8 @@ def test_good_data_have_no_warnings(noisy):
 
 
 def test_swapped_pairs_are_listed_as_mismatched():
-    data, _ = PROBLEM.simulate(pairs=20, seed=2, noise=NoiseModel.on(("A", "B"), 0.002, 0.2))
+    data, _ = PROBLEM.simulate(pairs=21, seed=2, noise=NoiseModel.on(("A", "B"), 0.002, 0.2),
+                               pairing="consecutive")
     A = data["A"].copy()
     A[[3, 4]] = A[[4, 3]]
     diag = PROBLEM.diagnose(PROBLEM.validate(A=A, B=data["B"]))
@@ -257,8 +258,8 @@ def test_simulator_differences_noisy_absolute_poses():
     consecutive motions share a station's noise, as real data do."""
     noise = NoiseModel.on(("A", "B"), 0.003, 0.4)
     data, truth = PROBLEM.simulate(pairs=12, seed=4, noise=noise)
-    stations, full_truth = simulate_stations(13, seed=4, noise=noise)
-    A, B = relative_motions(stations["A"], stations["B"])
+    stations, full_truth = simulate_stations(12, seed=4, noise=noise)
+    A, B = relative_motions(stations["A"], stations["B"], "all")
     np.testing.assert_array_equal(data["A"], A)
     np.testing.assert_array_equal(data["B"], B)
     np.testing.assert_array_equal(truth["X"], full_truth["X"])
@@ -268,9 +269,16 @@ def test_simulator_differences_noisy_absolute_poses():
 
 
 def test_simulator_pairings_and_options():
-    data, truth = PROBLEM.simulate(pairs=10, seed=1, pairing="all")
-    assert data["A"].shape == (10, 4, 4) and set(truth) == {"X"}
+    """`pairs` stations (robot/camera pose pairs, as for axyb): all pairs of them by default,
+    or the consecutive ones."""
+    data, truth = PROBLEM.simulate(pairs=10, seed=1)
+    assert data["A"].shape == (45, 4, 4) and set(truth) == {"X"}
     assert PROBLEM.residuals(PROBLEM.validate(**data), truth)["translation"].max() < 1e-9
+    consecutive, _ = PROBLEM.simulate(pairs=10, seed=1, pairing="consecutive")
+    assert consecutive["A"].shape == (9, 4, 4)
+    np.testing.assert_array_equal(consecutive["A"][0], data["A"][0])  # stations (0, 1) in both
+    with pytest.raises(handeye.InputError, match="pairs must be >= 2"):
+        PROBLEM.simulate(pairs=1, seed=1)
     with pytest.raises(handeye.InputError, match="unknown simulate option"):
         PROBLEM.simulate(pairs=3, seed=1, stations=4)
     with pytest.raises(handeye.InputError, match="pairing"):

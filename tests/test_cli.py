@@ -365,13 +365,16 @@ def test_axxb_simulate_stations_then_solve(capsys, tmp_path, ext):
     assert "wrote 9 axxb stations" in out
     code, out, err = run_cli(capsys, "solve", "--problem", "axxb", "--solver", axxb_solver(), str(path))
     assert code == 0, err
-    assert "8 motions from 9 stations (consecutive pairs, eye-in-hand, lengths in mm)" in out
+    assert "36 motions from 9 stations (all pairs, eye-in-hand, lengths in mm)" in out
     assert "X = T_flange_cam (camera in the flange frame) =" in out and "Y =" not in out
     assert "residuals of A_i X = X B_i over the motions:" in out
-    assert "per motion:" in out and "0 (0->1)" in out and "7 (7->8)" in out
     assert "errors against the file's truth" in out
-    code, out, err = run_cli(capsys, "solve", "--problem", "axxb", "--solver", axxb_solver(), "--pairing", "all",
-                             "--json", str(path))
+    code, out, err = run_cli(capsys, "solve", "--problem", "axxb", "--solver", axxb_solver(), "--pairing",
+                             "consecutive", str(path))
+    assert code == 0, err
+    assert "8 motions from 9 stations (consecutive pairs, eye-in-hand, lengths in mm)" in out
+    assert "per motion:" in out and "0 (0->1)" in out and "7 (7->8)" in out
+    code, out, err = run_cli(capsys, "solve", "--problem", "axxb", "--solver", axxb_solver(), "--json", str(path))
     report = json.loads(out)
     assert code == 0 and report["problem"] == "axxb" and report["pairing"] == "all"
     assert (report["pairs"], report["stations"]) == (36, 9) and report["motions"][:2] == [[0, 1], [0, 2]]
@@ -395,11 +398,11 @@ def test_axxb_simulated_motions_file(capsys, tmp_path):
                            "--seed", "2", "-o", str(path))
     assert code == 0, err
     data, truth = load_data(path, problem="axxb")
-    assert data["A"].shape == (6, 4, 4) and set(truth) == {"X"}
+    assert data["A"].shape == (15, 4, 4) and set(truth) == {"X"}  # every pair of 6 stations
     code, out, err = run_cli(capsys, "solve", "--problem", "axxb", "--solver", axxb_solver(), "--json", str(path))
     report = json.loads(out)
     assert code == 0, err
-    assert report["pairs"] == 6 and "stations" not in report
+    assert report["pairs"] == 15 and "stations" not in report
     assert report["errors"]["X"]["rotation"] < 1e-8  # noise free
 
 

@@ -462,12 +462,13 @@ def test_axxb_study_rows_per_solver_and_trial_and_deterministic(tmp_path):
 def test_axxb_pairing_reaches_the_simulator():
     from handeye.harness.runner import simulate
 
-    study = tiny_axxb_study(simulation={"pairing": "all"})
+    study = tiny_axxb_study(simulation={"pairing": "consecutive"})
     cell = next(c for c in study.cells() if c.pairs == 8 and c.level == 1.0)
     data, truth, _ = simulate(study, cell, 0)
-    assert data["A"].shape == (8, 4, 4) and set(truth) == {"X"}
-    consecutive, _, _ = simulate(tiny_axxb_study(), cell, 0)
-    assert not np.allclose(data["A"][1], consecutive["A"][1])  # motion 1: stations (0, 2), not (1, 2)
+    assert data["A"].shape == (7, 4, 4) and set(truth) == {"X"}  # 8 stations
+    every_pair, _, _ = simulate(tiny_axxb_study(), cell, 0)
+    assert every_pair["A"].shape == (28, 4, 4)
+    assert not np.allclose(data["A"][1], every_pair["A"][1])  # motion 1: stations (1, 2), not (0, 2)
     assert load_study_text('problem = "axxb"\nsimulation = { pairing = "all" }\n').simulation == {"pairing": "all"}
 
 

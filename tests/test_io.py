@@ -161,17 +161,17 @@ def test_axxb_absolute_poses_round_trip_and_become_motions(tmp_path, stations, e
     path = save_data(tmp_path / f"s{ext}", poses, truth, problem="axxb",
                      metadata={"setup": "eye-in-hand", "units": "mm"})
     loaded = load_file(path, "axxb")
-    assert loaded.metadata == {"setup": "eye-in-hand", "units": "mm", "pairing": "consecutive"}
+    assert loaded.metadata == {"setup": "eye-in-hand", "units": "mm", "pairing": "all"}
     for name in ("robot_poses", "camera_poses"):
         np.testing.assert_array_equal(loaded.poses[name], poses[name])
-    expected = motions(poses["robot_poses"], poses["camera_poses"], "eye-in-hand", "consecutive")
+    expected = motions(poses["robot_poses"], poses["camera_poses"], "eye-in-hand", "all")
     for name in ("A", "B"):
         np.testing.assert_array_equal(loaded.data[name], expected[name])
     X = loaded.truth["X"]
     assert set(loaded.truth) == {"X"}
     assert np.abs(loaded.data["A"] @ X - X @ loaded.data["B"]).max() < 1e-9  # A_i X = X B_i
-    data, _ = load_data(path, "axxb", pairing="all")  # the caller's pairing wins
-    assert data["A"].shape == (28, 4, 4)
+    data, _ = load_data(path, "axxb", pairing="consecutive")  # the caller's pairing wins
+    assert data["A"].shape == (7, 4, 4)
     raw = json.loads(path.read_text()) if ext == ".json" else dict(np.load(path))
     assert set(raw) >= {"robot_poses", "camera_poses", "setup", "pairing"} and "A" not in raw
 
@@ -180,10 +180,10 @@ def test_axxb_setup_from_the_caller_and_from_poses(stations):
     from handeye.io import from_poses
 
     poses, _ = stations
-    hand = from_poses(poses["robot_poses"], poses["camera_poses"], setup="eye-in-hand", pairing="all")
+    hand = from_poses(poses["robot_poses"], poses["camera_poses"], setup="eye-in-hand", pairing="consecutive")
     fixed = from_poses(poses["robot_poses"], poses["camera_poses"], setup="eye-to-hand")
-    assert hand.metadata == {"setup": "eye-in-hand", "pairing": "all"} and len(hand.data["A"]) == 28
-    assert fixed.metadata["pairing"] == "consecutive" and len(fixed.data["A"]) == 7
+    assert hand.metadata == {"setup": "eye-in-hand", "pairing": "consecutive"} and len(hand.data["A"]) == 7
+    assert fixed.metadata["pairing"] == "all" and len(fixed.data["A"]) == 28
     assert not np.allclose(hand.data["A"][0], fixed.data["A"][0])  # eye-to-hand inverts the robot poses
     pairs = from_poses(poses["robot_poses"], poses["camera_poses"], "axyb", setup="eye-in-hand")
     assert len(pairs.data["A"]) == 8 and pairs.metadata == {"setup": "eye-in-hand"}
@@ -252,5 +252,5 @@ def test_one_file_of_stations_serves_axyb_and_axxb_with_the_cells_truth(tmp_path
     np.testing.assert_allclose(pairs.data["B"], expected_B)
     assert set(pairs.truth) == {"X", "Y"} and "pairing" not in pairs.metadata
     motions = load_file(path, "axxb")
-    assert len(motions.data["A"]) == 7 and motions.metadata["pairing"] == "consecutive"
+    assert len(motions.data["A"]) == 28 and motions.metadata["pairing"] == "all"
     np.testing.assert_array_equal(motions.truth["X"], X if setup == "eye-in-hand" else Y)

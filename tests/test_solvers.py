@@ -30,11 +30,11 @@ NOISE_FREE_SEEDS = (11, 12, 13)
 NOISE_FREE_PAIRS = 12
 NOISY_SEED = 2026
 #: The noisy reference case of each problem: (pairs, noise model). axyb: the paper's setting
-#: (noise on the camera poses B); axxb: noise on the absolute robot ("A") and camera ("B") poses,
-#: which the simulator differences into motions.
+#: (noise on the camera poses B); axxb: 31 stations, noise on the absolute robot ("A") and camera
+#: ("B") poses, which the simulator differences into all 465 motions between them.
 NOISY: dict[str, tuple[int, NoiseModel]] = {
     "axyb": (30, NoiseModel.on("B", 0.005, 0.5)),
-    "axxb": (30, NoiseModel.on(("A", "B"), 0.002, 0.2)),
+    "axxb": (31, NoiseModel.on(("A", "B"), 0.002, 0.2)),
 }
 UNIT_SCALES = (1e-3, 1e3)
 #: Option sets of the unit-invariance test besides the defaults and the other value of a bool

@@ -23,9 +23,9 @@ The DEFAULT "noisy" bounds come from 20 seeds (0..19) of exactly that simulation
 so the bounds, 0.01 rad and 12 mm, are 2.8x and 2.6x the worst case of any of them.
 
 The axxb "noisy" bounds (`PROBLEM_DEFAULT`) come from 20 seeds of test_solvers.NOISY["axxb"]
-(30 consecutive motions of 31 stations, noise 0.002 rad / 0.2 mm on both the robot and the
-camera poses), measured on 2026-11-23 with OpenCV's calibrateHandEye TSAI and PARK on the same
-31 stations (OpenCV forms all 465 pairs):
+(all 465 motions of 31 stations, noise 0.002 rad / 0.2 mm on both the robot and the camera
+poses), measured on 2026-11-23 with OpenCV's calibrateHandEye TSAI and PARK on the same 31
+stations (OpenCV forms the same 465 pairs):
 
     worst over seeds 0..19    rot X [rad]  t X [mm]   (medians 1.0e-3..1.1e-3 rad, 0.14 mm)
     opencv TSAI               2.64e-3      0.36

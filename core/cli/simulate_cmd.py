@@ -6,8 +6,8 @@ Gaussian noise (`handeye.noise.NoiseModel`) on B, A or both.
 
 For ``axxb`` the same arm and cell (eye-in-hand) record absolute poses at stations, noise goes on
 the robot poses (``--noise-on A``), the camera poses (``B``, the default) or both, and the file
-holds the relative motions A, B made from them (``--pairs M`` motions, ``--pairing``
-consecutive or all). The truth is X = T_flange_cam.
+holds the relative motions A, B made from them (``--pairs M`` stations; ``--pairing`` all, the
+default: M (M - 1) / 2 motions, or consecutive: M - 1). The truth is X = T_flange_cam.
 
 With ``--stations N`` (``axyb`` and ``axxb``) the file holds the N stations' absolute poses
 themselves, as a cell records them (robot_poses = T_base_flange, camera_poses = T_cam_target,
@@ -34,7 +34,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                                    formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--problem", default="axyb", help="problem to simulate: axyb (default) or axxb")
     parser.add_argument("--pairs", type=int, default=None,
-                        help="number of pose pairs (axxb: of motions) (default 16)")
+                        help="number of pose pairs (stations; axxb makes its motions from them) (default 16)")
     parser.add_argument("--stations", type=int, default=None, metavar="N",
                         help="write the absolute poses of N stations (robot_poses, camera_poses) instead of "
                              "pairs (axyb) or motions (axxb)")
@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--pairing applies to problems whose data are motions "
                          f"({sorted(p for p, c in FROM_POSES.items() if c.pairing)}), not {args.problem!r}")
     if args.stations is not None and args.pairs is not None:
-        raise InputError("give --pairs (motions) or --stations (absolute poses), not both")
+        raise InputError("give --pairs (data made from the stations) or --stations (the absolute poses), not both")
     noise = NoiseModel.on(stacks, args.noise_rot, args.noise_trans)
     metadata = {"units": "mm", "setup": "eye-in-hand", "source": "simulated by handeye"}
     options = {"pairing": args.pairing} if args.pairing is not None else {}
@@ -91,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         pairs = 16 if args.pairs is None else args.pairs
         data, truth = problem.simulate(pairs=pairs, seed=args.seed, noise=noise, **options)
-        count, what, size = pairs, ("motions" if motions else "pairs"), f"--pairs {pairs}"
+        count, what, size = len(data["A"]), ("motions" if motions else "pairs"), f"--pairs {pairs}"
     if motions:
         metadata["pairing"] = args.pairing or DEFAULT_PAIRING
     metadata["description"] = (
