@@ -11,8 +11,9 @@ noise on A and B, m = 8, 16, 50, every solver against a refinement started at th
 override what the study says.
 
 ``--problem axxb`` (A_i X = X B_i) compares the AX=XB solvers the same way: the simulator puts
-the noise on the robot poses (A) and the camera poses (B) of the stations, then forms the
-motions (``--pairing consecutive`` or ``all``); OpenCV's five methods are five contenders.
+the noise on the robot poses (A) and the camera poses (B) of the stations (``--pairs``: how many),
+then forms the motions (``--pairing all``, the default, or ``consecutive``); OpenCV's five methods
+are five contenders.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("-o", "--output", metavar="OUTDIR", help="output directory (not with --paper/--accuracy)")
     parser.add_argument("--problem", default="axyb", help="problem: axyb (default) or axxb")
     parser.add_argument("--pairing", choices=("consecutive", "all"),
-                        help="axxb: motions between consecutive stations (default) or all pairs i < j")
+                        help="axxb: motions between all pairs of stations i < j (default, as OpenCV) or consecutive ones")
     parser.add_argument("--solvers", metavar="LIST",
                         help="comma-separated: name, name/backend, name/* (every backend) or all "
                              "(default: every registered solver, every lmi-sdp backend; with --paper: "
