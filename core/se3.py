@@ -121,8 +121,19 @@ def gram(R: ArrayLike) -> Array:
     return np.stack([d00, d01, d02, d01, d11, d12, d02, d12, d22], axis=-1).reshape(R.shape)
 
 
+#: column pairs (i, j), i <= j, of the six distinct entries of R^T R, and those entries of I
+_GRAM_I, _GRAM_J = np.array([0, 1, 2, 0, 0, 1]), np.array([0, 1, 2, 1, 2, 2])
+_GRAM_EYE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+#: up to this many matrices `orthonormality_error` gathers the column pairs in one indexing
+#: (fewer numpy calls: 4x faster for one matrix); above, the strided gather costs more than `gram`
+_SMALL_STACK = 128
+
+
 def orthonormality_error(R: ArrayLike) -> Array:
     """Max abs entry of R^T R - I for R: (..., 3, 3) -> (...)."""
+    R = np.asarray(R, dtype=float)
+    if R.size <= 9 * _SMALL_STACK:
+        return np.abs((R[..., _GRAM_I] * R[..., _GRAM_J]).sum(axis=-2) - _GRAM_EYE).max(axis=-1)
     return np.max(np.abs(gram(R) - np.eye(3)), axis=(-2, -1))
 
 

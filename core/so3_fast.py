@@ -6,8 +6,10 @@ the versions an inner loop calls many times on small stacks (`handeye.nlls`, and
 `refine` for every problem): at the usual m (tens of pairs) the cost of an iteration is the
 number of numpy calls (1-3 us each), not arithmetic, so 3x3 blocks are built from (m, 9) rows
 with one product against a constant (`_SKEW`, `_LOG_MAP`) instead of entry-by-entry
-assignments, and the exp of one rotation vector is computed in Python floats. Inputs are finite
-float arrays (no validation here).
+assignments, and the exp of one rotation vector is computed in Python floats. `quat` (Shepperd's
+quaternions from one product) and `log_from_quat` give the quaternions and rotation vectors of
+a whole data set (``axxb``'s validation and its quaternion solvers) in ~20 numpy calls. Inputs
+are finite float arrays (no validation here).
 """
 
 from __future__ import annotations
@@ -107,3 +109,44 @@ def inverse_jacobians(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     common = jl_coefficient((r * r).sum(axis=1))[:, None, None] * (K @ K) + I3
     half = 0.5 * K
     return common - half, common + half
+
+
+#: R.reshape(m, 9) @ _QUAT_MAP + _QUAT_ONE: (m, 16), the four candidate rows of Shepperd's method
+#: (row k: 4 q_k q for the divisor k, `handeye.dualquat.quat_from_rotation`) in one product:
+#: diagonal terms 1 +- r00 +- r11 +- r22, off-diagonal sums and differences r_ij +- r_ji.
+_QUAT_MAP = np.zeros((9, 16))
+_QUAT_ONE = np.zeros(16)
+for _k, _signs in enumerate(((1, 1, 1), (1, -1, -1), (-1, 1, -1), (-1, -1, 1))):
+    _QUAT_ONE[5 * _k] = 1.0
+    _QUAT_MAP[[0, 4, 8], 5 * _k] = _signs
+for (_a, _b), (_i, _j, _sign) in {(0, 1): (7, 5, -1), (0, 2): (2, 6, -1), (0, 3): (3, 1, -1),  # d = r21 - r12, ...
+                                  (1, 2): (1, 3, 1), (1, 3): (2, 6, 1), (2, 3): (5, 7, 1)}.items():  # s = r01 + r10, ...
+    for _row, _col in ((_a, _b), (_b, _a)):
+        _QUAT_MAP[_i, 4 * _row + _col], _QUAT_MAP[_j, 4 * _row + _col] = 1.0, _sign
+for _array in (_QUAT_MAP, _QUAT_ONE):
+    _array.setflags(write=False)
+del _array, _k, _signs, _a, _b, _i, _j, _sign, _row, _col
+
+
+def quat(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions (q0, qx, qy, qz), scalar FIRST, with q0 >= 0, of R: (m, 3, 3) -> (m, 4).
+
+    Shepperd's method exactly as `handeye.dualquat.quat_from_rotation` (the candidate with the
+    largest of the four diagonal expressions, normalised), equal to it to rounding, with the 16
+    candidate entries from one product with a constant (`_QUAT_MAP`): 3-10x fewer numpy calls.
+    """
+    m = len(R)
+    cand = R.reshape(m, 9) @ _QUAT_MAP + _QUAT_ONE  # (m, 16): 4 candidate rows of 4 per rotation
+    q = cand.reshape(4 * m, 4)[np.argmax(cand[:, ::5], axis=1) + np.arange(0, 4 * m, 4)]  # ::5: the diagonal
+    q *= (np.where(q[:, 0] < 0, -1.0, 1.0) / np.sqrt(np.einsum("ni,ni->n", q, q)))[:, None]
+    return q
+
+
+def log_from_quat(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation vectors and angles of unit quaternions q: (m, 4) (scalar first, q0 >= 0) ->
+    (m, 3), (m,): theta = 2 atan2(|v|, q0), phi = theta / |v| v (v = 0 gives phi = 0); accurate
+    at every angle in [0, pi] (scipy's ``as_rotvec`` route)."""
+    v = q[:, 1:]
+    sin_half = np.sqrt((v * v).sum(axis=1))
+    theta = 2.0 * np.arctan2(sin_half, q[:, 0])
+    return (theta / np.maximum(sin_half, _TINY))[:, None] * v, theta

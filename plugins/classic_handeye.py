@@ -37,18 +37,16 @@ from typing import Any
 import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.dualquat import (
-    dual_quat_from_pose,
     pose_from_dual_quat,
     q_left,
     q_right,
-    quat_from_rotation,
     rotation_from_quat,
 )
 from handeye.errors import DegenerateDataError, InputError
 from handeye.linalg import triangular_factor
 from handeye.options import check_bool
 from handeye.problems.axxb import AXXBData, regression_blocks, solve_translation
-from handeye.se3 import make_pose, project_to_so3, skew, so3_log
+from handeye.se3 import make_pose, project_to_so3, skew
 
 #: Tsai as OpenCV: keep a motion when |P_A| and |P_B| (P = 2 sin(theta/2) n) both lie in this range.
 TSAI_RANGE = (0.3, 1.7)
@@ -56,6 +54,49 @@ TSAI_RANGE = (0.3, 1.7)
 SINGULAR_RATIO = 1e-10
 _PARALLEL = ("the robot motions must rotate about at least two different axes (their rotation axes "
              "are parallel, or they do not rotate)")
+
+
+def _data(A: Any, B: Any) -> AXXBData:
+    """A, B (`_motions`) as AXXBData: the quaternions and rotation vectors the methods use are
+    its cached properties (one vectorised pass over both stacks), shared with `axxb`'s validation
+    when a method runs through `handeye.solve`."""
+    return AXXBData(*_motions(A, B))
+
+
+def _linear_map(build, inputs: int) -> np.ndarray:
+    """The constant matrix L: (inputs, size) with build(x).reshape(-1) = x @ L for the linear
+    `build` of one motion's rows from its input vector x: (inputs,), found by applying build to
+    the unit vectors. A stack of blocks is then built by ONE product, X: (m, inputs) @ L, instead
+    of a dozen strided assignments."""
+    L = np.stack([np.asarray(build(e), dtype=float).reshape(-1) for e in np.eye(inputs)])
+    L.setflags(write=False)
+    return L
+
+
+def _tsai_block(x: np.ndarray) -> np.ndarray:
+    """[skew(P_A + P_B) | P_B - P_A]: (3, 4) of eq. 12 for x = (P_A, P_B)."""
+    pa, pb = x[:3], x[3:]
+    return np.concatenate([skew(pa + pb), (pb - pa)[:, None]], axis=1)
+
+
+def _daniilidis_block(x: np.ndarray) -> np.ndarray:
+    """The 6x8 block of eq. 31 for x = (a, b, a', b'), its columns ordered (q'_X, q_X): the
+    leading 4x4 block of the stack's triangular factor is then that of the rotation rows alone
+    (the first 3 rows of a block are zero in the q'_X columns)."""
+    a, b, a_, b_ = x[:3], x[3:6], x[6:9], x[9:]
+    T = np.zeros((6, 8))
+    T[:3, 4], T[:3, 5:] = a - b, skew(a + b)
+    T[3:, 4], T[3:, 5:] = a_ - b_, skew(a_ + b_)
+    T[3:, 0], T[3:, 1:4] = a - b, skew(a + b)
+    return T
+
+
+_TSAI_MAP = _linear_map(_tsai_block, 6)
+_DANIILIDIS_MAP = _linear_map(_daniilidis_block, 12)
+#: cross products u x v of (k, 3) stacks by gathered components (np.cross costs ~10 numpy calls)
+_C1, _C2 = np.array([1, 2, 0]), np.array([2, 0, 1])
+#: the columns (q'_X, q_X) of `_daniilidis_block` reordered as (q_X, q'_X)
+_Q_FIRST = np.array([4, 5, 6, 7, 0, 1, 2, 3])
 
 
 def _motions(A: Any, B: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -69,13 +110,16 @@ def _motions(A: Any, B: Any) -> tuple[np.ndarray, np.ndarray]:
     return A, B
 
 
-def _lstsq(M: np.ndarray, rhs: np.ndarray, what: str, hint: str = _PARALLEL) -> tuple[np.ndarray, float]:
+def _lstsq(M: np.ndarray, rhs: np.ndarray | None, what: str, hint: str = _PARALLEL) -> tuple[np.ndarray, float]:
     """Least squares min |M x - rhs| for the blocks M: (k, r, c), rhs: (k, r) stacked, and
     sigma_min / sigma_max of the stack; DegenerateDataError when it is singular. As OpenCV's
     DECOMP_SVD up to rounding: the stack [M | rhs] is first reduced to its triangular factor
-    (`handeye.linalg.triangular_factor`, a QR of small chunks), then solved by SVD."""
-    c = M.shape[-1]
-    R = triangular_factor(np.concatenate([M, rhs[..., None]], axis=-1))
+    (`handeye.linalg.triangular_factor`, a QR of small chunks), then solved by SVD. rhs None:
+    M is already [M | rhs] (k, r, c + 1)."""
+    if rhs is not None:
+        M = np.concatenate([M, rhs[..., None]], axis=-1)
+    c = M.shape[-1] - 1
+    R = triangular_factor(M)
     U, s, Vt = np.linalg.svd(R[:c, :c])
     ratio = float(s[-1] / s[0]) if s[0] > 0 else 0.0
     if ratio <= SINGULAR_RATIO:
@@ -83,35 +127,34 @@ def _lstsq(M: np.ndarray, rhs: np.ndarray, what: str, hint: str = _PARALLEL) -> 
     return Vt.T @ ((U.T @ R[:c, c]) / s), ratio
 
 
-def _translation(A: np.ndarray, B: np.ndarray, RX: np.ndarray) -> np.ndarray:
-    """t_X by least squares given R_X: (I - R_Ai) t_X = t_Ai - R_X t_Bi (Tsai's eq. 15, the same
-    step in Park and Horaud)."""
-    return solve_translation(AXXBData(A, B), RX)
-
-
-def _tsai(A: Any, B: Any, select_motions: bool = True) -> tuple[np.ndarray, dict[str, Any]]:
+def _tsai(data: AXXBData, select_motions: bool = True) -> tuple[np.ndarray, dict[str, Any]]:
     """`tsai` and its diagnostics."""
-    A, B = _motions(A, B)
-    P_A = 2.0 * quat_from_rotation(A[:, :3, :3])[:, 1:]  # 2 sin(theta/2) n, scalar part >= 0
-    P_B = 2.0 * quat_from_rotation(B[:, :3, :3])[:, 1:]
-    keep = np.ones(len(A), dtype=bool)
+    m = data.m
+    P = 2.0 * data._quaternions[:, 1:]  # 2 sin(theta/2) n of A_1 .. A_m, B_1 .. B_m, scalar part >= 0
+    used = m
     if select_motions:
         lo, hi = TSAI_RANGE
-        for n in (np.linalg.norm(P_A, axis=1), np.linalg.norm(P_B, axis=1)):
-            keep &= (n >= lo) & (n <= hi)
-    if keep.sum() < 2:
+        n = np.sqrt((P * P).sum(axis=1))
+        inside = (n >= lo) & (n <= hi)
+        keep = inside[:m] & inside[m:]
+        used = int(keep.sum())
+    if used < 2:
         raise DegenerateDataError(
-            f"tsai: only {keep.sum()} of {len(A)} motions rotate by 17.3 to 116.4 deg (|2 sin(theta/2)| in "
+            f"tsai: only {used} of {m} motions rotate by 17.3 to 116.4 deg (|2 sin(theta/2)| in "
             f"{list(TSAI_RANGE)}, OpenCV's selection) and 2 are needed: record motions with larger "
             "rotations, or pass select_motions=False to use every motion"
         )
-    S = skew(P_A[keep] + P_B[keep])  # eq. 12: skew(P_A + P_B) P' = P_B - P_A, 3 rows per motion
-    x, ratio = _lstsq(S, P_B[keep] - P_A[keep], "tsai: the rotation system (eq. 12)",
+    PAB = np.concatenate([P[:m], P[m:]], axis=1)  # (P_A, P_B) per motion
+    if used < m:
+        PAB = PAB[keep]
+        data = AXXBData(data.A[keep], data.B[keep])
+    # eq. 12: skew(P_A + P_B) P' = P_B - P_A, 3 rows per motion, built as [skew | rhs] by one product
+    x, ratio = _lstsq((PAB @ _TSAI_MAP).reshape(-1, 3, 4), None, "tsai: the rotation system (eq. 12)",
                       _PARALLEL + ", or X rotates by 180 deg, which Tsai's parametrisation cannot represent")
     # eq. 14: P_X = 2 P' / sqrt(1 + |P'|^2), i.e. the unit quaternion (1, P') / |(1, P')|
     RX = rotation_from_quat(np.concatenate([[1.0], x]))
-    tX = _translation(A[keep], B[keep], RX)
-    return make_pose(RX, tX), {"motions_used": int(keep.sum()), "rotation_sigma_ratio": ratio}
+    tX = solve_translation(data, RX)  # eq. 15 on the selected motions
+    return make_pose(RX, tX), {"motions_used": used, "rotation_sigma_ratio": ratio}
 
 
 def tsai(A: Any, B: Any, select_motions: bool = True) -> np.ndarray:
@@ -127,19 +170,18 @@ def tsai(A: Any, B: Any, select_motions: bool = True) -> np.ndarray:
     select_motions: use only the motions OpenCV uses (module docstring); False: all. Unit
     invariant. DegenerateDataError when fewer than 2 motions are selected or eq. 12 is singular.
     """
-    return _tsai(A, B, select_motions)[0]
+    return _tsai(_data(A, B), select_motions)[0]
 
 
-def _park(A: Any, B: Any) -> tuple[np.ndarray, dict[str, Any]]:
+def _park(data: AXXBData) -> tuple[np.ndarray, dict[str, Any]]:
     """`park` and its diagnostics."""
-    A, B = _motions(A, B)
-    alpha, beta = so3_log(A[:, :3, :3]), so3_log(B[:, :3, :3])  # alpha_i = R_X beta_i
+    alpha, beta = data.rotation_vectors  # alpha_i = R_X beta_i
     M = beta.T @ alpha  # sum_i beta_i alpha_i^T
     sigma = np.linalg.svd(M, compute_uv=False)
     if sigma[1] <= SINGULAR_RATIO * sigma[0]:
         raise DegenerateDataError(f"park: M = sum beta_i alpha_i^T has rank < 2: {_PARALLEL}")
     RX = project_to_so3(M.T)  # = (M^T M)^(-1/2) M^T when M is invertible with det > 0
-    return make_pose(RX, _translation(A, B, RX)), {"M_singular_values": sigma.tolist()}
+    return make_pose(RX, solve_translation(data, RX)), {"M_singular_values": sigma.tolist()}
 
 
 def park(A: Any, B: Any) -> np.ndarray:
@@ -154,20 +196,19 @@ def park(A: Any, B: Any) -> np.ndarray:
     motions, where M has rank 2). Then t_X by least squares, (I - R_Ai) t_X = t_Ai - R_X t_Bi.
     Unit invariant. DegenerateDataError when M has rank < 2 (parallel axes).
     """
-    return _park(A, B)[0]
+    return _park(_data(A, B))[0]
 
 
-def _horaud(A: Any, B: Any) -> tuple[np.ndarray, dict[str, Any]]:
+def _horaud(data: AXXBData) -> tuple[np.ndarray, dict[str, Any]]:
     """`horaud` and its diagnostics."""
-    A, B = _motions(A, B)
-    q_A, q_B = quat_from_rotation(A[:, :3, :3]), quat_from_rotation(B[:, :3, :3])  # scalar >= 0
-    D = q_left(q_A) - q_right(q_B)  # (Q(q_Ai) - W(q_Bi)) q_X = 0
-    N = np.einsum("nji,njk->ik", D, D)
+    q_A, q_B = data.quaternions  # scalar >= 0
+    D = (q_left(q_A) - q_right(q_B)).reshape(-1, 4)  # (Q(q_Ai) - W(q_Bi)) q_X = 0
+    N = D.T @ D
     lam, V = np.linalg.eigh(N)  # ascending
     if lam[1] - lam[0] <= SINGULAR_RATIO * lam[3]:
         raise DegenerateDataError(f"horaud: the smallest eigenvalue of sum A_i^T A_i is not simple: {_PARALLEL}")
     RX = rotation_from_quat(V[:, 0])
-    return make_pose(RX, _translation(A, B, RX)), {"eigenvalues": lam.tolist()}
+    return make_pose(RX, solve_translation(data, RX)), {"eigenvalues": lam.tolist()}
 
 
 def horaud(A: Any, B: Any) -> np.ndarray:
@@ -181,13 +222,12 @@ def horaud(A: Any, B: Any) -> np.ndarray:
     fails for motions whose signs differ). Then t_X by least squares as in `park`.
     Unit invariant. DegenerateDataError when that eigenvalue is not simple (parallel axes).
     """
-    return _horaud(A, B)[0]
+    return _horaud(_data(A, B))[0]
 
 
-def _andreff(A: Any, B: Any) -> tuple[np.ndarray, dict[str, Any]]:
+def _andreff(data: AXXBData) -> tuple[np.ndarray, dict[str, Any]]:
     """`andreff` and its diagnostics."""
-    A, B = _motions(A, B)
-    H, w = regression_blocks(A, B)  # (R_B kron R_A - I) vec R_X = 0, (t_B^T kron I) vec R_X + (I - R_A) t_X = t_A
+    H, w = regression_blocks(data.A, data.B)  # (R_B kron R_A - I) vec R_X = 0, (t_B^T kron I) vec R_X + (I - R_A) t_X = t_A
     beta, ratio = _lstsq(H, w, "andreff: the linear system (eq. 10)")
     M = beta[:9].reshape(3, 3, order="F")
     det = float(np.linalg.det(M))
@@ -211,23 +251,24 @@ def andreff(A: Any, B: Any) -> np.ndarray:
     weighed by the length unit (exact data are recovered in any unit). DegenerateDataError when
     the system is singular or the rotation block has determinant ~0.
     """
-    return _andreff(A, B)[0]
+    return _andreff(_data(A, B))[0]
 
 
-def _daniilidis(A: Any, B: Any) -> tuple[np.ndarray, dict[str, Any]]:
+def _daniilidis(data: AXXBData) -> tuple[np.ndarray, dict[str, Any]]:
     """`daniilidis` and its diagnostics."""
-    A, B = _motions(A, B)
-    (q_A, d_A), (q_B, d_B) = dual_quat_from_pose(A), dual_quat_from_pose(B)  # scalar part of q >= 0
-    a, b, a_, b_ = q_A[:, 1:], q_B[:, 1:], d_A[:, 1:], d_B[:, 1:]
-    T = np.zeros((len(A), 6, 8))  # eq. 31 per motion, unknowns (q_X, q'_X)
-    T[:, :3, 0], T[:, :3, 1:4] = a - b, skew(a + b)
-    T[:, 3:, 0], T[:, 3:, 1:4] = a_ - b_, skew(a_ + b_)
-    T[:, 3:, 4], T[:, 3:, 5:] = a - b, skew(a + b)
-    rot = np.linalg.svd(triangular_factor(T[:, :3, :4]), compute_uv=False)
+    m, q = data.m, data._quaternions  # q of A_1 .. A_m, B_1 .. B_m, scalar part >= 0
+    t = np.concatenate([data.A[:, :3, 3], data.B[:, :3, 3]])
+    v = q[:, 1:]
+    # vector part of the dual part q' = 1/2 (0, t) q: (q0 t + t x v) / 2
+    dual = 0.5 * (q[:, :1] * t + (t[:, _C1] * v[:, _C2] - t[:, _C2] * v[:, _C1]))
+    ab = np.concatenate([v[:m], v[m:], dual[:m], dual[m:]], axis=1)  # (a, b, a', b') per motion
+    T = (ab @ _DANIILIDIS_MAP).reshape(m, 6, 8)  # eq. 31 per motion, columns (q'_X, q_X)
+    R = triangular_factor(T)
+    rot = np.linalg.svd(R[:4, :4], compute_uv=False)  # the rotation rows alone (_daniilidis_block)
     if rot[2] <= SINGULAR_RATIO * rot[0]:
         raise DegenerateDataError(f"daniilidis: the rotation rows of eq. 31 have a null space of dimension > 1: {_PARALLEL}")
-    _, sigma, Vt = np.linalg.svd(triangular_factor(T))  # the right singular vectors of the stack
-    v7, v8 = Vt[6], Vt[7]  # right singular vectors of the two smallest singular values
+    _, sigma, Vt = np.linalg.svd(R)  # the right singular vectors of the stack
+    v7, v8 = Vt[6:, _Q_FIRST]  # of the two smallest singular values, as (q_X, q'_X)
     u1, v1, u2, v2 = v7[:4], v7[4:], v8[:4], v8[4:]
     # eqs. 34-35: q = l1 u1 + l2 u2 with q . q' = 0 and |q| = 1; s = l1 / l2 solves a s^2 + b s + c = 0
     qa, qb, qc = u1 @ v1, u1 @ v2 + u2 @ v1, u2 @ v2
@@ -261,7 +302,7 @@ def daniilidis(A: Any, B: Any) -> np.ndarray:
     invariant on noisy data (the SVD weighs rotation rows against dual-part rows, which carry the
     length unit). DegenerateDataError when the rotation rows leave q_X undetermined.
     """
-    return _daniilidis(A, B)[0]
+    return _daniilidis(_data(A, B))[0]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -276,7 +317,7 @@ def _run(method):
     """run(data, options, backend) of a spec: `method` (one of _tsai, ...) on data.A, data.B."""
 
     def run(data: AXXBData, options: Any, backend: str) -> SolverOutput:
-        X, diagnostics = method(data.A, data.B, **dataclasses.asdict(options))
+        X, diagnostics = method(data, **dataclasses.asdict(options))
         status = Status.OPTIMAL_INACCURATE if diagnostics.get("warnings") else Status.OPTIMAL
         return SolverOutput(unknowns={"X": X}, status=status, diagnostics=diagnostics)
 

@@ -38,7 +38,7 @@ from handeye.se3 import (
     make_pose,
     project_to_so3,
 )
-from handeye.validation import pose_stack, same_length
+from handeye.validation import pose_stack, pose_stacks
 
 #: Ground truth of the paper's simulation (Sec. IV-A), projected onto SO(3): the printed 4-digit
 #: rotation blocks are not exactly orthonormal. Translations in mm.
@@ -179,8 +179,7 @@ class AXYB(Problem):
         unexpected = set(data) - set(self.data_fields)
         if unexpected:
             raise InputError(f"problem 'axyb' takes data {list(self.data_fields)}, not {sorted(unexpected)}")
-        A, B = pose_stack(data["A"], "A"), pose_stack(data["B"], "B")
-        same_length({"A": A, "B": B}, self.min_pairs)
+        A, B = pose_stacks({"A": data["A"], "B": data["B"]}, self.min_pairs).values()
         out = AXYBData(A, B)
         # Every solver needs sums of squared translations (eq. 8's normal equations, the RMS
         # translation that normalises units): data whose sums overflow are refused for all alike.

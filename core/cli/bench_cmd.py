@@ -16,7 +16,7 @@ compares the methods, not the wrappers); the targets also show the ratio to cv2 
 
 ``axxb``: the same cell's stations (`handeye.problems.axxb.simulate_stations`, Gaussian noise on
 the robot poses and the camera poses), n of them, the fewest with n (n - 1) / 2 >= m; the
-solvers get their first m motions of all pairs i < j (``pairing="all"``), and
+solvers get the motions of all pairs i < j (``pairing="all"``), and
 ``cv2.calibrateHandEye`` is called directly on the n stations' prebuilt lists with each of its
 five methods (TSAI, PARK, HORAUD, ANDREFF, DANIILIDIS); it forms the same pairs itself, all
 n (n - 1) / 2 >= m of them (21, 105, 1035 motions at m = 16, 100, 1000). The ratio column divides
@@ -271,8 +271,9 @@ def bench_data(problem: str, m: int, noise: NoiseModel, seed: int) -> tuple[dict
     ``axyb``: `PROBLEM.simulate(pairs=m)`; OpenCV gets A as world2cam and B as base2gripper
     (docs/conventions.md). ``axxb``: the fewest stations n with n (n - 1) / 2 >= m
     (`simulate_stations`, noise "A" on the robot poses, "B" on the camera poses), the solvers get
-    the first m motions of every pair i < j, OpenCV the n stations: gripper2base = the robot poses
-    T_base_flange, target2cam = T_cam_target (it forms every pair itself).
+    the motions of every pair i < j (n (n - 1) / 2 >= m of them), OpenCV the n stations:
+    gripper2base = the robot poses T_base_flange, target2cam = T_cam_target (it forms the same
+    pairs itself), so both solve the same data.
     """
     if problem == "axxb":
         from ..problems.axxb import relative_motions, simulate_stations
@@ -281,7 +282,7 @@ def bench_data(problem: str, m: int, noise: NoiseModel, seed: int) -> tuple[dict
         stations, _ = simulate_stations(n, seed=seed, noise=noise)
         A, B = relative_motions(stations["A"], stations["B"], "all")
         robot, camera = stations["A"], inverse(stations["B"])
-        return {"A": A[:m], "B": B[:m]}, _lists(robot, camera)
+        return {"A": A, "B": B}, _lists(robot, camera)
     data, _ = get_registry().problem(problem).simulate(pairs=m, seed=seed, noise=noise)
     data = {k: np.asarray(v) for k, v in data.items()}
     return data, _lists(data["A"], data["B"])
@@ -515,8 +516,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"handeye bench ({bench.problem}): {machine}")
     if bench.problem == "axxb":
         print(f"data: simulate_stations(seed={args.seed}), noise on the robot and camera poses: "
-              f"{args.noise_rot:g} rad, {args.noise_trans:g} mm; solvers: the first m motions of all pairs "
-              "of the fewest stations giving m; cv2 direct: those stations (it forms all their pairs)")
+              f"{args.noise_rot:g} rad, {args.noise_trans:g} mm; solvers: the motions of all pairs "
+              "of the fewest stations giving at least m; cv2 direct: those stations (it forms the same pairs)")
     else:
         print(f"data: PROBLEM.simulate(seed={args.seed}), noise on A and B: {args.noise_rot:g} rad, "
               f"{args.noise_trans:g} mm")
