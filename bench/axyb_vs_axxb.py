@@ -7,7 +7,8 @@ board pose solvePnP gives). With them a user can solve
   Y jointly, or
 - AX=XB (problem ``axxb``, solver ``auto``): the relative motions between stations
   (`handeye.problems.axxb.motions`), ``consecutive`` (station i with i + 1, n - 1 motions) or
-  ``all`` (every i < j, n (n - 1) / 2 motions), for X alone, or
+  ``all`` (every i < j, n (n - 1) / 2 motions), for X alone (given all pairs, auto recognises
+  the stations and solves them as AX=YB; ``refine`` on all pairs shows the per-motion model), or
 - OpenCV's ``cv2.calibrateHandEye`` (method PARK), called directly on the stations; it forms all
   pairs i < j itself.
 
@@ -87,6 +88,8 @@ def methods() -> dict[str, tuple[str, str | None, str]]:
     if solver is not None:
         out[f"AX=XB {solver}, consecutive"] = ("axxb", "consecutive", solver)
         out[f"AX=XB {solver}, all pairs"] = ("axxb", "all", solver)
+    if "refine" in axxb:  # the per-motion model on all pairs (auto solves their stations instead)
+        out["AX=XB refine, all pairs (per-motion model)"] = ("axxb", "all", "refine")
     out["OpenCV PARK (all pairs)"] = ("cv2", "all", "PARK")
     return out
 

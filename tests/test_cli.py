@@ -367,7 +367,7 @@ def test_axxb_simulate_stations_then_solve(capsys, tmp_path, ext):
     assert code == 0, err
     assert "36 motions from 9 stations (all pairs, eye-in-hand, lengths in mm)" in out
     assert "X = T_flange_cam (camera in the flange frame) =" in out and "Y =" not in out
-    assert "residuals of A_i X = X B_i over the motions:" in out
+    assert "residuals of A_i X = X B_i over the motions (angle and distance between the two sides):" in out
     assert "errors against the file's truth" in out
     code, out, err = run_cli(capsys, "solve", "--problem", "axxb", "--solver", axxb_solver(), "--pairing",
                              "consecutive", str(path))

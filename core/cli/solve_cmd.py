@@ -61,7 +61,7 @@ FRAMES: dict[tuple[str, str], dict[str, tuple[str, str]]] = {
     ("axxb", "eye-to-hand"): {"X": ("T_base_cam", "camera in the robot base frame")},
 }
 #: problem -> its equation and what one data pair is, for the residual lines
-EQUATIONS = {"axyb": ("A_i X = Y B_i", "pair", "eqs. 32-33"), "axxb": ("A_i X = X B_i", "motion", "")}
+EQUATIONS = {"axyb": ("A_i X = Y B_i", "pair"), "axxb": ("A_i X = X B_i", "motion")}
 #: the residuals are listed one by one up to this many pairs; beyond, the LISTED_LARGEST largest
 LIST_ALL_UP_TO = 20
 LISTED_LARGEST = 10
@@ -192,7 +192,7 @@ def _summary(values: np.ndarray) -> dict[str, float]:
 
 def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
     unit = r["units"] or "data units"
-    equation, item, equations = EQUATIONS.get(r["problem"], ("the problem's equation", "pair", ""))
+    equation, item = EQUATIONS.get(r["problem"], ("the problem's equation", "pair"))
     head = f"{r['source']}: {r['pairs']} {item}s"
     if "pairing" in r:
         head += f" from {r['stations']} stations"
@@ -207,12 +207,12 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
     if not frames:
         lines += ["", ("(no setup given: docs/conventions.md says which frames the unknowns are for "
                        "eye-in-hand and eye-to-hand data)")]
-    lines += ["", f"residuals of {equation} over the {item}s" + (f" ({equations})" if equations else "") + ":"]
+    lines += ["", f"residuals of {equation} over the {item}s (angle and distance between the two sides):"]
     for kind, s in r["residuals"].items():
         lines.append(f"  {kind:<12}" + "   ".join(f"{stat} {_value(kind, s[stat], unit)}" for stat in ("median", "rms", "max")))
     lines += _per_pair(r, item, unit)
     if r["errors"]:
-        lines += ["", "errors against the file's truth (eqs. 30-31):"]
+        lines += ["", "errors against the file's truth (angle and distance):"]
         for name, e in r["errors"].items():
             lines.append(f"  {name}: rotation {_value('rotation', e['rotation'], unit)}   "
                          f"translation {_value('translation', e['translation'], unit)}")
