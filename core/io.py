@@ -6,12 +6,12 @@ optionally the true unknowns (for simulated data) and a little metadata (``units
 ``pairing``, ``description``, ``source``, ``license``). docs/formats.md describes each format;
 docs/conventions.md says what A, B, X, Y are.
 
-Instead of its data fields, the file of a problem listed in `FROM_POSES` (``axyb``, ``axxb``) may
-hold the absolute poses a robot cell records, one per station: ``robot_poses`` (T_base_flange)
+Instead of its data fields, the file of a problem that declares a `StationReader` (``axyb``,
+``axxb``: `station_readers`) may hold the absolute poses a robot cell records, one per station: ``robot_poses`` (T_base_flange)
 and ``camera_poses`` (T_cam_target, the board pose solvePnP gives), with ``setup`` (and for
 ``axxb`` ``pairing``) in the file or passed to `load_file`. They are turned into the problem's
-data fields on reading (``axyb``: `absolute_pairs`; ``axxb``: `handeye.problems.axxb.motions`),
-so one file of stations can be solved as AX=YB and as AX=XB; `PoseFile.poses` keeps them as read.
+data fields on reading by the problem's reader (``axyb``: one pair per station; ``axxb``: the
+motions, `handeye.problems.axxb.motions`), so one file of stations can be solved as AX=YB and as AX=XB; `PoseFile.poses` keeps them as read.
 
 Formats are chosen by file extension through `FORMATS`: each entry is a reader
 ``(path) -> RawFile`` and a writer ``(path, PoseFile) -> None``. A new format (CSV, YAML,
@@ -27,18 +27,17 @@ data are solved.
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import json
 import zipfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from .errors import HandEyeError, InputError
+from .problem import StationReader
 from .registry import get_registry
-from .se3 import inverse
 from .validation import pose_stack
 
 #: metadata keys a file may carry (all optional, all strings)
@@ -57,29 +56,18 @@ DEFAULT_PAIRING = "all"
 POSE_FIELDS = ("robot_poses", "camera_poses")
 
 
-class PoseConversion(NamedTuple):
-    """How a problem's data fields are made from `POSE_FIELDS`: ``function`` ("module:function",
-    imported when needed) is called ``f(robot_poses, camera_poses, setup=..., pairing=...)``;
-    ``pairing``: whether it forms motions between stations (so that a pairing applies);
-    ``cell_truth``: setup -> {unknown of the problem: the unknown of `CELL_UNKNOWNS` it is}, so
-    that a file of stations whose truth is the cell's (X and Y of AX=YB) serves this problem too."""
-
-    function: str
-    pairing: bool
-    cell_truth: Mapping[str, Mapping[str, str]] | None = None
-
-
 #: a file of absolute poses may carry the truth of the whole cell as the unknowns of AX=YB
 #: (eye-in-hand: X = T_flange_cam, Y = T_base_target; eye-to-hand: X = T_flange_target,
 #: Y = T_base_cam), whatever problem reads it
 CELL_UNKNOWNS = ("X", "Y")
-#: problems whose files may hold `POSE_FIELDS` instead of their data fields
-FROM_POSES = {
-    "axyb": PoseConversion("handeye.io:absolute_pairs", pairing=False),
-    # axxb's X is the camera's pose: AX=YB's X eye-in-hand (T_flange_cam), its Y eye-to-hand (T_base_cam)
-    "axxb": PoseConversion("handeye.problems.axxb:motions", pairing=True,
-                           cell_truth={"eye-in-hand": {"X": "X"}, "eye-to-hand": {"X": "Y"}}),
-}
+
+
+def station_readers() -> dict[str, StationReader]:
+    """Problem name -> its `StationReader`, for every registered problem that reads absolute
+    poses (``axyb``, ``axxb``, and any plugin problem that declares one)."""
+    return {name: p.station_reader for name, p in get_registry().problems.items() if p.station_reader is not None}
+
+
 #: suffix of truth keys in flat formats (NPZ): ``X_true``, ``Y_true``
 TRUTH_SUFFIX = "_true"
 
@@ -150,7 +138,7 @@ def save_data(path: str | Path, data: Mapping[str, Any], truth: Mapping[str, Any
               metadata: Mapping[str, str] | None = None, problem: str = "axyb") -> Path:
     """Write data (and optionally truth and metadata) in the format given by the extension.
 
-    data: data field -> (m, 4, 4), or for a problem of `FROM_POSES` the absolute poses
+    data: data field -> (m, 4, 4), or for a problem of `station_readers` the absolute poses
     ``{"robot_poses": (n, 4, 4), "camera_poses": (n, 4, 4)}`` (then metadata must name the
     ``setup``; for ``axxb`` ``pairing`` defaults to `DEFAULT_PAIRING`); truth: unknown -> (4, 4); metadata:
     keys of `METADATA_KEYS`. Everything is validated as `load_data` would, so a file written here
@@ -168,28 +156,16 @@ def save_data(path: str | Path, data: Mapping[str, Any], truth: Mapping[str, Any
 def from_poses(robot_poses: Any, camera_poses: Any, problem: str = "axxb", *, setup: str | None = None,
                pairing: str | None = None, truth: Mapping[str, Any] | None = None,
                metadata: Mapping[str, str] | None = None, source: str = "absolute poses") -> PoseFile:
-    """A `PoseFile` of `problem` (one of `FROM_POSES`) made from absolute poses, as reading a file
+    """A `PoseFile` of `problem` (one of `station_readers`) made from absolute poses, as reading a file
     holding them would make it: robot_poses (n, 4, 4) T_base_flange, camera_poses (n, 4, 4)
     T_cam_target; setup and pairing override the metadata's (setup is required in one of them).
     `source` names the data in error messages."""
-    if problem not in FROM_POSES:
-        raise InputError(f"problem {problem!r} does not read absolute poses; problems that do: {sorted(FROM_POSES)}")
+    readers = station_readers()
+    if problem not in readers:
+        raise InputError(f"problem {problem!r} does not read absolute poses; problems that do: {sorted(readers)}")
     raw = RawFile({"robot_poses": robot_poses, "camera_poses": camera_poses},
                   None if truth is None else dict(truth), dict(metadata or {}))
     return _finish(raw, Path(source), problem, setup=setup, pairing=pairing)
-
-
-def absolute_pairs(robot_poses: Any, camera_poses: Any, setup: str = "eye-in-hand",
-                   pairing: str | None = None) -> dict[str, np.ndarray]:
-    """The ``axyb`` pairs {"A", "B"} of the stations' absolute poses (docs/conventions.md):
-    A_i = robot_poses[i] = T_base_flange; B_i = camera_poses[i]^-1 = T_target_cam eye-in-hand,
-    B_i = camera_poses[i] = T_cam_target eye-to-hand. `pairing` does not apply (every station is
-    one pair) and is ignored."""
-    if setup not in SETUPS:
-        raise InputError(f"setup={setup!r} is not one of {', '.join(SETUPS)}")
-    robot = pose_stack(robot_poses, "robot_poses")
-    camera = pose_stack(camera_poses, "camera_poses")
-    return {"A": np.array(robot), "B": inverse(camera) if setup == "eye-in-hand" else np.array(camera)}
 
 
 def supported_extensions() -> list[str]:
@@ -223,7 +199,8 @@ def _finish(raw: RawFile, path: Path, problem: str, writing: bool = False, *,
             f"{_key_listing(path, problem, fields, unknowns)}"
         )
     metadata = _metadata(raw.metadata, where)
-    if any(f in raw.data for f in POSE_FIELDS) and problem in FROM_POSES:
+    readers = station_readers()
+    if any(f in raw.data for f in POSE_FIELDS) and problem in readers:
         data, poses, metadata = _from_poses(raw.data, metadata, where, problem, fields, setup, pairing)
     else:
         for name, value in (("setup", setup), ("pairing", pairing)):
@@ -243,7 +220,7 @@ def _finish(raw: RawFile, path: Path, problem: str, writing: bool = False, *,
             hint = ""
             if set(extra) & set(POSE_FIELDS):
                 hint = (f"; absolute poses ({', '.join(POSE_FIELDS)}) are read for problem(s) "
-                        f"{sorted(FROM_POSES)} only")
+                        f"{sorted(readers)} only")
             raise InputError(f"{where}: unexpected data key(s) {extra}; problem {problem!r} has data {list(fields)}{hint}")
         data, poses = {f: _poses(raw.data[f], f, where) for f in fields}, None
 
@@ -251,7 +228,7 @@ def _finish(raw: RawFile, path: Path, problem: str, writing: bool = False, *,
     if raw.truth is not None:
         if not isinstance(raw.truth, Mapping):
             raise InputError(f"{where}: truth must map unknown names {list(unknowns)} to 4x4 poses")
-        cell = FROM_POSES[problem].cell_truth if poses is not None else None
+        cell = readers[problem].cell_truth if poses is not None else None
         if cell and set(raw.truth) == set(CELL_UNKNOWNS) and set(raw.truth) != set(unknowns):
             # the cell's truth (AX=YB's X, Y) in a file of stations: this problem's unknowns from it
             _poses(raw.truth[CELL_UNKNOWNS[0]], "truth X", where, single=True)  # validate both
@@ -287,7 +264,7 @@ def _from_poses(values: Mapping[str, Any], metadata: dict[str, str], where: str,
                 fields: tuple[str, ...], setup: str | None, pairing: str | None,
                 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], dict[str, str]]:
     """(data fields, absolute poses, metadata with the setup and pairing used) of a file of
-    absolute poses of problem `problem` (one of `FROM_POSES`)."""
+    absolute poses of problem `problem` (one of `station_readers`)."""
     both = [f for f in fields if f in values]
     if both:
         raise InputError(
@@ -302,13 +279,14 @@ def _from_poses(values: Mapping[str, Any], metadata: dict[str, str], where: str,
     extra = sorted(set(values) - set(POSE_FIELDS))
     if extra:
         raise InputError(f"{where}: unexpected data key(s) {extra} beside the absolute poses {list(POSE_FIELDS)}")
-    conversion = FROM_POSES[problem]
+    readers = station_readers()
+    conversion = readers[problem]
     for name, value, allowed in (("setup", setup, SETUPS), ("pairing", pairing, PAIRINGS)):
         if value is not None and value not in allowed:
             raise InputError(f"{name} must be one of {list(allowed)}, got {value!r}")
     if pairing is not None and not conversion.pairing:
         raise InputError(f"pairing applies to problems that form motions between stations "
-                         f"({sorted(p for p, c in FROM_POSES.items() if c.pairing)}), not to {problem!r}, "
+                         f"({sorted(p for p, c in readers.items() if c.pairing)}), not to {problem!r}, "
                          "where every station is one pair; drop it")
     setup = setup or metadata.get("setup")
     if setup is None:
@@ -320,10 +298,8 @@ def _from_poses(values: Mapping[str, Any], metadata: dict[str, str], where: str,
         pairing = pairing or metadata.get("pairing") or DEFAULT_PAIRING
         metadata = {**metadata, "pairing": pairing}
     poses = {f: _poses(values[f], f, where) for f in POSE_FIELDS}
-    module, _, function = conversion.function.partition(":")
-    convert = getattr(importlib.import_module(module), function)
     try:
-        data = convert(poses["robot_poses"], poses["camera_poses"], setup=setup, pairing=pairing)
+        data = conversion.convert(poses["robot_poses"], poses["camera_poses"], setup=setup, pairing=pairing)
     except HandEyeError as exc:
         raise type(exc)(f"{where}: {exc}") from None
     data = {f: np.array(data[f]) for f in fields}
@@ -353,9 +329,10 @@ def _as_float(value: Any, name: str, where: str) -> np.ndarray:
 
 def _key_listing(path: Path, problem: str, fields: tuple[str, ...], unknowns: tuple[str, ...]) -> str:
     alternative = ""
-    if problem in FROM_POSES:
+    readers = station_readers()
+    if problem in readers:
         alternative = (f" (or the absolute poses {', '.join(POSE_FIELDS)} with setup"
-                       + (" and pairing)" if FROM_POSES[problem].pairing else ")"))
+                       + (" and pairing)" if readers[problem].pairing else ")"))
     if path.suffix.lower() == ".npz":
         truth = ", ".join(u + TRUTH_SUFFIX for u in unknowns)
         return f"arrays {', '.join(fields)}{alternative}; optionally {truth} and {', '.join(METADATA_KEYS)}"

@@ -7,8 +7,9 @@ Solvers receive the validated data object, never raw user input.
 
 from __future__ import annotations
 
+import dataclasses
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 import numpy as np
@@ -18,6 +19,24 @@ from .se3 import make_pose, random_rotations, rotation_angle
 Poses = Mapping[str, np.ndarray]
 #: errors per unknown: {"X": {"rotation": rad, "translation": data units}, ...}
 ErrorTable = dict[str, dict[str, float]]
+
+
+@dataclasses.dataclass(frozen=True)
+class StationReader:
+    """How a problem's data are made from the absolute poses a cell records, one robot pose
+    (T_base_flange) and one camera pose (T_cam_target, as solvePnP gives it) per station, so that
+    one file of stations serves every problem that declares a reader (`handeye.io`).
+
+    convert: ``convert(robot_poses, camera_poses, setup=..., pairing=...) -> data fields``
+        (``pairing`` is None for a problem whose data are not motions).
+    pairing: whether the problem forms motions between stations (then a pairing applies).
+    cell_truth: setup -> {unknown of the problem: the unknown X or Y of AX=YB it is}, so that a
+        file of stations carrying the cell's truth (AX=YB's X and Y) gives this problem's truth.
+    """
+
+    convert: Callable[..., dict[str, np.ndarray]]
+    pairing: bool = False
+    cell_truth: Mapping[str, Mapping[str, str]] | None = None
 
 
 class Problem(ABC):
@@ -30,6 +49,8 @@ class Problem(ABC):
     #: names of the data stacks, e.g. ("A", "B"), each (m, 4, 4)
     data_fields: ClassVar[tuple[str, ...]]
     min_pairs: ClassVar[int]
+    #: how the data are made from a cell's absolute poses, or None when they cannot be
+    station_reader: ClassVar[StationReader | None] = None
 
     @abstractmethod
     def validate(self, **data: Any) -> Any:

@@ -32,7 +32,7 @@ from handeye import hookimpl, so3_fast
 from handeye.errors import DegenerateDataError, InputError
 from handeye.kronecker import PosePairs, overflow_error
 from handeye.noise import NoiseModel
-from handeye.problem import Problem, pose_discrepancy
+from handeye.problem import Problem, StationReader, pose_discrepancy
 from handeye.se3 import inverse
 from handeye.validation import pose_stack, pose_stacks, same_length
 
@@ -263,6 +263,9 @@ class AXXB(Problem):
     unknowns = ("X",)
     data_fields = ("A", "B")
     min_pairs = 2
+    #: X is the camera's pose: AX=YB's X eye-in-hand (T_flange_cam), its Y eye-to-hand (T_base_cam)
+    station_reader = StationReader(motions, pairing=True,
+                                   cell_truth={"eye-in-hand": {"X": "X"}, "eye-to-hand": {"X": "Y"}})
 
     def validate(self, **data: Any) -> AXXBData:
         unexpected = set(data) - set(self.data_fields)

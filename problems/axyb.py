@@ -32,7 +32,7 @@ from handeye.kronecker import (
     reduce_normal_equations,
 )
 from handeye.noise import NoiseModel
-from handeye.problem import Problem, pose_discrepancy
+from handeye.problem import Problem, StationReader, pose_discrepancy
 from handeye.se3 import (
     inverse,
     make_pose,
@@ -166,6 +166,22 @@ def random_truth(rng: np.random.Generator, translation_scale: float = 500.0) -> 
     return PROBLEM.random_unknowns(rng, translation_scale)
 
 
+SETUPS = ("eye-in-hand", "eye-to-hand")
+
+
+def pairs_from_stations(robot_poses: Any, camera_poses: Any, setup: str = "eye-in-hand",
+                        pairing: str | None = None) -> dict[str, np.ndarray]:
+    """The pairs {"A", "B"} of the stations' absolute poses (docs/conventions.md):
+    A_i = robot_poses[i] = T_base_flange; B_i = camera_poses[i]^-1 = T_target_cam eye-in-hand,
+    B_i = camera_poses[i] = T_cam_target eye-to-hand. `pairing` does not apply (every station is
+    one pair) and is ignored."""
+    if setup not in SETUPS:
+        raise InputError(f"setup={setup!r} is not one of {', '.join(SETUPS)}")
+    robot = pose_stack(robot_poses, "robot_poses")
+    camera = pose_stack(camera_poses, "camera_poses")
+    return {"A": np.array(robot), "B": inverse(camera) if setup == "eye-in-hand" else np.array(camera)}
+
+
 class AXYB(Problem):
     """A_i X = Y B_i: simultaneous hand-eye (X) and robot-world (Y) calibration."""
 
@@ -174,6 +190,7 @@ class AXYB(Problem):
     unknowns = ("X", "Y")
     data_fields = ("A", "B")
     min_pairs = 3
+    station_reader = StationReader(pairs_from_stations)
 
     def validate(self, **data: Any) -> AXYBData:
         unexpected = set(data) - set(self.data_fields)

@@ -21,7 +21,13 @@ import argparse
 from typing import Any
 
 from ..errors import InputError
-from ..io import DEFAULT_PAIRING, FROM_POSES, PAIRINGS, save_data, supported_extensions
+from ..io import (
+    DEFAULT_PAIRING,
+    PAIRINGS,
+    save_data,
+    station_readers,
+    supported_extensions,
+)
 from ..noise import NoiseModel
 from ..registry import get_registry
 from ..se3 import inverse
@@ -70,12 +76,12 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if not value >= 0 or value == float("inf"):
             raise InputError(f"--{name.replace('_', '-')} must be a finite number >= 0, got {value}")
-    if args.problem not in FROM_POSES and args.stations is not None:
-        raise InputError(f"--stations applies to problems {sorted(FROM_POSES)}, not {args.problem!r}")
-    motions = args.problem in FROM_POSES and FROM_POSES[args.problem].pairing
+    if args.problem not in station_readers() and args.stations is not None:
+        raise InputError(f"--stations applies to problems {sorted(station_readers())}, not {args.problem!r}")
+    motions = args.problem in station_readers() and station_readers()[args.problem].pairing
     if args.pairing is not None and not motions:
         raise InputError(f"--pairing applies to problems whose data are motions "
-                         f"({sorted(p for p, c in FROM_POSES.items() if c.pairing)}), not {args.problem!r}")
+                         f"({sorted(p for p, c in station_readers().items() if c.pairing)}), not {args.problem!r}")
     if args.stations is not None and args.pairs is not None:
         raise InputError("give --pairs (data made from the stations) or --stations (the absolute poses), not both")
     noise = NoiseModel.on(stacks, args.noise_rot, args.noise_trans)

@@ -33,12 +33,12 @@ from ..errors import InputError
 from ..examples import DEFAULT_EXAMPLE, list_examples, load_example
 from ..io import (
     DEFAULT_PAIRING,
-    FROM_POSES,
     PAIRINGS,
     SETUPS,
     PoseFile,
     from_poses,
     load_file,
+    station_readers,
     supported_extensions,
 )
 from ..registry import get_registry
@@ -155,8 +155,8 @@ def example_file(name: str, problem: str, *, setup: str | None = None, pairing: 
             raise InputError("--setup and --pairing apply to files of absolute poses (robot_poses, camera_poses); "
                              "the bundled examples hold 'axyb' pairs A, B")
         return PoseFile(data, truth, metadata)
-    if problem not in FROM_POSES:
-        raise InputError(f"the bundled examples are 'axyb' data (or stations for {sorted(FROM_POSES)}), "
+    if problem not in station_readers():
+        raise InputError(f"the bundled examples are 'axyb' data (or stations for {sorted(station_readers())}), "
                          f"not {problem!r}")
     own_setup = metadata.get("setup", "eye-in-hand")
     camera = inverse(data["B"]) if own_setup == "eye-in-hand" else data["B"]
@@ -174,7 +174,7 @@ def _stations(pose_file: PoseFile, problem: str) -> dict[str, Any]:
     if pose_file.poses is None:
         return {}
     n = len(pose_file.poses["robot_poses"])
-    if not FROM_POSES[problem].pairing:  # one pair per station (axyb)
+    if not station_readers()[problem].pairing:  # one pair per station (axyb)
         return {"stations": n}
     pairing = pose_file.metadata["pairing"]
     if pairing == "consecutive":
