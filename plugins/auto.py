@@ -1,7 +1,7 @@
 """`auto`: the default solver of A_i X = Y B_i and of A_i X = X B_i -- a certified start, then
 maximum likelihood. One pipeline for both problems (and any problem refine serves):
 
-Pipeline (issue 4, item 4; the measurements behind it are in docs/solvers/auto.md):
+Pipeline (the measurements behind it are in docs/solvers/auto.md):
 
 1. start: the first registered and available of refine's STARTS for the problem: `so3-sdp`
    (the Kronecker cost under exact SO(3) constraints, globally optimal with a certificate), else

@@ -1,5 +1,5 @@
 """Backend ``casadi`` of `lmi-sdp`: the Kronecker cost under EXACT SO(3) constraints, as a
-CasADi NLP solved by IPOPT (issue 4, item 1), for k rotations: ``axyb`` (eq. 8, k = 2,
+CasADi NLP solved by IPOPT, for k rotations: ``axyb`` (eq. 8, k = 2,
 `solve_casadi`) and ``axxb`` (k = 1, `solve_casadi_axxb`). A helper module, not an entry point:
 the `lmi-sdp` plugin calls these for ``backend="casadi"``.
 

@@ -1,6 +1,6 @@
 """`refine`: geometric maximum-likelihood refinement on SE(3)^k, for A_i X = Y B_i and A_i X = X B_i.
 
-Beyond the paper (issue 4, item 3). The Kronecker cost of eq. 8 mixes rotation entries and
+Beyond the paper. The Kronecker cost of eq. 8 mixes rotation entries and
 translations in one algebraic residual whose relative weight depends on the length unit; this
 solver instead minimises a weighted sum of squared *geometric* residuals, one 6-vector per pair
 (the per-pair quantities of eqs. 32-33, as vectors):
