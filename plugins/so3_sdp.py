@@ -15,10 +15,13 @@ Formulation (docs/solvers/so3-sdp.md has the details and the measurements):
    R^T R = h^2 I, R R^T = h^2 I (redundant), c_i x c_j = h c_k for the columns (cyclic; fixes
    det = +1), h^2 = 1. The Shor relaxation: minimise <M, Z> over Z (9k+1 square) PSD with
    <A_j, Z> = b_j. `redundant=False` keeps only R^T R = I and h^2 = 1 (a weaker relaxation, for
-   studying tightness). Backends: `cvxpy` (Clarabel, or option ``cvxpy_solver``) poses its
-   Lagrangian dual, max b^T nu with M - sum_j nu_j A_j PSD (20k + 1 unknowns, one PSD cone; Z is
-   the cone's dual), built once per (constraint set, cvxpy solver, k) with M a Parameter and
-   cached; `picos` (cvxopt) the primal. Neither depends on m.
+   studying tightness). Backends: `clarabel` (default) and `cvxpy` (Clarabel, or option
+   ``cvxpy_solver``) pose its Lagrangian dual, max b^T nu with M - sum_j nu_j A_j PSD (20k + 1
+   unknowns, one PSD cone; Z is the cone's dual). `clarabel` states it in Clarabel's own API
+   (`handeye.plugins._clarabel_sdp`: the constant data built once per (constraint set, k) and
+   cached, a solve only forms svec M), the same conic program cvxpy hands Clarabel without
+   cvxpy's per-solve overhead (~3-4 ms a call); `cvxpy` builds it once per (constraint
+   set, cvxpy solver, k) with M a Parameter; `picos` (cvxopt) the primal. None depends on m.
 3. Extraction: the dominant eigenvector of Z scaled to h = 1, rotations projected onto SO(3), then
    (`polish=True`) Gauss-Newton on SO(3)^k for the same cost: this only removes the SDP solver's
    tolerance (~1e-7) from a point already in the basin of the global minimum.
@@ -49,6 +52,7 @@ from typing import Any
 import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import InputError, SolverError
+from handeye.plugins._clarabel_sdp import DualSDP
 from handeye.plugins._cvxpy_solvers import (
     check_backend_options,
     compile_seconds,
@@ -70,7 +74,8 @@ from handeye.so3_relaxation import (
     polish,
 )
 
-#: Clarabel settings: a tiny dense problem, so no chordal decomposition, presolve or threads;
+#: Clarabel settings (backend clarabel, and backend cvxpy with its default solver): a tiny dense
+#: problem, so no chordal decomposition, presolve or threads;
 #: iterative refinement off and the dense "faer" factorisation (Clarabel >= 0.10; dropped
 #: automatically when the installed Clarabel rejects it) each cut the time by about a third
 #: (docs/solvers/so3-sdp.md) and cost nothing here, since the answer is polished and the
@@ -115,6 +120,39 @@ class Options:
 # --------------------------------------------------------------------------------------------
 # SDP backends: each returns (Z, nu, info) with nu such that S(nu) = M - sum_j nu_j A_j is the
 # dual slack (PSD at the dual optimum) and b^T nu the dual objective.
+
+_CLARABEL_PROBLEMS: dict[tuple[bool, int], DualSDP] = {}
+_CLARABEL_BUILD_LOCK = threading.Lock()
+#: How many times the Clarabel data were built (once per constraint set and number of rotations
+#: per process).
+clarabel_builds = 0
+
+
+def clarabel_problem(redundant: bool, rotations: int = 2) -> DualSDP:
+    """The relaxation's Lagrangian dual for `rotations` rotations (2: ``axyb``, 1: ``axxb``) in
+    Clarabel's form (`handeye.plugins._clarabel_sdp`): everything but M, built once per
+    (constraint set, rotations) and cached. Immutable, so solves need no lock."""
+    global clarabel_builds
+    key = (redundant, rotations)
+    with _CLARABEL_BUILD_LOCK:
+        cached = _CLARABEL_PROBLEMS.get(key)
+        if cached is None:
+            cached = _CLARABEL_PROBLEMS[key] = DualSDP.build(*constraint_matrices(rotations, redundant))
+            clarabel_builds += 1
+        return cached
+
+
+def _solve_clarabel(M: np.ndarray, redundant: bool,
+                    rotations: int) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """The cvxpy backend's conic program, stated directly: the same Z and nu (bit-identical with
+    Clarabel 0.11 and cvxpy 1.9), the same statuses (Solved: "optimal", AlmostSolved:
+    "optimal_inaccurate", anything else a SolverError), the same settings."""
+    sdp = clarabel_problem(redundant, rotations).solve(0.5 * (M + M.T), CLARABEL_SETTINGS, "so3-sdp")
+    info = {"sdp_solver": "CLARABEL", "sdp_status": sdp.status, "sdp_objective": sdp.objective,
+            "sdp_iterations": sdp.iterations,
+            # nothing is compiled: building the constant data once takes < 1 ms
+            "compile_seconds": 0.0}
+    return sdp.Z, sdp.nu, info
 
 
 @dataclasses.dataclass
@@ -250,7 +288,9 @@ def solve_relaxation(cost: RotationCost, options: Options, backend: str
     if not np.isfinite(norm) or norm == 0.0:
         raise SolverError("so3-sdp: the cost matrix of the Kronecker system is zero or not finite")
 
-    if solver is not None:
+    if backend == "clarabel":
+        Z, nu, info = _solve_clarabel(M / norm, options.redundant, k)
+    elif solver is not None:
         Z, nu, info = _solve_cvxpy(M / norm, options.redundant, solver, k)
     else:
         Z, nu, info = _solve_picos(M / norm, options.redundant, k)
@@ -316,8 +356,8 @@ SPEC = SolverSpec(
     name="so3-sdp",
     problems=("axyb",),
     run=run,
-    backends={"cvxpy": ("cvxpy", "clarabel"), "picos": ("picos", "cvxopt")},
-    default_backend="cvxpy",
+    backends={"clarabel": ("clarabel",), "cvxpy": ("cvxpy", "clarabel"), "picos": ("picos", "cvxopt")},
+    default_backend="clarabel",
     options=Options,
     summary="eq. 8 under exact SO(3) constraints: tight SDP relaxation with optimality certificate",
     citation="Pan et al., IEEE T-ASE 2022, eq. 8; relaxation and certificate as in Briales & "

@@ -37,7 +37,7 @@ from scipy.optimize import minimize
 
 NOISE = NoiseModel.on(("A", "B"), 0.002, 0.2)
 #: (solver, backend) pairs held to the noise-free bound (casadi included: it reaches ~1e-15)
-SOLVERS = [("kron-lstsq", "numpy"), ("so3-sdp", "cvxpy"), ("so3-sdp", "picos"),
+SOLVERS = [("kron-lstsq", "numpy"), ("so3-sdp", "clarabel"), ("so3-sdp", "cvxpy"), ("so3-sdp", "picos"),
            ("lmi-sdp", "cvxpy"), ("lmi-sdp", "picos"), ("lmi-sdp", "casadi")]
 NOISE_FREE_TOL = 1e-9  # rad, and relative to the data's translation scale
 
@@ -208,7 +208,7 @@ def test_cvxpy_problems_compiled_once_per_process(monkeypatch):
 # so3-sdp: certified, and never worse than kron-lstsq in the cost
 
 
-@pytest.mark.parametrize("backend", ["cvxpy", "picos"])
+@pytest.mark.parametrize("backend", ["clarabel", "cvxpy", "picos"])
 def test_so3_sdp_certifies_and_beats_kron_lstsq(backend):
     for seed in (5, 6):
         raw, _ = PROBLEM.simulate(pairs=6, seed=seed, noise=NoiseModel.on(("A", "B"), 0.02, 2.0))
@@ -227,17 +227,32 @@ def test_so3_sdp_certifies_and_beats_kron_lstsq(backend):
                                    atol=1e-9 * scale)
 
 
-def test_so3_sdp_weak_relaxation_is_not_certified():
+@pytest.mark.parametrize("backend", ["clarabel", "cvxpy"])
+def test_so3_sdp_weak_relaxation_is_not_certified(backend):
     """Without the redundant constraints the relaxation is over O(3): rank one at a reflection
     (ratio ~1e-9), caught by the gap (docs/solvers/so3-sdp.md: 39 of 150 such draws)."""
     # seed 9 of that study: ratio 4e-8, relative gap 1.6
     raw, _ = PROBLEM.simulate(pairs=3, seed=9, noise=NoiseModel.on(("A", "B"), 0.2, 20.0), pairing="consecutive",
                               **PROBLEM.random_unknowns(np.random.default_rng(10_009)))
-    weak = solve(raw, "so3-sdp", redundant=False)
+    weak = solve(raw, "so3-sdp", backend, redundant=False)
     assert weak.status is Status.UNCERTIFIED and weak.diagnostics["relative_gap"] > 1e-2
     assert weak.diagnostics["eigenvalue_ratio"] < 1e-3  # rank one: only the gap shows it
-    strong = solve(raw, "so3-sdp")
+    strong = solve(raw, "so3-sdp", backend)
     assert strong.status is Status.OPTIMAL and strong.diagnostics["cost"] < weak.diagnostics["cost"]
+
+
+@pytest.mark.parametrize("seed, pairing", [(1, "consecutive"), (2, "consecutive"), (1, "all"), (3, "all")])
+def test_so3_sdp_clarabel_backend_matches_cvxpy(seed, pairing):
+    """Backend clarabel (the default) poses the cvxpy backend's conic program directly: the same
+    polished answer and certificate (measured: bit-identical)."""
+    raw, _ = PROBLEM.simulate(pairs=17 if pairing == "consecutive" else 7, seed=seed, noise=NOISE, pairing=pairing)
+    native, ref = solve(raw, "so3-sdp"), solve(raw, "so3-sdp", "cvxpy")
+    assert native.backend == "clarabel"
+    assert native.status is Status.OPTIMAL and ref.status is Status.OPTIMAL
+    assert native.diagnostics["eigenvalue_ratio"] < 1e-3
+    assert native.diagnostics["relative_gap"] == pytest.approx(ref.diagnostics["relative_gap"], abs=1e-9)
+    assert rotation_angle(native.X[:3, :3].T @ ref.X[:3, :3]) < 1e-10
+    np.testing.assert_allclose(native.X[:3, 3], ref.X[:3, 3], rtol=1e-10, atol=1e-10 * np.abs(ref.X[:3, 3]).max())
 
 
 # --------------------------------------------------------------------------------------------

@@ -15,7 +15,7 @@ from handeye import InputError, Status
 from handeye.noise import NoiseModel
 from handeye.plugins import so3_sdp
 from handeye.problems.axyb import PROBLEM, random_truth, solve_translations
-from handeye.se3 import random_poses, random_rotations
+from handeye.se3 import random_poses, random_rotations, rotation_angle
 
 NOISE = NoiseModel.on("B", 0.002, 0.5)
 HEAVY = NoiseModel.on("B", 0.02, 5.0)
@@ -129,28 +129,36 @@ def test_non_tight_relaxation_is_detected():
     assert handeye.solve("axyb", solver="so3-sdp", **unrelated_poses(0)).status is Status.OPTIMAL
 
 
-def test_weak_relaxation_rank_one_reflection_is_caught_by_the_gap():
+@pytest.mark.parametrize("backend", ["clarabel", "cvxpy"])
+def test_weak_relaxation_rank_one_reflection_is_caught_by_the_gap(backend):
     # Without the handedness constraints the relaxation is over O(3) x O(3): Z can be rank one
     # (ratio ~ 0) at a reflection; after projection onto SO(3) only the duality gap shows it.
     data, _ = PROBLEM.simulate(pairs=3, seed=2, noise=NoiseModel.on("B", 1.0, 100.0),
                                **random_truth(np.random.default_rng(10_002)))
-    weak = handeye.solve("axyb", solver="so3-sdp", redundant=False, **data)
+    weak = handeye.solve("axyb", solver="so3-sdp", backend=backend, redundant=False, **data)
     assert weak.status is Status.UNCERTIFIED
     assert weak.diagnostics["eigenvalue_ratio"] < so3_sdp.RATIO_THRESHOLD
     assert weak.diagnostics["relative_gap"] > 1e-2
-    strong = handeye.solve("axyb", solver="so3-sdp", **data)
+    strong = handeye.solve("axyb", solver="so3-sdp", backend=backend, **data)
     assert strong.status is Status.OPTIMAL
     assert strong.diagnostics["cost"] < weak.diagnostics["cost"]
 
 
 def test_compiled_problem_reused():
     data, _ = simulate(4, seed=5)
-    handeye.solve("axyb", solver="so3-sdp", **data)
+    handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", **data)
     builds = so3_sdp.cvxpy_builds
     problem = so3_sdp.cvxpy_problem(True, "CLARABEL")
-    handeye.solve("axyb", solver="so3-sdp", **simulate(9, seed=6)[0])
+    handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", **simulate(9, seed=6)[0])
     assert so3_sdp.cvxpy_builds == builds
     assert so3_sdp.cvxpy_problem(True, "CLARABEL") is problem
+    # backend clarabel: its constant data built once per (constraint set, rotations)
+    handeye.solve("axyb", solver="so3-sdp", **data)
+    builds, sdp = so3_sdp.clarabel_builds, so3_sdp.clarabel_problem(True, 2)
+    sol = handeye.solve("axyb", solver="so3-sdp", backend="clarabel", **simulate(9, seed=6)[0])
+    assert sol.backend == "clarabel" and sol.diagnostics["compile_seconds"] == 0.0
+    assert so3_sdp.clarabel_builds == builds and so3_sdp.clarabel_problem(True, 2) is sdp
+    assert so3_sdp.clarabel_problem(True, 1) is not sdp and so3_sdp.clarabel_problem(False, 2) is not sdp
 
 
 def test_noise_free_recovery_and_unit_invariance():
@@ -183,8 +191,8 @@ def test_solves_leave_settings_alone_and_repeat_exactly(monkeypatch):
     data, _ = simulate(8, seed=10)
     settings = dict(so3_sdp.CLARABEL_SETTINGS)
 
-    def solve_twice():
-        a, b = (handeye.solve("axyb", solver="so3-sdp", **data) for _ in range(2))
+    def solve_twice(backend="cvxpy"):
+        a, b = (handeye.solve("axyb", solver="so3-sdp", backend=backend, **data) for _ in range(2))
         for name in ("X", "Y"):
             np.testing.assert_array_equal(a.unknowns[name], b.unknowns[name])
         assert dict(so3_sdp.CLARABEL_SETTINGS) == settings
@@ -197,7 +205,7 @@ def test_solves_leave_settings_alone_and_repeat_exactly(monkeypatch):
     def old_clarabel(**kwargs):  # what Clarabel < 0.10 says to direct_solve_method="faer"
         calls.append(sorted(kwargs))
         if "direct_solve_method" in kwargs:
-            raise Exception('Bad settings: Bad value for field "direct_solve_method"')
+            raise Exception('Bad settings: Bad value for field "direct_solve_method"')  # noqa: TRY002 (what Clarabel raises)
         return real_solve(**kwargs)
 
     monkeypatch.setattr(problem, "solve", old_clarabel)
@@ -209,15 +217,17 @@ def test_solves_leave_settings_alone_and_repeat_exactly(monkeypatch):
         np.testing.assert_allclose(fallback.unknowns[name], faer.unknowns[name], rtol=0, atol=1e-9)
     monkeypatch.undo()
     again = solve_twice()
+    native = solve_twice("clarabel")  # the same program: the same answer, bit for bit
     for name in ("X", "Y"):
         np.testing.assert_array_equal(again.unknowns[name], faer.unknowns[name])
+        np.testing.assert_array_equal(native.unknowns[name], faer.unknowns[name])
     with pytest.raises(TypeError):
         so3_sdp.CLARABEL_SETTINGS["max_threads"] = 2  # read-only
 
 
 def test_cvxpy_solver_scs_is_certified_only_when_its_numbers_say_so(monkeypatch):
     data, truth = simulate(12, seed=11, noise=None)
-    sol = handeye.solve("axyb", solver="so3-sdp", cvxpy_solver="scs", polish=False, **data)  # any case
+    sol = handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", cvxpy_solver="scs", polish=False, **data)  # any case
     d = sol.diagnostics
     assert d["sdp_solver"] == "SCS" and d["sdp_status"] == "optimal"
     # SCS at eps 1e-9 (CVXPY_SETTINGS): certified (gap 1.1e-8), its own answer (no polish)
@@ -225,14 +235,14 @@ def test_cvxpy_solver_scs_is_certified_only_when_its_numbers_say_so(monkeypatch)
     assert sol.status is Status.OPTIMAL and d["relative_gap"] < so3_sdp.GAP_THRESHOLD
     errors = PROBLEM.errors(sol.unknowns, truth)
     assert 1e-12 < max(errors["X"]["rotation"], errors["Y"]["rotation"]) < 1e-6
-    polished = handeye.solve("axyb", solver="so3-sdp", cvxpy_solver="SCS", **data)
+    polished = handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", cvxpy_solver="SCS", **data)
     errors = PROBLEM.errors(polished.unknowns, truth)
     assert polished.status is Status.OPTIMAL
     assert max(errors["X"]["rotation"], errors["Y"]["rotation"]) < 1e-12
     # at its own default (eps 1e-4) SCS still claims "optimal"; the certificate does not (gap
     # 8.8e-2, rotation 1.5e-4 rad off): uncertified, never a silent "optimal"
     monkeypatch.setattr(so3_sdp, "CVXPY_SETTINGS", {"CLARABEL": so3_sdp.CLARABEL_SETTINGS})
-    loose = handeye.solve("axyb", solver="so3-sdp", cvxpy_solver="SCS", polish=False, **data)
+    loose = handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", cvxpy_solver="SCS", polish=False, **data)
     assert loose.diagnostics["sdp_status"] == "optimal"
     assert loose.status is Status.UNCERTIFIED and not loose.diagnostics["certified"]
     assert loose.diagnostics["relative_gap"] > 100 * so3_sdp.GAP_THRESHOLD
@@ -244,15 +254,88 @@ def test_cvxpy_solver_option_is_checked():
 
     data, _ = simulate(4, seed=12)
     with pytest.raises(InputError, match="no_such_solver.*not an installed cvxpy solver") as info:
-        handeye.solve("axyb", solver="so3-sdp", cvxpy_solver="no_such_solver", **data)
+        handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", cvxpy_solver="no_such_solver", **data)
     assert "CLARABEL" in sdp_cvxpy_solvers() and "SCS" in sdp_cvxpy_solvers()
     for name in sdp_cvxpy_solvers():
         assert name in str(info.value)
     lp_only = sorted(set(importlib.import_module("cvxpy").installed_solvers()) - set(sdp_cvxpy_solvers()))
     if lp_only:  # e.g. HIGHS, OSQP
         with pytest.raises(InputError, match="cannot solve semidefinite"):
-            handeye.solve("axyb", solver="so3-sdp", cvxpy_solver=lp_only[0], **data)
-    with pytest.raises(InputError, match="cvxpy_solver applies only to backend"):
-        handeye.solve("axyb", solver="so3-sdp", backend="picos", cvxpy_solver="SCS", **data)
+            handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", cvxpy_solver=lp_only[0], **data)
+    for backend in ("picos", "clarabel", None):  # None: the default, clarabel
+        with pytest.raises(InputError, match="cvxpy_solver applies only to backend.*backend='cvxpy'"):
+            handeye.solve("axyb", solver="so3-sdp", backend=backend, cvxpy_solver="SCS", **data)
     with pytest.raises(InputError, match="cvxpy_solver"):
-        handeye.solve("axyb", solver="so3-sdp", cvxpy_solver=3, **data)
+        handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", cvxpy_solver=3, **data)
+
+
+# --------------------------------------------------------------------------------------------
+# backend clarabel: the cvxpy backend's SDP stated in Clarabel's own API
+
+
+def test_clarabel_svec_convention_on_sdps_with_known_answers():
+    """svec: upper triangle column by column, off-diagonals times sqrt(2) (Clarabel's
+    PSDTriangleConeT); a wrong order or scale fails the off-diagonal constraints below."""
+    from handeye.plugins._clarabel_sdp import DualSDP, svec, unsvec
+
+    rng = np.random.default_rng(0)
+    n = 5
+    X, Y = (G + G.T for G in rng.standard_normal((2, n, n)))
+    np.testing.assert_allclose(unsvec(svec(X), n), X, rtol=1e-15, atol=0)
+    assert svec(X) @ svec(Y) == pytest.approx(np.trace(X @ Y), rel=1e-14)
+    np.testing.assert_allclose(svec(np.arange(9.0).reshape(3, 3)),
+                               [0, 1 * np.sqrt(2), 4, 2 * np.sqrt(2), 5 * np.sqrt(2), 8])
+    C = X
+    # min <C, Z> s.t. trace Z = 1, Z PSD: lambda_min(C), Z = v v^T; nu = lambda_min
+    sdp = DualSDP.build(np.eye(n)[None], np.array([1.0])).solve(C, so3_sdp.CLARABEL_SETTINGS, "test")
+    lam, V = np.linalg.eigh(C)
+    assert sdp.status == "optimal" and sdp.objective == pytest.approx(lam[0], abs=1e-7)
+    np.testing.assert_allclose(sdp.nu, [lam[0]], atol=1e-7)
+    np.testing.assert_allclose(sdp.Z, np.outer(V[:, 0], V[:, 0]), atol=1e-6)
+    # with constraints on off-diagonal entries (Z_02 = 0.1, Z_13 = -0.2, Z_34 = 0.05)
+    A = [np.eye(n)]
+    b = [1.0]
+    for (i, j), value in {(0, 2): 0.1, (1, 3): -0.2, (3, 4): 0.05}.items():
+        E = np.zeros((n, n))
+        E[i, j] = E[j, i] = 0.5
+        A.append(E)
+        b.append(value)
+    A, b = np.array(A), np.array(b)
+    sdp = DualSDP.build(A, b).solve(C, so3_sdp.CLARABEL_SETTINGS, "test")
+    # the KKT conditions hold for the returned Z, nu (primal and dual feasible, no duality gap) to the
+    # tolerance of these fast settings (a wrong svec would miss by O(1))
+    np.testing.assert_allclose(np.einsum("kij,ij->k", A, sdp.Z), b, atol=1e-7)
+    assert np.linalg.eigvalsh(sdp.Z)[0] > -1e-6
+    assert np.linalg.eigvalsh(C - np.einsum("k,kij->ij", sdp.nu, A))[0] > -1e-6
+    assert np.sum(C * sdp.Z) == pytest.approx(b @ sdp.nu, abs=1e-6)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_clarabel_backend_matches_cvxpy(seed):
+    """The same conic program: the same polished answer and certificate (measured: identical)."""
+    data, _ = simulate(16, seed=seed, noise=NoiseModel.on("B", 0.002, 0.2))
+    native = handeye.solve("axyb", solver="so3-sdp", **data)
+    ref = handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", **data)
+    assert native.backend == "clarabel" and native.diagnostics["sdp_solver"] == "CLARABEL"
+    assert native.status is Status.OPTIMAL and ref.status is Status.OPTIMAL
+    assert native.diagnostics["eigenvalue_ratio"] < so3_sdp.RATIO_THRESHOLD
+    assert native.diagnostics["sdp_status"] == ref.diagnostics["sdp_status"] == "optimal"
+    assert native.diagnostics["sdp_objective"] == pytest.approx(ref.diagnostics["sdp_objective"], rel=1e-8)
+    for name in ("X", "Y"):
+        assert rotation_angle(native.unknowns[name][:3, :3].T @ ref.unknowns[name][:3, :3]) < 1e-10
+        np.testing.assert_allclose(native.unknowns[name][:3, 3], ref.unknowns[name][:3, 3], rtol=1e-10,
+                                   atol=1e-10 * np.abs(ref.unknowns[name][:3, 3]).max())
+
+
+def test_clarabel_failures_are_solver_errors(monkeypatch):
+    """Clarabel without a usable solution (here: 2 iterations allowed) is a SolverError naming
+    its status; a direct_solve_method the installed Clarabel rejects is dropped for that solve."""
+    from handeye import SolverError
+
+    data, _ = simulate(8, seed=13)
+    settings = so3_sdp.CLARABEL_SETTINGS
+    monkeypatch.setattr(so3_sdp, "CLARABEL_SETTINGS", {**settings, "max_iter": 2})
+    with pytest.raises(SolverError, match="so3-sdp: Clarabel returned status 'MaxIterations'"):
+        handeye.solve("axyb", solver="so3-sdp", **data)
+    monkeypatch.setattr(so3_sdp, "CLARABEL_SETTINGS", {**settings, "direct_solve_method": "nonesuch"})
+    assert handeye.solve("axyb", solver="so3-sdp", **data).status is Status.OPTIMAL
