@@ -79,8 +79,7 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
         return _run_on_stations(data, options, backend)
     start, poses, init_status, init_diag, warnings = _refine.start(data, options.init)
     warnings = [f"auto: {w}" for w in warnings]
-    certificate = {k: init_diag[k] for k in CERTIFICATE_KEYS if k in init_diag}
-    certified = bool(init_diag.get("certified", False)) and init_status == Status.OPTIMAL
+    certified = _certified(init_status, init_diag)
     pipeline = [start, "refine"]
     ropts = options.refine_options(problem)
     poses, status, diag = _refine.refine(data, poses, ropts)
@@ -110,20 +109,31 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
             poses, status, diag = poses_b, status_b, diag_b
             diag["init"] = other
 
+    diagnostics = _diagnostics(pipeline, start, init_status, init_diag, starts, diag, warnings)
+    return SolverOutput(unknowns=dict(zip(ropts.UNKNOWNS, poses)), status=status, diagnostics=diagnostics)
+
+
+def _diagnostics(pipeline: list[str], start: str, init_status: Status, init_diag: dict[str, Any],
+                 starts: list[dict[str, Any]], diag: dict[str, Any], warnings: list[str]) -> dict[str, Any]:
+    """auto's diagnostics: the pipeline, the start and its certificate, refine's figures, warnings."""
     diagnostics: dict[str, Any] = {
         "pipeline": pipeline,
         "init": diag.get("init", start),
         "init_status": str(init_status),
-        "init_certified": certified,
-        "certificate": jsonable(certificate),
+        "init_certified": _certified(init_status, init_diag),
+        "certificate": jsonable({k: init_diag[k] for k in CERTIFICATE_KEYS if k in init_diag}),
         "compile_seconds": float(init_diag.get("compile_seconds", 0.0)),
         "starts": starts,
         "refine": {k: v for k, v in diag.items() if k != "warnings"},
     }
-    warnings += diag.get("warnings", [])
+    warnings = warnings + diag.get("warnings", [])
     if warnings:
         diagnostics["warnings"] = warnings
-    return SolverOutput(unknowns=dict(zip(ropts.UNKNOWNS, poses)), status=status, diagnostics=diagnostics)
+    return diagnostics
+
+
+def _certified(status: Status, diagnostics: dict[str, Any]) -> bool:
+    return bool(diagnostics.get("certified", False)) and status == Status.OPTIMAL
 
 
 def _weights_are_estimated(options: Options) -> bool:
@@ -137,11 +147,25 @@ def _run_on_stations(data: Any, options: Options, backend: str) -> SolverOutput:
     station. The motions share the stations' noise, which the per-motion model of `refine`
     cannot represent: on them its answer is 2-14% less accurate and its uncertainty 3-6x too
     small (docs/solvers/auto.md); on the stations both are right, and the answer is the same in
-    the user's frames (Y, the first station's pose pair, absorbs the common origin)."""
+    the user's frames (Y, the first station's pose pair, absorbs the common origin).
+
+    The start is the certified start of the motions (so3-sdp for one rotation, a 10x10 SDP):
+    the first station is the origin on both sides, so A_0 X = Y B_0 gives Y = X there and
+    (X0, X0) starts the AX=YB refinement. When that start is not certified, the whole AX=YB
+    pipeline runs on the stations instead (its own certified start, 19x19, and safeguard)."""
     from handeye.problems.axyb import PROBLEM as AXYB
 
     A_abs, B_abs = data.stations
-    output = run(AXYB.validate(A=A_abs, B=B_abs), options, backend)
+    stations = AXYB.validate(A=A_abs, B=B_abs)
+    start, poses, init_status, init_diag, warnings = _refine.start(data, None)
+    if _certified(init_status, init_diag):
+        (X, _), status, diag = _refine.refine(stations, (poses[0], poses[0]), options.refine_options("axyb"))
+        starts = [{"init": f"{start} (motions)", "init_status": str(init_status), "final_cost": diag["final_cost"]}]
+        diagnostics = _diagnostics([f"{start} (motions)", "refine"], start, init_status, init_diag, starts, diag,
+                                   [f"auto: {w}" for w in warnings])
+        output = SolverOutput(unknowns={"X": X}, status=status, diagnostics=diagnostics)
+    else:
+        output = run(stations, options, backend)
     diagnostics = dict(output.diagnostics)
     diagnostics["formulation"] = (f"A_k X = Y B_k on the {len(A_abs)} stations the {data.m} motions were made "
                                   "from (maximum likelihood for independent noise on each station)")

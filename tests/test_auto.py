@@ -214,7 +214,10 @@ def test_auto_axxb_on_every_pair_of_stations_solves_the_stations():
     data = motions(stations["A"], inverse(stations["B"]))  # robot poses, board poses in the camera
     sol = handeye.solve("axxb", **data)
     assert "12 stations the 66 motions" in sol.diagnostics["formulation"]
-    assert sol.diagnostics["pipeline"][0] == "stations"
+    start = refine.default_init("axxb")
+    if start == "so3-sdp":  # its certified start on the motions (one rotation), then AX=YB's refine
+        assert sol.diagnostics["pipeline"] == ["stations", "so3-sdp (motions)", "refine"]
+        assert sol.diagnostics["init_certified"]
     on_stations = handeye.solve("axyb", A=stations["A"], B=stations["B"])
     np.testing.assert_allclose(sol.X[:3, :3], on_stations.X[:3, :3], rtol=0, atol=1e-9)
     np.testing.assert_allclose(sol.X[:3, 3], on_stations.X[:3, 3], rtol=0, atol=1e-6)
@@ -227,3 +230,24 @@ def test_auto_axxb_on_every_pair_of_stations_solves_the_stations():
     # stated weights describe the motions: then the per-motion model is used
     stated = handeye.solve("axxb", sigma_rot=0.003, sigma_trans=0.3, **data)
     assert "formulation" not in stated.diagnostics
+
+
+def test_auto_axxb_stations_without_a_certified_start_run_the_axyb_pipeline(monkeypatch):
+    from handeye.problems.axxb import motions, simulate_stations
+    from handeye.se3 import inverse
+
+    stations, _ = simulate_stations(9, seed=32, noise=AXXB_NOISE)
+    data = motions(stations["A"], inverse(stations["B"]))
+    real_init = refine.run_init
+
+    def uncertified_on_motions(name, d):
+        poses, status, diag = real_init(name, d)
+        if refine.problem_of(d) == "axxb":
+            return poses, Status.UNCERTIFIED, {**diag, "certified": False}
+        return poses, status, diag
+
+    monkeypatch.setattr(refine, "run_init", uncertified_on_motions)
+    sol = handeye.solve("axxb", **data)
+    assert sol.diagnostics["pipeline"][0] == "stations" and "(motions)" not in " ".join(sol.diagnostics["pipeline"])
+    on_stations = handeye.solve("axyb", A=stations["A"], B=stations["B"])
+    np.testing.assert_allclose(sol.X[:3, :3], on_stations.X[:3, :3], rtol=0, atol=1e-9)
