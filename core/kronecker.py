@@ -147,6 +147,8 @@ class PosePairs:
         A, B = self.A.copy(), self.B.copy()
         A[:, :3, 3] /= s
         B[:, :3, 3] /= s
+        A.setflags(write=False)
+        B.setflags(write=False)
         return type(self)(A, B)
 
     @functools.cached_property

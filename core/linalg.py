@@ -25,3 +25,12 @@ def triangular_factor(blocks: np.ndarray) -> np.ndarray:
         padded[:len(X)] = X
         X = np.linalg.qr(padded.reshape(n, per, c), mode="r").reshape(-1, c)
     return np.linalg.qr(X, mode="r")
+
+
+def frobenius_norm(M: np.ndarray) -> float:
+    """|M|_F without overflow: scaled by max |M_ij| first (np.linalg.norm squares the entries and
+    returns inf for finite entries above ~1e154). inf or nan only when M holds them."""
+    peak = float(np.max(np.abs(M))) if M.size else 0.0
+    if peak == 0.0 or not np.isfinite(peak):
+        return peak
+    return peak * float(np.linalg.norm(M / peak))

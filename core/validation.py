@@ -20,10 +20,7 @@ LAST_ROW_TOL = 1e-9
 
 def pose_stack(value: Any, name: str, *, tol: float = ORTHONORMALITY_TOL) -> np.ndarray:
     """Validated read-only copy of `value` as (m, 4, 4) float64.  Raises InputError naming `name`."""
-    try:
-        T = np.array(value, dtype=float, copy=True)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be an array of 4x4 poses with shape (m, 4, 4); could not convert it to floats ({exc})") from None
+    T = _float_copy(value, name)
     if T.ndim != 3 or T.shape[1:] != (4, 4):
         raise InputError(f"expected {name} to have shape (m, 4, 4), got {T.shape}")
     bad = ~np.all(np.isfinite(T), axis=(1, 2))
@@ -47,6 +44,25 @@ def pose_stack(value: Any, name: str, *, tol: float = ORTHONORMALITY_TOL) -> np.
     T[:, 3, :] = (0.0, 0.0, 0.0, 1.0)
     T.setflags(write=False)
     return T
+
+
+def _is_complex(value: Any) -> bool:
+    try:
+        return bool(np.iscomplexobj(value))
+    except (TypeError, ValueError):
+        return False
+
+
+def _float_copy(value: Any, name: str) -> np.ndarray:
+    """A float64 copy of `value`; InputError for complex numbers (their imaginary part would be
+    dropped silently), non-numbers and numbers beyond float64."""
+    if _is_complex(value):
+        raise InputError(f"{name} holds complex numbers; poses must be real (m, 4, 4) arrays")
+    try:
+        return np.array(value, dtype=float, copy=True)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise InputError(f"{name} must be an array of 4x4 poses with shape (m, 4, 4); could not convert it "
+                         f"to floats ({' '.join(str(exc).split())})") from None
 
 
 def same_length(stacks: dict[str, np.ndarray], min_pairs: int) -> int:
@@ -79,9 +95,9 @@ def pose_stacks(stacks: Mapping[str, Any], min_pairs: int) -> dict[str, np.ndarr
     or raise their one-line errors naming the stack and the poses.
     """
     try:
-        arrays = [np.asarray(v, dtype=float) for v in stacks.values()]
-    except (TypeError, ValueError):
-        arrays = []
+        arrays = [] if any(_is_complex(v) for v in stacks.values()) else [np.asarray(v, dtype=float) for v in stacks.values()]
+    except (TypeError, ValueError, OverflowError):
+        arrays = []  # pose_stack says what is wrong
     shape = arrays[0].shape if arrays else None
     if (arrays and len(shape) == 3 and shape[1:] == (4, 4) and shape[0] >= min_pairs
             and all(a.shape == shape for a in arrays)):

@@ -146,8 +146,11 @@ def _run_on_stations(data: Any, options: Options, backend: str) -> SolverOutput:
     A_k X = Y B_k on the stations, the maximum-likelihood answer for independent noise on each
     station. The motions share the stations' noise, which the per-motion model of `refine`
     cannot represent: on them its answer is 2-14% less accurate and its uncertainty 3-6x too
-    small (docs/solvers/auto.md); on the stations both are right, and the answer is the same in
-    the user's frames (Y, the first station's pose pair, absorbs the common origin).
+    small (docs/solvers/auto.md); on the stations both are right. Eye-in-hand the answer is that
+    of ``axyb`` on the user's stations (Y, the first station's pose pair, absorbs the common
+    origin; tested to 1e-9); eye-to-hand the motions were made from inverted poses, and the AX=YB
+    solved here measures the translation residual in the flange frame, not the base frame as
+    ``axyb`` on the recorded stations does (the two ML answers differ by a fraction of the noise).
 
     The start is the certified start of the motions (so3-sdp for one rotation, a 10x10 SDP):
     the first station is the origin on both sides, so A_0 X = Y B_0 gives Y = X there and

@@ -56,6 +56,7 @@ from typing import Any
 import numpy as np
 from handeye import SolverOutput, Status
 from handeye.errors import SolverError
+from handeye.linalg import frobenius_norm
 from handeye.plugins._cvxpy_solvers import (
     check_backend_options,
     compile_seconds,
@@ -201,7 +202,7 @@ def solve_sdp(cost: RotationCost, backend: str, cvxpy_solver: str | None = None)
     """The SDP for `cost` (one rotation) on backend "cvxpy" or "picos": (Z (10, 10), raw result,
     |M|_F, the scale M was divided by for the solver)."""
     M = cost.matrix
-    norm = float(np.linalg.norm(M))
+    norm = frobenius_norm(M)
     if not np.isfinite(norm) or norm == 0.0:
         raise SolverError("lmi-sdp: the cost matrix of the AX=XB system is zero or not finite")
     if backend == "cvxpy":

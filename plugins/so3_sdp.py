@@ -52,6 +52,7 @@ from typing import Any
 import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import InputError, SolverError
+from handeye.linalg import frobenius_norm
 from handeye.plugins._clarabel_sdp import DualSDP
 from handeye.plugins._cvxpy_solvers import (
     check_backend_options,
@@ -284,7 +285,7 @@ def solve_relaxation(cost: RotationCost, options: Options, backend: str
     solver = resolve_cvxpy_solver(options.cvxpy_solver) if backend == "cvxpy" else None
     k = cost.rotations
     M = cost.matrix
-    norm = float(np.linalg.norm(M))
+    norm = frobenius_norm(M)
     if not np.isfinite(norm) or norm == 0.0:
         raise SolverError("so3-sdp: the cost matrix of the Kronecker system is zero or not finite")
 

@@ -128,9 +128,13 @@ class AXXBData(PosePairs):
         inv(B_(0,j)) (j = 1 .. n-1; A_abs_0 = B_abs_0 = I) give A_abs_j X = Y B_abs_j with Y = X
         for exact data; every motion is checked to be inv(A_abs_j) A_abs_i to rounding
         (STATIONS_TOL), which motions made from one set of stations are and independent motions
-        are not. These are the user's stations up to one common pose on each side, which an
-        AX=YB solve absorbs into Y: its residuals, hence its maximum-likelihood X and covariance,
-        are those of the original stations.
+        are not. These are the absolute poses the motions were made from (`motions`: robot and
+        inverse camera poses eye-in-hand, inverse robot and inverse camera poses eye-to-hand) up
+        to one common pose on each side, which an AX=YB solve absorbs into Y: its residuals,
+        hence its maximum-likelihood X and covariance, are those of A_k X = Y B_k on those poses.
+        Eye-in-hand that is ``axyb`` on the recorded stations; eye-to-hand it is the same cell
+        written with inverted poses, whose translation residual lives in the flange frame
+        rather than the base frame (docs/solvers/auto.md).
         """
         m = self.m
         n = round(float(np.sqrt(1 + 8 * m) + 1) / 2)
@@ -143,6 +147,7 @@ class AXXBData(PosePairs):
         for T_abs, T in ((A_abs, self.A), (B_abs, self.B)):
             if np.abs(inverse(T_abs[j]) @ T_abs[i] - T).max() > tol:
                 return None
+            T_abs.setflags(write=False)  # cached: shared by every solver of these data
         return A_abs, B_abs
 
 

@@ -283,3 +283,32 @@ def test_simulator_pairings_and_options():
         PROBLEM.simulate(pairs=3, seed=1, stations=4)
     with pytest.raises(handeye.InputError, match="pairing"):
         PROBLEM.simulate(pairs=3, seed=1, pairing="random")
+
+
+def test_numbers_beyond_float64_and_complex_input_are_bad_input():
+    """An integer too large for float64 and complex entries are InputErrors (one line), never a
+    bare OverflowError or a silently dropped imaginary part."""
+    data, _ = PROBLEM.simulate(pairs=6, seed=1)
+    huge = np.array(data["A"], dtype=object)
+    huge[0, 0, 3] = 10**400
+    with pytest.raises(handeye.InputError, match="could not convert it to floats"):
+        PROBLEM.validate(A=huge, B=data["B"])
+    with pytest.raises(handeye.InputError, match="complex numbers"):
+        PROBLEM.validate(A=data["A"] + 0j, B=data["B"])
+
+
+def test_frobenius_norm_does_not_overflow():
+    from handeye.linalg import frobenius_norm
+
+    M = np.array([[3e200, 4e200], [0.0, 0.0]])
+    assert frobenius_norm(M) == pytest.approx(5e200, rel=1e-15)
+    assert frobenius_norm(np.zeros((2, 2))) == 0.0 and not np.isfinite(frobenius_norm(np.array([np.inf])))
+
+
+def test_so3_sdp_solves_data_whose_cost_entries_pass_1e154():
+    """|M|_F is computed without squaring overflow: motions in a tiny unit still solve."""
+    data, truth = PROBLEM.simulate(pairs=8, seed=1, pairing="consecutive")
+    for T in data.values():
+        T[:, :3, 3] *= 1e80
+    sol = handeye.solve("axxb", solver="so3-sdp", normalize=False, **data)
+    assert PROBLEM.errors(sol.unknowns, truth)["X"]["rotation"] < 1e-9

@@ -468,6 +468,17 @@ def test_axxb_bad_input_exits_2_with_one_line(capsys, tmp_path, content, argv, m
         assert err.startswith("handeye: error: ") and err.count("\n") == 1
 
 
+def test_number_beyond_float64_in_a_file_exits_2(capsys, tmp_path):
+    """A 400-digit integer in a JSON file is bad input (exit 2, one line), not an internal error."""
+    poses, _ = eye_to_hand_stations(5)
+    robot = poses["robot_poses"].tolist()
+    text = json.dumps({"robot_poses": robot, "camera_poses": poses["camera_poses"].tolist(), "setup": "eye-to-hand"})
+    path = tmp_path / "huge.json"
+    path.write_text(text.replace(repr(robot[0][0][3]), "1" + "0" * 400, 1))
+    code, out, err = run_cli(capsys, "solve", "--problem", "axxb", "--solver", axxb_solver(), str(path))
+    assert code == 2 and out == "" and err.count("\n") == 1 and "could not convert it to floats" in err
+
+
 def test_simulate_axxb_flags_are_checked(capsys, tmp_path):
     out = str(tmp_path / "x.npz")
     code, _, err = run_cli(capsys, "simulate", "--problem", "axxb", "--pairs", "5", "--stations", "6", "-o", out)
