@@ -15,7 +15,9 @@ problems.
 
 from __future__ import annotations
 
+import importlib
 from importlib.metadata import PackageNotFoundError, version
+from types import ModuleType
 
 from .api import solve
 from .errors import (
@@ -34,6 +36,10 @@ from .problem import Problem
 from .registry import get_registry, list_problems, list_solvers
 from .solution import Solution, SolverOutput, Status
 from .solver import SolverSpec
+
+#: submodules that ``handeye.<name>`` imports on first use (PEP 562), so that ``import handeye``
+#: stays cheap: ``handeye.io.load_file(...)`` works without ``import handeye.io`` first.
+_LAZY_SUBMODULES = ("examples", "harness", "io", "problems")
 
 try:
     __version__ = version("handeye")
@@ -55,9 +61,25 @@ __all__ = [
     "SolverSpec",
     "Status",
     "UnknownPluginError",
+    "examples",
     "get_registry",
+    "harness",
     "hookimpl",
+    "io",
     "list_problems",
     "list_solvers",
+    "problems",
     "solve",
 ]
+
+
+def __getattr__(name: str) -> ModuleType:
+    """``handeye.io``, ``handeye.examples``, ``handeye.harness``, ``handeye.problems``: imported
+    on first access (PEP 562); any other unknown name is an AttributeError as usual."""
+    if name in _LAZY_SUBMODULES:
+        return importlib.import_module(f"{__name__}.{name}")  # the import binds it on the package
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

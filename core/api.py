@@ -56,7 +56,7 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
     spec = registry.solver(solver, problem)
     backend = spec.default_backend if backend is None else backend
     if backend not in spec.backends:
-        raise UnknownPluginError(f"backend of solver {solver!r}", backend, spec.backends)
+        raise UnknownPluginError("backend", backend, spec.backends, owner=f"of solver {solver!r}")
     reason = spec.unavailable_reason(backend)
     if reason:
         raise BackendUnavailableError(reason)

@@ -27,14 +27,21 @@ class SolverError(HandEyeError):
 
 
 class UnknownPluginError(HandEyeError):
-    """A problem, solver, backend or option name that nothing registered knows."""
+    """A problem, solver, backend or option name that nothing registered knows.
 
-    def __init__(self, kind: str, name: str, known: Iterable[str], hint: str = "") -> None:
+    `kind` is a plain noun ("solver", "backend", "option"); `owner` what the name belongs to, as
+    a phrase that follows it ("of solver 'kron-lstsq'", "for problem 'axyb'"), so the message reads
+    "unknown option 'normalise' of solver 'kron-lstsq'; known options: 'normalize'".
+    """
+
+    def __init__(self, kind: str, name: str, known: Iterable[str], hint: str = "", *, owner: str = "") -> None:
         self.kind = kind
+        self.owner = owner
         self.name = name
         self.known = sorted(known)
         listing = ", ".join(repr(k) for k in self.known) or "(none registered)"
-        message = f"unknown {kind} {name!r}; known {kind}s: {listing}"
+        where = f" {owner}" if owner else ""
+        message = f"unknown {kind} {name!r}{where}; known {kind}s: {listing}"
         super().__init__(message + (f". {hint}" if hint else ""))
 
 

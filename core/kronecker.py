@@ -73,8 +73,9 @@ def reduce_normal_equations(N: np.ndarray, g: np.ndarray, ww: float) -> Kronecke
         R1 = cholesky(N / np.outer(d, d), lower=False) * d[None, :]
     except np.linalg.LinAlgError:
         raise DegenerateDataError(
-            "the linear system of the data is rank deficient: the poses do not determine the "
-            "unknowns (they rotate too little, or about too few axes)"
+            "the linear system of the data is rank deficient: the poses rotate too little, or about "
+            "too few axes, so the unknowns cannot be determined. Record poses that rotate about at "
+            "least two different axes"
         ) from None
     q1 = solve_triangular(R1, g, trans="T")
     return KroneckerSystem(R1=R1, q1=q1, rest=max(ww - float(q1 @ q1), 0.0))

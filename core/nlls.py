@@ -338,7 +338,8 @@ def _newton_step(H: np.ndarray, g: np.ndarray) -> np.ndarray:
     shows at small m. DegenerateDataError when H is not positive definite."""
     _, x, info = lapack.dposv(H, g)
     if info != 0:
-        raise DegenerateDataError("the refinement's normal matrix is singular: the data do not determine the unknowns")
+        raise DegenerateDataError("the refinement's normal matrix is singular: the data do not determine the unknowns (do the poses "
+                                  "rotate about at least two different axes?)")
     return -x
 
 
@@ -394,7 +395,9 @@ def refine(model: PoseModel, poses0: Sequence[np.ndarray], settings: Settings) -
     n = 6 * len(poses0)
     _, cov, info = lapack.dposv(res.H, np.eye(n))  # the inverse, by Cholesky (as the steps)
     if info != 0:
-        raise DegenerateDataError("the refinement's normal matrix is singular at the solution")
+        raise DegenerateDataError("the refinement's normal matrix is singular at the solution: the data do not "
+                                  "determine the unknowns there (do the poses rotate about at least two "
+                                  "different axes?)")
     cov = 0.5 * (cov + cov.T)
     s = (res.ew * res.ew).sum(axis=1)
     _, drho = loss_terms(s, loss, c)

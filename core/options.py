@@ -32,7 +32,7 @@ def parse_options(cls: type[T], values: Mapping[str, Any], solver: str) -> T:
     for key, value in values.items():
         if key not in fields:
             raise UnknownPluginError(
-                f"option of solver {solver!r}", key, fields,
+                "option", key, fields, owner=f"of solver {solver!r}",
                 hint="Data fields and options are passed as keyword arguments to handeye.solve",
             )
         if isinstance(fields[key].default, bool):

@@ -144,7 +144,7 @@ class Registry:
             else:
                 hint = self._failed_hint()
             raise UnknownPluginError(
-                "solver" if problem is None else f"solver for problem {problem!r}", name, known, hint
+                "solver", name, known, hint, owner="" if problem is None else f"for problem {problem!r}"
             )
         by_problem = self.solvers[name]
         if problem is None:

@@ -72,7 +72,7 @@ def same_length(stacks: dict[str, np.ndarray], min_pairs: int) -> int:
         raise InputError(f"data stacks must have the same length; got {lengths}")
     m = next(iter(lengths.values()))
     if m < min_pairs:
-        raise DegenerateDataError(f"need at least {min_pairs} pose pairs, got {m}")
+        raise DegenerateDataError(f"need at least {min_pairs} pose pairs, got {m}: record more poses")
     return m
 
 

@@ -52,8 +52,9 @@ from handeye.se3 import make_pose, project_to_so3, skew
 TSAI_RANGE = (0.3, 1.7)
 #: sigma_min / sigma_max (or eigenvalue gap / largest eigenvalue) at or below which a system is singular.
 SINGULAR_RATIO = 1e-10
-_PARALLEL = ("the robot motions must rotate about at least two different axes (their rotation axes "
-             "are parallel, or they do not rotate)")
+_PARALLEL = ("the robot motions rotate about fewer than two different axes (their rotation axes are "
+             "parallel, or they do not rotate), so X cannot be determined. Record motions that rotate "
+             "about at least two different axes")
 
 
 def _data(A: Any, B: Any) -> AXXBData:
@@ -123,7 +124,7 @@ def _lstsq(M: np.ndarray, rhs: np.ndarray | None, what: str, hint: str = _PARALL
     U, s, Vt = np.linalg.svd(R[:c, :c])
     ratio = float(s[-1] / s[0]) if s[0] > 0 else 0.0
     if ratio <= SINGULAR_RATIO:
-        raise DegenerateDataError(f"{what} is singular (sigma_min/sigma_max {ratio:.1e}): {hint}")
+        raise DegenerateDataError(f"{what} is singular (smallest/largest singular value {ratio:.1e}): {hint}")
     return Vt.T @ ((U.T @ R[:c, c]) / s), ratio
 
 
@@ -149,8 +150,10 @@ def _tsai(data: AXXBData, select_motions: bool = True) -> tuple[np.ndarray, dict
         PAB = PAB[keep]
         data = AXXBData(data.A[keep], data.B[keep])
     # eq. 12: skew(P_A + P_B) P' = P_B - P_A, 3 rows per motion, built as [skew | rhs] by one product
-    x, ratio = _lstsq((PAB @ _TSAI_MAP).reshape(-1, 3, 4), None, "tsai: the rotation system (eq. 12)",
-                      _PARALLEL + ", or X rotates by 180 deg, which Tsai's parametrisation cannot represent")
+    x, ratio = _lstsq((PAB @ _TSAI_MAP).reshape(-1, 3, 4), None, "tsai: the rotation system",
+                      "either the robot motions rotate about fewer than two different axes, or X rotates by "
+                      "180 deg, which Tsai's method cannot represent. Record motions that rotate about at "
+                      "least two different axes, or use another method such as 'park'")
     # eq. 14: P_X = 2 P' / sqrt(1 + |P'|^2), i.e. the unit quaternion (1, P') / |(1, P')|
     RX = rotation_from_quat(np.concatenate([[1.0], x]))
     tX = solve_translation(data, RX)  # eq. 15 on the selected motions
@@ -179,7 +182,7 @@ def _park(data: AXXBData) -> tuple[np.ndarray, dict[str, Any]]:
     M = beta.T @ alpha  # sum_i beta_i alpha_i^T
     sigma = np.linalg.svd(M, compute_uv=False)
     if sigma[1] <= SINGULAR_RATIO * sigma[0]:
-        raise DegenerateDataError(f"park: M = sum beta_i alpha_i^T has rank < 2: {_PARALLEL}")
+        raise DegenerateDataError(f"park: the rotation axes of the motions span fewer than two directions: {_PARALLEL}")
     RX = project_to_so3(M.T)  # = (M^T M)^(-1/2) M^T when M is invertible with det > 0
     return make_pose(RX, solve_translation(data, RX)), {"M_singular_values": sigma.tolist()}
 
@@ -206,7 +209,7 @@ def _horaud(data: AXXBData) -> tuple[np.ndarray, dict[str, Any]]:
     N = D.T @ D
     lam, V = np.linalg.eigh(N)  # ascending
     if lam[1] - lam[0] <= SINGULAR_RATIO * lam[3]:
-        raise DegenerateDataError(f"horaud: the smallest eigenvalue of sum A_i^T A_i is not simple: {_PARALLEL}")
+        raise DegenerateDataError(f"horaud: the rotation of X is not unique: {_PARALLEL}")
     RX = rotation_from_quat(V[:, 0])
     return make_pose(RX, solve_translation(data, RX)), {"eigenvalues": lam.tolist()}
 
@@ -228,7 +231,7 @@ def horaud(A: Any, B: Any) -> np.ndarray:
 def _andreff(data: AXXBData) -> tuple[np.ndarray, dict[str, Any]]:
     """`andreff` and its diagnostics."""
     H, w = regression_blocks(data.A, data.B)  # (R_B kron R_A - I) vec R_X = 0, (t_B^T kron I) vec R_X + (I - R_A) t_X = t_A
-    beta, ratio = _lstsq(H, w, "andreff: the linear system (eq. 10)")
+    beta, ratio = _lstsq(H, w, "andreff: the linear system")
     M = beta[:9].reshape(3, 3, order="F")
     det = float(np.linalg.det(M))
     if abs(det) < np.finfo(np.float32).eps:  # OpenCV's test
@@ -266,7 +269,7 @@ def _daniilidis(data: AXXBData) -> tuple[np.ndarray, dict[str, Any]]:
     R = triangular_factor(T)
     rot = np.linalg.svd(R[:4, :4], compute_uv=False)  # the rotation rows alone (_daniilidis_block)
     if rot[2] <= SINGULAR_RATIO * rot[0]:
-        raise DegenerateDataError(f"daniilidis: the rotation rows of eq. 31 have a null space of dimension > 1: {_PARALLEL}")
+        raise DegenerateDataError(f"daniilidis: the rotation of X is not unique: {_PARALLEL}")
     _, sigma, Vt = np.linalg.svd(R)  # the right singular vectors of the stack
     v7, v8 = Vt[6:, _Q_FIRST]  # of the two smallest singular values, as (q_X, q'_X)
     u1, v1, u2, v2 = v7[:4], v7[4:], v8[:4], v8[4:]

@@ -129,7 +129,9 @@ def null_space_solution(v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, bool]
     mu = max(candidates, key=lambda c: float(c @ G @ c))
     norm2 = float(mu @ G @ mu)
     if not norm2 > 0:
-        raise SolverError("dual-quaternion: the null space of eq. 24 has no rotation part (degenerate data)")
+        raise SolverError("dual-quaternion: the data determine no rotation (degenerate data: the poses "
+                          "rotate about too few axes); record poses that rotate about at least two "
+                          "different axes")
     mu = mu * np.sqrt(2.0 / norm2)
     return mu[0] * v + mu[1] * w, real_root
 
@@ -185,10 +187,11 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     warnings = []
     if sol["wrong"]:
         warnings.append(f"dual-quaternion: {sol['wrong']} pair(s) remain sign-inconsistent with "
-                        "the solution (very noisy data?)")
+                        "the solution (very noisy data, or mismatched robot and camera poses?)")
     if not sol["real_root"]:
-        warnings.append("dual-quaternion: the orthogonality constraint of eq. 26 has no real root "
-                        "(noise too large for this method); used the closest approximate root")
+        warnings.append("dual-quaternion: the rotation constraint has no real root (noise too large "
+                        "for this method); used the closest approximate root. Solver 'refine' or "
+                        "'auto' copes with this noise")
     sigma = sol["sigma"]
     return SolverOutput(
         unknowns={"X": X, "Y": Y},
@@ -211,7 +214,7 @@ SPEC = SolverSpec(
     problems=("axyb",),
     run=run,
     options=Options,
-    summary="dual quaternions: SVD of the 8m x 16 system (eq. 24), two-vector null space (eq. 26)",
+    summary="dual quaternions: SVD of the stacked linear system (8 rows a pair), unit solution in its two-vector null space",
     citation="Pan et al., IEEE T-ASE 2022, Sec. III.C; Daniilidis, IJRR 18(3), 1999",
     unit_invariant=lambda options: options.normalize,  # not with normalize=False (module docstring)
 )

@@ -258,7 +258,7 @@ SPEC = SolverSpec(
     problems=("axyb",),
     run=run,
     options=Options,
-    summary="Gauss-Newton on the rotations by exp-map linearisation (eqs. 15-19), then translations (eq. 21)",
+    summary="Gauss-Newton on the rotations by exp-map linearisation, then translations by least squares",
     citation="Pan et al., IEEE T-ASE 2022, Sec. III.B (after Wang et al.)",
     unit_invariant=True,
 )

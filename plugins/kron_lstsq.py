@@ -77,7 +77,7 @@ SPEC = SolverSpec(
     problems=("axyb",),
     run=run,
     options=Options,
-    summary="closed-form least squares on the Kronecker system (eq. 8), SVD projection",
+    summary="closed-form linear least squares on all pose pairs (Kronecker form), SVD projection",
     citation="Pan et al., IEEE T-ASE 2022, eq. 8; cf. Li, Wang, Wu, Int. J. Phys. Sci. 2010",
     unit_invariant=lambda options: options.normalize,  # not with normalize=False (module docstring)
 )

@@ -75,8 +75,9 @@ def least_squares_beta_qr(data: AXYBData) -> tuple[np.ndarray, float]:
     R1 = R[:24, :24]
     sigma = np.linalg.svd(R1, compute_uv=False)
     if not sigma[-1] > 1e-12 * sigma[0]:
-        raise DegenerateDataError("li: the Kronecker system of eq. 8 is rank deficient (the data do "
-                                  "not determine X and Y)")
+        raise DegenerateDataError("li: the linear system is rank deficient: the poses rotate about too "
+                                  "few axes, so X and Y cannot be determined. Record poses that rotate "
+                                  "about at least two different axes")
     return solve_triangular(R1, R[:24, 24]) / col, float(sigma[-1])
 
 

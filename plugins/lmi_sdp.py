@@ -216,7 +216,7 @@ class SDPResult:
 
 
 def _status(solver_status: str, optimal: set[str], inaccurate: set[str], where: str,
-            what: str = "the LMI of eq. 14") -> Status:
+            what: str = "the semidefinite program") -> Status:
     """The `Status` of an SDP solver's status; SolverError naming it for anything but optimal or
     inaccurate (`what`: the problem solved, for the message)."""
     if solver_status in optimal:
@@ -272,7 +272,7 @@ def cvxpy_problem(solver: str) -> CvxpyLMI:
         ])
         problem = cp.Problem(cp.Minimize(u), [lmi >> 0])
         if not problem.is_dpp():  # pragma: no cover - a cvxpy change would break the cache
-            raise SolverError("lmi-sdp: the cvxpy formulation of eq. 14 is not DPP")
+            raise SolverError("lmi-sdp: the cvxpy formulation of the semidefinite program is not DPP")
         cached = CvxpyLMI(problem, R, q, rest, gamma, u, threading.Lock())
         _CVXPY_PROBLEMS[solver] = cached
         cvxpy_builds += 1
@@ -291,7 +291,7 @@ def _solve_cvxpy(lmi: ScaledLMI, solver: str) -> SDPResult:
         try:
             cached.problem.solve(solver=solver, warm_start=False, **CVXPY_SETTINGS.get(solver, {}))
         except cp.error.SolverError as exc:
-            raise SolverError(f"lmi-sdp: cvxpy/{solver} failed on the LMI of eq. 14: {exc}") from None
+            raise SolverError(f"lmi-sdp: cvxpy/{solver} failed on the semidefinite program: {exc}") from None
         status = str(cached.problem.status)
         gamma, u = cached.gamma.value, cached.u.value
         iterations = cached.problem.solver_stats.num_iters
@@ -319,7 +319,7 @@ def _solve_picos(lmi: ScaledLMI) -> SDPResult:
     try:
         solution = P.solve(solver="cvxopt", primals=None, duals=False, **PICOS_SETTINGS)
     except picos.SolutionFailure as exc:
-        raise SolverError(f"lmi-sdp: picos/cvxopt failed on the LMI of eq. 14: {exc}") from None
+        raise SolverError(f"lmi-sdp: picos/cvxopt failed on the semidefinite program: {exc}") from None
     status = str(solution.claimedStatus)
     result_status = _status(status, {picos.modeling.solution.SS_OPTIMAL}, set(), "picos/cvxopt")
     if gamma.value is None or u.value is None:
@@ -417,8 +417,8 @@ SPEC = SolverSpec(
     backends={"cvxpy": ("cvxpy", "clarabel"), "picos": ("picos", "cvxopt"), "casadi": ("casadi",)},
     default_backend="cvxpy",
     options=Options,
-    summary="the paper's LMI-SDP (eqs. 9-14; optimum = least squares of eq. 8), Gram-Schmidt; "
-            "casadi: eq. 8 under exact SO(3)",
+    summary="the paper's LMI-SDP (its optimum is the linear least squares of kron-lstsq), Gram-Schmidt; "
+            "casadi: that least squares under exact SO(3)",
     citation="Pan et al., Toward Simultaneous Coordinate Calibrations of AX=YB Problem by the "
              "LMI-SDP Optimization, IEEE T-ASE 2022, eqs. 5-14",
     unit_invariant=lambda options: options.normalize,  # the paper-faithful default is not (docstring)

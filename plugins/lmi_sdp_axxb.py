@@ -79,7 +79,7 @@ from handeye.trust_region import refine_trust_region
 #: Clarabel and CVXOPT, 1/3 in the hard case (W = 3 v v^T, r0 = 0).
 RANK_TWO_RATIO = 1e-3
 #: What the SDP is, for error messages.
-WHAT = "the SDP of AX=XB (|vec R_X|^2 = 3)"
+WHAT = "the semidefinite program of AX=XB"
 #: Settings per cvxpy solver (others: their defaults). Clarabel: gap and feasibility tolerances
 #: 1e-12, as for eq. 14: the SDP's r within 6e-7 of the trust-region solution on the noisy
 #: study (docs/solvers/lmi-sdp.md; at its default tolerances up to 6e-5), reported mostly as
@@ -204,7 +204,7 @@ def solve_sdp(cost: RotationCost, backend: str, cvxpy_solver: str | None = None)
     M = cost.matrix
     norm = frobenius_norm(M)
     if not np.isfinite(norm) or norm == 0.0:
-        raise SolverError("lmi-sdp: the cost matrix of the AX=XB system is zero or not finite")
+        raise SolverError("lmi-sdp: the cost matrix built from the motions is zero or not finite")
     if backend == "cvxpy":
         result = _solve_cvxpy(M / norm, resolve_cvxpy_solver(cvxpy_solver))
     elif backend == "picos":

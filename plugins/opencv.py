@@ -186,8 +186,9 @@ def _output(unknowns: dict[str, np.ndarray], method: str) -> SolverOutput:
     reprojected = []
     for name, T in unknowns.items():
         if not np.all(np.isfinite(T)):
-            raise SolverError(f"OpenCV ({method}) returned a non-finite {name}: the data "
-                              "do not determine it")
+            raise SolverError(f"OpenCV ({method}) returned a non-finite {name}: the poses do not "
+                              "determine it (do they rotate about at least two different axes?); "
+                              "try another method")
         if orthonormality_error(T[:3, :3]) > REPROJECT_ABOVE:
             unknowns[name] = make_pose(project_to_so3(T[:3, :3]), T[:3, 3])
             reprojected.append(name)

@@ -35,8 +35,9 @@ def normalize_rotation(M: np.ndarray) -> np.ndarray:
     det = float(np.linalg.det(M))
     if abs(det) < np.finfo(np.float32).eps:
         raise DegenerateDataError(
-            f"the estimated rotation matrix is singular (det {det:.1e}): the rotations of the data "
-            "do not determine R_X and R_Y"
+            f"the estimated rotation matrix is singular (det {det:.1e}): the poses rotate about fewer "
+            "than two different axes, so the rotations of X and Y cannot be determined. Record poses "
+            "that rotate about at least two different axes"
         )
     M = np.cbrt(np.sign(det) / abs(det)) * M
     U, _, Vt = np.linalg.svd(M)

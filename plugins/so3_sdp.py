@@ -287,7 +287,7 @@ def solve_relaxation(cost: RotationCost, options: Options, backend: str
     M = cost.matrix
     norm = frobenius_norm(M)
     if not np.isfinite(norm) or norm == 0.0:
-        raise SolverError("so3-sdp: the cost matrix of the Kronecker system is zero or not finite")
+        raise SolverError("so3-sdp: the cost matrix built from the poses is zero or not finite")
 
     if backend == "clarabel":
         Z, nu, info = _solve_clarabel(M / norm, options.redundant, k)
@@ -360,7 +360,7 @@ SPEC = SolverSpec(
     backends={"clarabel": ("clarabel",), "cvxpy": ("cvxpy", "clarabel"), "picos": ("picos", "cvxopt")},
     default_backend="clarabel",
     options=Options,
-    summary="eq. 8 under exact SO(3) constraints: tight SDP relaxation with optimality certificate",
+    summary="the linear least squares of kron-lstsq under exact SO(3) constraints: tight SDP relaxation with optimality certificate",
     citation="Pan et al., IEEE T-ASE 2022, eq. 8; relaxation and certificate as in Briales & "
              "Gonzalez-Jimenez, CVPR 2017, and Rosen et al., IJRR 2019",
     unit_invariant=lambda options: options.normalize,  # "Units" in docs/solvers/so3-sdp.md

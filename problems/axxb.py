@@ -205,8 +205,8 @@ def solve_translation(data: AXXBData, RX: np.ndarray) -> np.ndarray:
         return solve(D, rhs, assume_a="pos")  # non-finite sums: its error
     except LinAlgError:
         raise DegenerateDataError(
-            "the translation of X is undetermined: the robot motions must rotate about at least "
-            "two different axes"
+            "the translation of X cannot be determined: the robot motions rotate about fewer than "
+            "two different axes. Record motions that rotate about at least two different axes"
         ) from None
 
 

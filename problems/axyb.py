@@ -155,8 +155,8 @@ def solve_translations(data: AXYBData, RX: np.ndarray, RY: np.ndarray) -> tuple[
         t = solve(N, np.concatenate([RAt_p, -sum_p]), assume_a="pos")
     except LinAlgError:
         raise DegenerateDataError(
-            "the translations are undetermined given the rotations (eqs. 20-21): the rotations of A "
-            "must vary about at least two axes"
+            "the translations of X and Y cannot be determined: the robot poses rotate about fewer "
+            "than two different axes. Record poses that rotate about at least two different axes"
         ) from None
     return t[:3], t[3:]
 
@@ -206,9 +206,9 @@ class AXYB(Problem):
         excitation = out.rotation_excitation
         if excitation < DEGENERATE_EXCITATION:
             raise DegenerateDataError(
-                f"the rotations of A and B do not determine R_X and R_Y (relative excitation "
-                f"{excitation:.1e} < {DEGENERATE_EXCITATION:g}): the poses must rotate about at "
-                "least two different axes"
+                f"the robot poses rotate about fewer than two different axes (or not at all), so "
+                f"the rotations of X and Y cannot be determined (rotation excitation {excitation:.1e} "
+                f"< {DEGENERATE_EXCITATION:g}). Record poses that rotate about at least two different axes"
             )
         return out
 
@@ -217,8 +217,9 @@ class AXYB(Problem):
         warnings = []
         if excitation < WEAK_EXCITATION:
             warnings.append(
-                f"weak rotation excitation ({excitation:.1e} < {WEAK_EXCITATION:g}): rotations of "
-                "the poses differ too little or about too few axes; X and Y will be poorly determined"
+                f"weak rotation excitation ({excitation:.1e} < {WEAK_EXCITATION:g}): the robot poses "
+                "rotate too little or about too few axes, so X and Y will be poorly determined; add "
+                "poses with larger rotations about other axes"
             )
         return {"pairs": data.m, "rotation_excitation": excitation, "warnings": warnings}
 

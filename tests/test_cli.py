@@ -192,7 +192,8 @@ def test_degenerate_data_exits_2(capsys, tmp_path):
     path = tmp_path / "flat.json"
     save_data(path, {"A": np.stack([np.eye(4)] * 4), "B": np.stack([np.eye(4)] * 4)})
     code, _, err = run_cli(capsys, "solve", "--solver", "kron-lstsq", str(path))
-    assert code == 2 and "do not determine" in err
+    assert code == 2 and "rotations of X and Y cannot be determined" in err
+    assert "Record poses that rotate about at least two different axes" in err
 
 
 def test_solver_failure_exits_1(capsys, monkeypatch):

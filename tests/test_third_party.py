@@ -173,7 +173,7 @@ def test_unknown_solver_error_names_the_broken_plugin(broken_plugin):
     with pytest.warns(handeye.PluginLoadWarning):
         registry.reload()
     data, _ = PROBLEM.simulate(pairs=6, seed=1)
-    with pytest.raises(handeye.UnknownPluginError, match="unknown solver for problem 'axyb' 'broken-solver'") as info:
+    with pytest.raises(handeye.UnknownPluginError, match="unknown solver 'broken-solver' for problem 'axyb'") as info:
         handeye.solve("axyb", solver="broken-solver", **data)
     assert "failed to load" in str(info.value) and f"'broken' (from {BROKEN_DIST} 0.3.0" in str(info.value)
 

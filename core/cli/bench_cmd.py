@@ -219,7 +219,7 @@ def build_rows(selection: str | None, problem: str = "axyb") -> tuple[list[Row],
             name, _, backend = item.partition("/")
             spec = registry.solver(name, bench.problem)  # unknown name: error listing the known ones
             if backend and backend not in spec.backends:
-                raise UnknownPluginError(f"backend of solver {name!r}", backend, spec.backends)
+                raise UnknownPluginError("backend", backend, spec.backends, owner=f"of solver {name!r}")
             wanted.add((name, backend or None))
     rows: list[Row] = []
     unavailable: list[str] = []

@@ -2,10 +2,11 @@
 
 Prints the unknowns with the frames they are in your cell (from the setup: eye-in-hand or
 eye-to-hand, docs/conventions.md), the residuals of the problem's equation over the pairs
-(``axyb``, A_i X = Y B_i: rotation angle of (A_i X)(Y B_i)^-1, eq. 32, and translation distance,
-eq. 33; ``axxb``, A_i X = X B_i: the same with X B_i, per motion), their summary and the largest
-of them, status, solver time, warnings and, when the data come with a truth, the errors against
-it (eqs. 30-31). ``--json`` prints the same as one JSON object, with every residual.
+(``axyb``, A_i X = Y B_i: the rotation angle of (A_i X)(Y B_i)^-1 and the translation distance
+between A_i X and Y B_i; ``axxb``, A_i X = X B_i: the same with X B_i, per motion), their summary
+and the largest of them, status, solver time, warnings and, when the data come with a truth, the
+errors against it (rotation angle and translation distance). ``--json`` prints the same as one
+JSON object, with every residual.
 
 Besides A, B (pairs for ``axyb``, relative motions for ``axxb``), a file may hold the absolute
 poses the cell recorded (robot_poses = T_base_flange, camera_poses = T_cam_target as solvePnP
@@ -18,6 +19,9 @@ solver could not certify globally optimal; the output says so). Exit code 1 for 
 and failed: the answer is still printed, for inspection, with a warning and one line on stderr,
 but it must not be used.
 """
+
+# The docstring above is this command's --help: it speaks of the user's data and names no
+# equation numbers (the paper's eqs. 30-33 are cited in handeye.problem.Problem.residuals/errors).
 
 from __future__ import annotations
 

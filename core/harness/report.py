@@ -115,7 +115,7 @@ def _grid(result: StudyResult, rows: list[dict[str, Any]], xkey: str, xlabel: st
                 ax.set_yscale("log")
                 ax.set_ylim(bottom=bottom)
             what = "rotation" if kind == "rot" else "translation"
-            ax.set_title(f"{what} error of {name} (eq. {30 if kind == 'rot' else 31})", fontsize=10)
+            ax.set_title(f"{what} error of {name}", fontsize=10)
             ax.set_ylabel(f"{what} error [{unit[kind]}]")
             ax.set_xlabel(xlabel)
             ax.grid(True, alpha=0.3, which="both")

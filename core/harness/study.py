@@ -197,7 +197,7 @@ class Study:
             if spec.backend is None:
                 spec = dataclasses.replace(spec, backend=solver.default_backend)
             elif spec.backend not in solver.backends:
-                raise UnknownPluginError(f"backend of solver {spec.solver!r}", spec.backend, solver.backends)
+                raise UnknownPluginError("backend", spec.backend, solver.backends, owner=f"of solver {spec.solver!r}")
             out.append(spec)
         return tuple(out)
 
@@ -400,7 +400,7 @@ def parse_specs(text: str, problem: str = "axyb") -> tuple[Spec, ...]:
                     specs.append(Spec(name, b, label=f"{name}/{b}"))
         elif backend:
             if backend not in solver.backends:
-                raise UnknownPluginError(f"backend of solver {name!r}", backend, solver.backends)
+                raise UnknownPluginError("backend", backend, solver.backends, owner=f"of solver {name!r}")
             specs.append(Spec(name, backend, label=item))
         else:
             specs.append(Spec(name, solver.default_backend, label=name))

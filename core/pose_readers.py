@@ -1,0 +1,499 @@
+"""Reading the pose files robot cells produce (CSV/TSV/TXT, JSON, YAML, NPZ) into 4x4 pose stacks.
+
+`read_poses(path, format, unit=...)` reads one stream of poses (the robot's flange poses, or the
+camera's board poses) written in one of the representations of `handeye.pose_formats`
+(``fanuc-wpr``, ``xyz-quat-xyzw``, ``matrix``, ...) and returns a `PoseStack`: the poses as a
+read-only (n, 4, 4) float64 array, the length unit, and the index / name / time-stamp column
+when the file has one. docs/formats.md ("Pose files of robots and cameras") is the reference.
+
+Why a module of its own: the files people have are vendor exports with headers such as
+``index,x_mm,...,r_deg``, tab-aligned text, or JSON lists; turning them into validated poses
+(columns by name or position, units stated, rotation blocks exported with few decimals
+re-orthonormalised only when asked, one-line errors naming the line) is one job, separate from
+`handeye.io`'s files of whole problems.
+
+Nothing passed in is modified; every check raises `handeye.errors.InputError` with a one-line
+message naming the file, the line (text) or pose (JSON / YAML / NPZ) and what to do.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import numbers
+import zipfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .errors import InputError
+from .pose_formats import PoseFormat, normalise_header, parse_format
+from .se3 import ORTHONORMALITY_TOL, make_pose, orthonormality_error, project_to_so3
+from .validation import LAST_ROW_TOL, pose_stack
+
+Array = NDArray[np.float64]
+
+#: accepted length units (the unit of every translation of the file, recorded in the result)
+UNITS = ("mm", "m")
+#: largest re-orthonormalisation accepted with orthonormalize=True: Frobenius norm |R - proj(R)|
+#: for matrices, | |q| - 1 | for quaternions. Rounding to 3 decimals moves a rotation by ~1e-3;
+#: more than 0.01 is not rounding but a wrong layout, unit or format.
+MAX_CORRECTION = 0.01
+#: file extensions and how they are read
+TEXT_EXTENSIONS = (".csv", ".tsv", ".txt")
+EXTENSIONS = (*TEXT_EXTENSIONS, ".json", ".yaml", ".yml", ".npz")
+#: header names (after `normalise_header`) of an extra column kept as `PoseStack.names` / `.stamps`
+NAME_COLUMNS = ("index", "idx", "i", "n", "no", "nr", "#", "id", "name", "label", "pose", "station", "point")
+STAMP_COLUMNS = ("t", "time", "stamp", "timestamp", "time_stamp", "sec", "secs", "seconds")
+#: key of the pose list in a JSON / YAML object and of the array in an NPZ file
+POSES_KEY = "poses"
+_DELIMITERS = {",": ",", ";": ";", "\t": "\t", "tab": "\t", " ": None, "whitespace": None}
+
+
+@dataclasses.dataclass(frozen=True)
+class PoseStack:
+    """Poses read from a file.
+
+    poses: (n, 4, 4) float64, read-only; translations in `unit`; rotation blocks in SO(3) to
+        1e-6 (``handeye.se3.ORTHONORMALITY_TOL``), exactly (SVD projection) with orthonormalize=True,
+        and always exact for angle, rotation-vector and quaternion formats.
+    unit: ``"mm"`` or ``"m"``.
+    format: the canonical format name (`handeye.pose_formats.PoseFormat.name`).
+    names: the index / name column as text, one a pose, or None.
+    stamps: the time-stamp column (n,) float64 read-only, or None.
+    max_correction: with orthonormalize=True the largest change made to a rotation (Frobenius
+        norm for matrices, | |q| - 1 | for quaternions, 0.0 for angle formats); None otherwise.
+    source: the file read (for messages).
+    """
+
+    poses: Array
+    unit: str
+    format: str
+    names: tuple[str, ...] | None = None
+    stamps: Array | None = None
+    max_correction: float | None = None
+    source: str = ""
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    def in_unit(self, unit: str) -> PoseStack:
+        """A copy with translations converted to `unit` (``"mm"`` or ``"m"``)."""
+        _check_unit(unit, self.source or "poses")
+        scale = {"mm": 1e-3, "m": 1.0}[self.unit] / {"mm": 1e-3, "m": 1.0}[unit]
+        T = np.array(self.poses)
+        T[:, :3, 3] *= scale
+        T.setflags(write=False)
+        return dataclasses.replace(self, poses=T, unit=unit)
+
+
+@dataclasses.dataclass
+class _Table:
+    """A file's content before conversion: header (or None), rows of cells, row locations."""
+
+    header: tuple[str, ...] | None
+    rows: list[list[Any]]
+    where: list[str]
+    unit: str | None = None
+    names: tuple[str, ...] | None = None
+    stamps: Any = None
+
+
+# ----------------------------------------------------------------------------- public API
+
+
+def read_poses(path: str | Path, format: str | PoseFormat, *, unit: str | None = None,
+               columns: Sequence[str | int] | None = None, degrees: bool | None = None,
+               orthonormalize: bool = False, delimiter: str | None = None) -> PoseStack:
+    """Read a file of poses into a `PoseStack` (poses: (n, 4, 4)).
+
+    format: a name of `handeye.pose_formats.format_names` (``"fanuc-wpr"``, ``"matrix"``,
+        ``"euler:ZYX:deg"``, ...) or a `PoseFormat`.
+    unit: ``"mm"`` or ``"m"``, the unit of the file's translations (kept, not converted; use
+        `PoseStack.in_unit`). Default: the unit a JSON / YAML / NPZ file states (``units``), else
+        the vendor's documented unit (FANUC, KUKA, ABB, Staubli, Yaskawa: mm; UR: m); generic
+        formats (matrix, quaternion, rotation vector, euler, opencv-rvec) have none and need it.
+    columns: the format's columns in format order, as header names (case-insensitive) or 0-based
+        indices; default: found by header name, else by position.
+    degrees: override the format's angle unit (True: degrees, False: radians).
+    orthonormalize: project matrix rotation blocks onto SO(3) (SVD) and normalise quaternions,
+        reporting the largest correction; a correction above `MAX_CORRECTION` still raises.
+    delimiter: for text files, ``","``, ``";"``, ``"\\t"`` or ``"whitespace"``; default sniffed
+        from the first line (semicolon, else comma, else whitespace).
+    """
+    path = Path(path)
+    fmt = parse_format(format)
+    src = repr(str(path))
+    ext = path.suffix.lower()
+    if ext not in EXTENSIONS:
+        raise InputError(f"{src}: unsupported pose file extension {ext or '(none)'!r}; supported: {', '.join(EXTENSIONS)}")
+    if not path.is_file():
+        raise InputError(f"pose file not found: {src}")
+    if ext in TEXT_EXTENSIONS:
+        table = _read_text(path, src, delimiter)
+    elif delimiter is not None:
+        raise InputError(f"{src}: delimiter applies to text files ({', '.join(TEXT_EXTENSIONS)}); drop it")
+    elif ext == ".npz":
+        table = _read_npz(path, src)
+    else:
+        table = _structure(_load_structured(path, src, ext), src)
+    return _convert(table, fmt, src, unit=unit, columns=columns, degrees=degrees, orthonormalize=orthonormalize)
+
+
+def poses_from_rows(rows: ArrayLike, format: str | PoseFormat, *, unit: str | None = None,
+                    degrees: bool | None = None, orthonormalize: bool = False, source: str = "rows") -> PoseStack:
+    """`read_poses` on numbers in memory: rows (n, width) of `format` (or (n, 4, 4) / (n, 3, 4)
+    matrices for ``matrix`` / ``matrix34``). `source` names the data in messages."""
+    arr = np.asarray(rows, dtype=object)
+    if arr.ndim < 2 or len(arr) == 0:
+        raise InputError(f"{source}: expected rows of numbers with shape (n, k), got shape {arr.shape}")
+    table = _Table(None, [list(r) for r in arr.reshape(len(arr), -1)], [f"pose {i + 1}" for i in range(len(arr))])
+    return _convert(table, parse_format(format), source, unit=unit, columns=None, degrees=degrees,
+                    orthonormalize=orthonormalize)
+
+
+def write_poses(path: str | Path, poses: ArrayLike | PoseStack, format: str | PoseFormat, *,
+                unit: str | None = None, degrees: bool | None = None) -> Path:
+    """Write poses (n, 4, 4) (or a `PoseStack`, with its names and stamps) in `format`, the file
+    type chosen by extension, so that `read_poses` reads them back (floats written in full).
+    unit: required for bare arrays; a `PoseStack`'s own unit by default."""
+    path = Path(path)
+    fmt = parse_format(format)
+    stack = poses if isinstance(poses, PoseStack) else None
+    unit = unit or (stack.unit if stack else None)
+    if unit is None:
+        raise InputError("write_poses needs unit='mm' or unit='m' for an array of poses")
+    _check_unit(unit, str(path))
+    if stack is not None and unit != stack.unit:
+        stack = stack.in_unit(unit)
+    T = pose_stack(stack.poses if stack else poses, "poses")
+    rows = fmt.to_rows(T, degrees)
+    names = stack.names if stack else None
+    stamps = None if stack is None or stack.stamps is None else np.asarray(stack.stamps)
+    ext = path.suffix.lower()
+    header = (["name"] if names else []) + (["t"] if stamps is not None else []) + list(fmt.fields)
+    records = [([names[i]] if names else []) + ([float(stamps[i])] if stamps is not None else []) + [float(v) for v in r]
+               for i, r in enumerate(rows)]
+    if ext in TEXT_EXTENSIONS:
+        sep = "\t" if ext == ".tsv" else ","
+        lines = [f"# handeye poses: format {fmt.name}, unit {unit}", sep.join(header)]
+        lines += [sep.join(repr(v) if isinstance(v, float) else str(v) for v in rec) for rec in records]
+        path.write_text("\n".join(lines) + "\n")
+    elif ext in (".json", ".yaml", ".yml"):
+        doc = {"format": fmt.name, "units": unit, POSES_KEY: [dict(zip(header, rec)) for rec in records]}
+        if ext == ".json":
+            path.write_text(json.dumps(doc, indent=1) + "\n")
+        else:
+            path.write_text(_yaml().safe_dump(doc, sort_keys=False))
+    elif ext == ".npz":
+        extra = {"units": np.array(unit)}
+        if names:
+            extra["names"] = np.array(names)
+        if stamps is not None:
+            extra["stamps"] = stamps
+        np.savez(path, **{POSES_KEY: rows}, **extra)
+    else:
+        raise InputError(f"{str(path)!r}: unsupported pose file extension {ext or '(none)'!r}; supported: {', '.join(EXTENSIONS)}")
+    return path
+
+
+# ----------------------------------------------------------------------------- file readers
+
+
+def _is_number(cell: Any) -> bool:
+    try:
+        float(cell)
+        return not isinstance(cell, bool)
+    except (TypeError, ValueError):
+        return False
+
+
+def _read_text(path: Path, src: str, delimiter: str | None) -> _Table:
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{src}: not a UTF-8 text file ({exc.reason} at byte {exc.start}); export it as CSV text") from None
+    lines = [(n, line) for n, line in enumerate(text.splitlines(), 1)
+             if line.strip() and not line.lstrip().startswith("#")]
+    if not lines:
+        raise InputError(f"{src}: no poses (the file is empty or holds only comments)")
+    if delimiter is not None and delimiter not in _DELIMITERS:
+        raise InputError(f"delimiter must be one of {list(_DELIMITERS)}, got {delimiter!r}")
+    first = lines[0][1]
+    sep = _DELIMITERS[delimiter] if delimiter is not None else (";" if ";" in first else "," if "," in first else None)
+    cells = [[c.strip() for c in line.split(sep)] if sep else line.split() for _, line in lines]
+    header = None
+    if not any(_is_number(c) for c in cells[0]):
+        header = tuple(cells[0])
+        cells, lines = cells[1:], lines[1:]
+        if not cells:
+            raise InputError(f"{src}: a header line ({', '.join(header)}) but no poses; "
+                             "if that line is a pose, check the delimiter (delimiter=...)")
+    width = len(header) if header else len(cells[0])
+    for (n, _), row in zip(lines, cells):
+        if len(row) != width:
+            what = "the header has" if header else f"line {lines[0][0]} has"
+            raise InputError(f"{src}: line {n} has {len(row)} cells, {what} {width}; "
+                             "check the delimiter (delimiter=...) and missing values")
+    return _Table(header, cells, [f"line {n}" for n, _ in lines])
+
+
+def _yaml():
+    try:
+        import yaml
+    except ImportError:  # pragma: no cover - PyYAML is a dependency
+        raise InputError("reading YAML pose files needs PyYAML: pip install pyyaml") from None
+    return yaml
+
+
+def _load_structured(path: Path, src: str, ext: str) -> Any:
+    text = path.read_text(encoding="utf-8-sig")
+    if not text.strip():
+        raise InputError(f"{src}: no poses (the file is empty)")
+    if ext == ".json":
+        try:
+            return json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise InputError(f"{src}: invalid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}") from None
+    yaml = _yaml()
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        at = f" at line {mark.line + 1} column {mark.column + 1}" if mark else ""
+        raise InputError(f"{src}: invalid YAML{at}: {getattr(exc, 'problem', None) or exc}") from None
+
+
+def _flatten(value: Any) -> list[Any]:
+    if isinstance(value, (list, tuple)):
+        return [v for item in value for v in _flatten(item)]
+    return [value]
+
+
+def _structure(obj: Any, src: str) -> _Table:
+    """A JSON / YAML document: a list of rows, of 4x4 (3x4) matrices, or of objects (keys as
+    header), or an object holding such a list under `POSES_KEY` (and optionally ``units``)."""
+    unit = None
+    if isinstance(obj, dict):
+        if POSES_KEY not in obj:
+            raise InputError(f"{src}: an object must hold the pose list under the key {POSES_KEY!r}; "
+                             f"found keys {sorted(map(str, obj))}")
+        unit = obj.get("units", obj.get("unit"))
+        obj = obj[POSES_KEY]
+    if not isinstance(obj, list):
+        raise InputError(f"{src}: expected a list of poses (rows, matrices or objects), got {type(obj).__name__}")
+    if not obj:
+        raise InputError(f"{src}: no poses (the pose list is empty)")
+    where = [f"pose {i + 1}" for i in range(len(obj))]
+    if all(isinstance(r, dict) for r in obj):
+        header = tuple(str(k) for k in obj[0])
+        for w, r in zip(where, obj):
+            if tuple(str(k) for k in r) != header:
+                raise InputError(f"{src}: {w} has keys {list(map(str, r))}, pose 1 has {list(header)}; "
+                                 "every pose needs the same keys")
+        return _Table(header, [list(r.values()) for r in obj], where, unit=unit)
+    rows = []
+    for w, r in zip(where, obj):
+        if not isinstance(r, (list, tuple)):
+            raise InputError(f"{src}: {w} is {r!r}, expected a list of numbers or a matrix")
+        rows.append(_flatten(r))
+    width = len(rows[0])
+    for w, r in zip(where, rows):
+        if len(r) != width:
+            raise InputError(f"{src}: {w} has {len(r)} numbers, pose 1 has {width}; every pose needs the same")
+    return _Table(None, rows, where, unit=unit)
+
+
+def _read_npz(path: Path, src: str) -> _Table:
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
+        raise InputError(f"{src}: not a readable NPZ file without pickles ({' '.join(str(exc).split())})") from None
+    if POSES_KEY in arrays:
+        rows = arrays[POSES_KEY]
+    elif len(arrays) == 1:
+        rows = next(iter(arrays.values()))
+    else:
+        raise InputError(f"{src}: an NPZ of several arrays must hold the poses under {POSES_KEY!r}; found {sorted(arrays)}")
+    if rows.ndim < 2 or len(rows) == 0:
+        raise InputError(f"{src}: expected poses of shape (n, k) or (n, 4, 4), got {rows.shape}")
+    if rows.dtype.kind not in "biuf":
+        raise InputError(f"{src}: the pose array holds {rows.dtype} values, expected numbers")
+    unit = arrays["units"].item() if "units" in arrays else None
+    names = tuple(str(s) for s in arrays["names"]) if "names" in arrays else None
+    stamps = arrays.get("stamps")
+    for key, value in (("names", names), ("stamps", stamps)):
+        if value is not None and len(value) != len(rows):
+            raise InputError(f"{src}: {key!r} has {len(value)} entries for {len(rows)} poses")
+    return _Table(None, rows.reshape(len(rows), -1).tolist(), [f"pose {i + 1}" for i in range(len(rows))],
+                  unit=unit, names=names, stamps=stamps)
+
+
+# ----------------------------------------------------------------------------- conversion
+
+
+def _check_unit(unit: Any, src: str) -> None:
+    if unit not in UNITS:
+        raise InputError(f"{src}: unit must be one of {list(UNITS)}, got {unit!r}")
+
+
+def _columns(table: _Table, fmt: PoseFormat, columns: Sequence[str | int] | None,
+             src: str) -> tuple[list[int], int | None, int | None]:
+    """(indices of the format's fields, index of the names column, index of the stamps column)."""
+    header, width = table.header, len(table.header) if table.header else len(table.rows[0])
+    norm = [normalise_header(h) for h in header] if header else None
+    if columns is not None:
+        if isinstance(columns, (str, bytes)) or len(columns) != fmt.width:
+            raise InputError(f"{src}: columns must list the {fmt.width} columns of {fmt.name} "
+                             f"({', '.join(fmt.fields)}) in that order, got {columns!r}")
+        idx = []
+        for c in columns:
+            if isinstance(c, numbers.Integral) and not isinstance(c, bool):
+                if not 0 <= c < width:
+                    raise InputError(f"{src}: column index {c} is out of range; the file has {width} columns (0-based)")
+                idx.append(int(c))
+            elif isinstance(c, str) and norm is not None:
+                hits = [i for i, (h, n) in enumerate(zip(header, norm)) if c.strip().lower() in (h.strip().lower(), n)]
+                if not hits:
+                    raise InputError(f"{src}: no column named {c!r}; the header has {', '.join(header)}")
+                idx.append(hits[0])
+            else:
+                raise InputError(f"{src}: column {c!r}: give 0-based indices (the file has no header line) "
+                                 "or names of header columns")
+    elif norm is not None and any(n in fmt.aliases[f] for f in fmt.fields for n in norm):
+        found = {f: next((i for i, n in enumerate(norm) if n in fmt.aliases[f]), None) for f in fmt.fields}
+        missing = [f for f, i in found.items() if i is None]
+        if missing:
+            raise InputError(f"{src}: the header names some columns of {fmt.name} but not {', '.join(missing)} "
+                             f"(header: {', '.join(header)}); pass columns=[...] to choose them")
+        idx = list(found.values())
+    elif width == fmt.width:
+        idx = list(range(width))
+    elif width == fmt.width + 1:
+        idx = list(range(1, width))
+    else:
+        raise InputError(f"{src}: {width} columns, but format {fmt.name} has {fmt.width} numbers a pose "
+                         f"({', '.join(fmt.fields)}), optionally after one index/name/time column; "
+                         "check the format name, or pass columns=[...]")
+    if len(set(idx)) != len(idx):
+        raise InputError(f"{src}: a column is used twice for {fmt.name}: {idx}")
+    rest = [i for i in range(width) if i not in idx]
+    name_i = stamp_i = None
+    for i in rest:
+        label = norm[i] if norm else None
+        if label in STAMP_COLUMNS and stamp_i is None:
+            stamp_i = i
+        elif (label in NAME_COLUMNS or label == "" or (norm is None and len(rest) == 1)) and name_i is None:
+            name_i = i
+    if norm is None and name_i is not None:  # headerless extra column: non-integer numbers are time stamps
+        cells = [r[name_i] for r in table.rows]
+        if all(_is_number(c) for c in cells) and not all(float(c).is_integer() for c in cells):
+            name_i, stamp_i = None, name_i
+    return idx, name_i, stamp_i
+
+
+def _numbers(table: _Table, idx: list[int], src: str) -> Array:
+    out = np.empty((len(table.rows), len(idx)))
+    names = table.header
+    for r, (row, where) in enumerate(zip(table.rows, table.where)):
+        for k, j in enumerate(idx):
+            cell = row[j]
+            col = f"column {j + 1}" + (f" ({names[j]})" if names else "")
+            if isinstance(cell, bool) or not _is_number(cell):
+                raise InputError(f"{src}: {where}, {col}: {cell!r} is not a number")
+            v = float(cell)
+            if not math.isfinite(v):
+                raise InputError(f"{src}: {where}, {col}: {cell!r} is not finite; poses must not hold NaN or inf")
+            out[r, k] = v
+    return out
+
+
+def _convert(table: _Table, fmt: PoseFormat, src: str, *, unit: str | None, columns: Sequence[str | int] | None,
+             degrees: bool | None, orthonormalize: bool) -> PoseStack:
+    if table.unit is not None:
+        _check_unit(table.unit, f"{src}: units in the file")
+    if unit is not None:
+        _check_unit(unit, src)
+        if table.unit is not None and table.unit != unit:
+            raise InputError(f"{src}: the file says units {table.unit!r} but unit={unit!r} was passed; drop one")
+    unit = unit or table.unit or fmt.unit
+    if unit is None:
+        raise InputError(f"{src}: format {fmt.name} does not fix a length unit; pass unit='mm' or unit='m' (CLI --unit)")
+    if degrees is not None and fmt.kind in ("matrix", "quat"):
+        raise InputError(f"degrees applies to formats with angles, not to {fmt.name}; drop it")
+    idx, name_i, stamp_i = _columns(table, fmt, columns, src)
+    values = _numbers(table, idx, src)
+    correction = 0.0 if orthonormalize else None
+    if fmt.kind == "quat":  # before scipy, which refuses zero quaternions without saying where
+        correction = _check_quaternions(fmt.quaternions(values), table.where, src, orthonormalize)
+    R, t, _ = fmt.to_rotations(values, degrees)
+    if fmt.kind == "matrix":
+        R, correction = _matrix_rotations(values, R, fmt, table.where, src, orthonormalize)
+    poses = pose_stack(make_pose(R, t), src)
+    names, stamps = table.names, table.stamps
+    if name_i is not None:
+        names = tuple(str(r[name_i]) for r in table.rows)
+    if stamp_i is not None:
+        stamps = _numbers(table, [stamp_i], src)[:, 0]
+    if stamps is not None:
+        stamps = np.array(stamps, dtype=float)
+        stamps.setflags(write=False)
+    return PoseStack(poses, unit, fmt.name, names, stamps, correction, src)
+
+
+def _first(mask: np.ndarray, where: list[str]) -> str:
+    i = int(np.flatnonzero(mask)[0])
+    return f"pose {i + 1} ({where[i]})" if not where[i].startswith("pose") else where[i]
+
+
+def _matrix_rotations(values: Array, R: Array, fmt: PoseFormat, where: list[str], src: str,
+                      orthonormalize: bool) -> tuple[Array, float | None]:
+    """The rotation blocks, checked (last row, reflection, orthonormality) and, when asked,
+    projected onto SO(3); with the largest correction (Frobenius) or None."""
+    if fmt.width == 16:
+        bad = np.abs(values[:, 12:] - (0.0, 0.0, 0.0, 1.0)).max(axis=1) > LAST_ROW_TOL
+        if bad.any():
+            raise InputError(f"{src}: {_first(bad, where)}: last row is not 0 0 0 1; is the matrix row-major "
+                             "(format matrix), or 3x4 (format matrix34)?")
+    det = np.linalg.det(R)
+    if (det <= 0).any():
+        raise InputError(f"{src}: {_first(det <= 0, where)}: rotation block has det {det.min():.3g} <= 0 "
+                         "(a reflection or a degenerate matrix); is the matrix transposed or the layout wrong?")
+    err = orthonormality_error(R)
+    if not orthonormalize:
+        if err.max() > ORTHONORMALITY_TOL:
+            raise InputError(f"{src}: rotation blocks are not orthonormal (largest |R^T R - I| = {err.max():.1e} "
+                             f"> {ORTHONORMALITY_TOL:g}, first in {_first(err > ORTHONORMALITY_TOL, where)}); "
+                             "re-orthonormalise with orthonormalize=True (CLI --orthonormalize)")
+        return R, None
+    P = project_to_so3(R)
+    corr = np.linalg.norm(R - P, axis=(1, 2))
+    if corr.max() > MAX_CORRECTION:
+        raise InputError(f"{src}: re-orthonormalising would move a rotation by {corr.max():.2g} "
+                         f"(Frobenius, in {_first(corr == corr.max(), where)}) > {MAX_CORRECTION:g}: that is not "
+                         "rounding; check the format (row-major?), the columns and the units")
+    return P, float(corr.max())
+
+
+def _check_quaternions(q: Array, where: list[str], src: str, orthonormalize: bool) -> float | None:
+    """Check quaternion norms (scipy normalises them); the largest | |q| - 1 | when orthonormalize."""
+    norm = np.linalg.norm(q, axis=1)
+    if (norm < 1e-9).any():
+        raise InputError(f"{src}: {_first(norm < 1e-9, where)}: the quaternion is zero; it is no rotation")
+    dev = np.abs(norm - 1.0)
+    if not orthonormalize:
+        if dev.max() > ORTHONORMALITY_TOL:
+            raise InputError(f"{src}: quaternions are not unit (largest ||q| - 1| = {dev.max():.1e} > "
+                             f"{ORTHONORMALITY_TOL:g}, first in {_first(dev > ORTHONORMALITY_TOL, where)}); "
+                             "normalise them with orthonormalize=True (CLI --orthonormalize)")
+        return None
+    if dev.max() > MAX_CORRECTION:
+        raise InputError(f"{src}: normalising would change a quaternion's norm by {dev.max():.2g} (in "
+                         f"{_first(dev == dev.max(), where)}) > {MAX_CORRECTION:g}: that is not rounding; check "
+                         "the format (scalar first or last?) and the columns")
+    return float(dev.max())

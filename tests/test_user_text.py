@@ -1,0 +1,167 @@
+"""The words a user sees: `--help` of every command, and the errors of degenerate data, speak of
+the user's data and what to do, never of our equation numbers or our issue tracker (those belong
+in docs and docstrings); and ``import handeye`` gives ``handeye.io`` and ``handeye.examples``
+without importing them first, while staying cheap."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+
+import handeye
+import numpy as np
+import pytest
+from handeye import DegenerateDataError
+from handeye.cli import COMMANDS, build_parser, main
+from handeye.plugins import classic_handeye, li, shah
+from handeye.problems.axyb import PROBLEM, AXYBData
+from handeye.se3 import inverse, make_pose, so3_exp
+
+#: what a user-facing text must not contain: equation numbers and references to our tracker
+FORBIDDEN = re.compile(r"\beqs?\.\s|\bequation \d|\bissue", re.IGNORECASE)
+
+
+def _subcommands() -> list[str]:
+    action = next(a for a in build_parser()._actions if a.dest == "command")
+    return list(action.choices)
+
+
+def test_every_subcommand_is_scanned():
+    names = _subcommands()
+    assert len(names) == len(COMMANDS) and {"solve", "simulate", "list", "bench", "compare"} <= set(names)
+
+
+@pytest.mark.parametrize("argv", [["--help"]] + [[name, "--help"] for name in _subcommands()],
+                         ids=lambda argv: " ".join(argv))
+def test_help_speaks_the_users_words(capsys, argv):
+    code = main(argv)
+    out, err = capsys.readouterr()
+    assert code == 0 and "usage: handeye" in out
+    assert not FORBIDDEN.search(out + err), FORBIDDEN.search(out + err)
+
+
+def test_list_output_names_no_equations(capsys):
+    """Solver summaries in ``handeye list`` say what a method does; equation numbers appear only
+    in the citation lines (``cite``), which point into the literature."""
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    for line in out.splitlines():
+        if not line.strip().startswith("cite "):
+            assert not FORBIDDEN.search(line), line
+
+
+# ------------------------------------------------------------------ errors of degenerate data
+
+def _assert_plain(message: str, *remedy: str) -> None:
+    assert not FORBIDDEN.search(message), message
+    for words in remedy:
+        assert words in message, message
+
+
+def _one_axis_poses(m: int = 8, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Absolute poses A (robot) rotating about z only, and B = Y^-1 A X of a true cell."""
+    rng = np.random.default_rng(seed)
+    A = make_pose(so3_exp(np.outer(rng.uniform(-2, 2, m), [0.0, 0.0, 1.0])), 100 * rng.standard_normal((m, 3)))
+    X = make_pose(so3_exp([0.3, -0.2, 1.0]), [10.0, 20.0, 30.0])
+    Y = make_pose(so3_exp([1.3, 0.2, -1.0]), [100.0, -200.0, 300.0])
+    return A, inverse(Y) @ A @ X
+
+
+def _one_axis_motions(m: int = 6, seed: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """Motions A rotating about one axis, and B = X^-1 A X."""
+    rng = np.random.default_rng(seed)
+    A = make_pose(so3_exp(np.outer(np.deg2rad(rng.uniform(20, 90, m)), [0.0, 0.6, 0.8])),
+                  100 * rng.standard_normal((m, 3)))
+    X = make_pose(so3_exp([0.3, -0.2, 1.0]), [10.0, 20.0, 30.0])
+    return A, inverse(X) @ A @ X
+
+
+@pytest.mark.parametrize("solver", ["kron-lstsq", "auto"])
+def test_axyb_rotations_about_one_axis(solver):
+    A, B = _one_axis_poses()
+    with pytest.raises(DegenerateDataError) as info:
+        handeye.solve("axyb", A=A, B=B, solver=solver)
+    _assert_plain(str(info.value), "rotations of X and Y cannot be determined",
+                  "Record poses that rotate about at least two different axes")
+
+
+@pytest.mark.parametrize("solver", ["kron-lstsq", "park", "auto"])
+def test_axxb_rotations_about_one_axis(solver):
+    A, B = _one_axis_motions()
+    with pytest.raises(DegenerateDataError) as info:
+        handeye.solve("axxb", A=A, B=B, solver=solver)
+    _assert_plain(str(info.value), "do not determine X", "Record motions that rotate about at least two different axes")
+
+
+@pytest.mark.parametrize("method", ["tsai", "park", "horaud", "andreff", "daniilidis"])
+def test_classic_methods_called_directly_on_one_axis(method):
+    """The classic functions are public and skip the problem's validation: their own messages."""
+    A, B = _one_axis_motions()
+    with pytest.raises(DegenerateDataError) as info:
+        getattr(classic_handeye, method)(A, B)
+    _assert_plain(str(info.value), "X cannot be determined" if method != "tsai" else "Tsai's method",
+                  "Record motions that rotate about at least two different axes")
+
+
+def test_li_and_shah_on_one_axis():
+    A, B = _one_axis_poses()
+    with pytest.raises(DegenerateDataError) as info:
+        li.least_squares_beta_qr(AXYBData(A, B))
+    _assert_plain(str(info.value), "li: the linear system is rank deficient", "X and Y cannot be determined",
+                  "Record poses that rotate about at least two different axes")
+    with pytest.raises(DegenerateDataError) as info:
+        shah.normalize_rotation(np.zeros((3, 3)))
+    _assert_plain(str(info.value), "rotations of X and Y cannot be determined",
+                  "Record poses that rotate about at least two different axes")
+
+
+@pytest.mark.parametrize(("problem", "pairs"), [("axyb", 2), ("axxb", 1)])
+def test_too_few_pairs(problem, pairs):
+    A, B = _one_axis_poses(m=pairs)
+    with pytest.raises(DegenerateDataError) as info:
+        handeye.solve(problem, A=A, B=B, solver="kron-lstsq")
+    need = {"axyb": 3, "axxb": 2}[problem]
+    _assert_plain(str(info.value), f"need at least {need} pose pairs, got {pairs}", "record more poses")
+
+
+def test_unknown_names_read_as_english():
+    """The kind of name and what it belongs to, in that order: no "'kron-lstsq''s"."""
+    data, _ = PROBLEM.simulate(pairs=5, seed=3)
+    A, B = data["A"], data["B"]
+    with pytest.raises(handeye.UnknownPluginError) as info:
+        handeye.solve("axyb", A=A, B=B, solver="kron-lstsq", normalise=True)
+    message = str(info.value)
+    assert message.startswith("unknown option 'normalise' of solver 'kron-lstsq'; known options: 'normalize'")
+    assert "'s" not in message
+    with pytest.raises(handeye.UnknownPluginError) as info:
+        handeye.solve("axyb", A=A, B=B, solver="kron-lstsq", backend="gpu")
+    assert str(info.value) == "unknown backend 'gpu' of solver 'kron-lstsq'; known backends: 'numpy'"
+
+
+# ------------------------------------------------------------------ lazy submodules
+
+def test_submodules_without_importing_them_first():
+    """``handeye.io`` and ``handeye.examples`` (and ``harness``, ``problems``) are imported on first
+    use (PEP 562); ``import handeye`` alone imports none of them, nor cvxpy, casadi or matplotlib."""
+    code = """
+import sys
+import handeye
+lazy = ("handeye.io", "handeye.examples", "handeye.harness")
+assert not [m for m in lazy if m in sys.modules], [m for m in lazy if m in sys.modules]
+assert {"io", "examples", "harness", "problems"} <= set(dir(handeye)) & set(handeye.__all__)
+assert callable(handeye.io.load_file) and "simulated" in handeye.examples.list_examples()
+assert handeye.harness.__name__ == "handeye.harness" and handeye.problems.__name__ == "handeye.problems"
+try:
+    handeye.no_such_name
+except AttributeError as exc:
+    assert "no_such_name" in str(exc)
+else:
+    raise AssertionError("handeye.no_such_name did not raise AttributeError")
+data, truth, metadata = handeye.examples.load_example("simulated")
+handeye.solve("axyb", A=data["A"], B=data["B"], solver="kron-lstsq")
+heavy = [m for m in ("cvxpy", "casadi", "matplotlib", "picos") if m in sys.modules]
+assert not heavy, heavy
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 0, done.stderr
