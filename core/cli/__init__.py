@@ -1,4 +1,4 @@
-"""The ``handeye`` command line: ``handeye list | simulate | solve`` (see ``handeye --help``).
+"""The ``handeye`` command line: ``handeye list | simulate | solve | calibrate`` (see ``handeye --help``).
 
 Each subcommand is one module of this package with ``add_parser(subparsers)`` (which registers
 the subcommand and its arguments) and ``run(args) -> int`` (the exit code). `COMMANDS` lists
@@ -20,10 +20,10 @@ from collections.abc import Sequence
 
 from .. import __version__
 from ..errors import HandEyeError, SolverError
-from . import bench_cmd, compare, list_cmd, simulate_cmd, solve_cmd
+from . import bench_cmd, calibrate_cmd, compare, list_cmd, simulate_cmd, solve_cmd
 
 #: the subcommand modules, in the order ``handeye --help`` shows them
-COMMANDS = [list_cmd, simulate_cmd, solve_cmd, compare, bench_cmd]
+COMMANDS = [list_cmd, simulate_cmd, solve_cmd, calibrate_cmd, compare, bench_cmd]
 
 EXIT_OK, EXIT_SOLVER_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 

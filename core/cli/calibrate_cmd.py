@@ -1,0 +1,332 @@
+"""``handeye calibrate``: from a cell's two pose files to the hand-eye transform, exported.
+
+Reads the robot's flange poses (``--robot``, T_base_flange, e.g. a FANUC export ``x,y,z,w,p,r``)
+and the camera's board poses (``--camera``, T_cam_target: the pose of the calibration board in
+the camera frame, as cv2.solvePnP gives it, in any pose format), pairs them by row (row k of both
+files is station k), solves, and prints the unknowns with their frames, 1-sigma uncertainties,
+residuals and a ROS 2 static_transform_publisher line; ``-o`` / ``--yaml`` write the same as
+JSON / YAML (an existing file is overwritten, and the output says "wrote FILE").
+
+What is solved (docs/conventions.md): ``--problem axyb`` (default) finds both unknowns from the
+stations, eye-in-hand X = T_flange_cam and Y = T_base_target, eye-to-hand X = T_flange_target and
+Y = T_base_cam; ``--problem axxb`` finds only the camera, X = T_flange_cam (eye-in-hand) or
+T_base_cam (eye-to-hand), from the motions between stations (``--pairing``).
+
+Units: each file's translations are in its ``--robot-unit`` / ``--camera-unit``, else in the
+unit the file states (JSON / YAML / NPZ ``units``), else the robot maker's (FANUC, KUKA, ABB,
+Staubli, Yaskawa: mm; UR: m); generic formats (matrix, quaternion, rotation vector, opencv-rvec)
+need the flag. The camera's translations are converted to the robot's unit, and every answer is
+in the robot's unit (the ROS line in metres). Formats and their conventions: docs/formats.md
+("Pose files of robots and cameras"); this command: docs/calibrate.md.
+
+ROS: the line publishes the camera's pose (eye-in-hand X = T_flange_cam, parent ``flange``;
+eye-to-hand T_base_cam, parent ``base``) with child ``camera_optical_frame``: the camera frame
+of solvePnP is the optical frame (z forward, x right, y down), not a driver's ``camera_link``.
+``--frame-ids PARENT,CHILD`` names your frames (e.g. ``tool0,camera_color_optical_frame``).
+
+Exit codes as handeye solve: 0 success; 2 bad input (file, format, unit, counts); 1 the solver
+failed or ended not_converged / failed (the answer is printed for inspection, no file is
+written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..api import solve
+from ..errors import InputError
+from ..io import PAIRINGS, SETUPS, from_poses
+from ..pose_formats import format_names, parse_format
+from ..pose_readers import UNITS, PoseStack, read_poses
+from ..registry import get_registry
+from ._common import _plain, dump_json, format_pose, parse_key_values
+from .solve_cmd import EQUATIONS, FRAMES, UNUSABLE, _setup_note, default_solver
+
+NAME = "calibrate"
+#: metres per unit
+METRES = {"mm": 1e-3, "m": 1.0}
+#: (problem, setup) -> (unknown published on ROS, default parent frame id, default child frame id):
+#: always the camera's pose (the camera frame is solvePnP's optical frame: z forward, x right, y down)
+ROS_FRAMES: dict[tuple[str, str], tuple[str, str, str]] = {
+    ("axyb", "eye-in-hand"): ("X", "flange", "camera_optical_frame"),
+    ("axyb", "eye-to-hand"): ("Y", "base", "camera_optical_frame"),
+    ("axxb", "eye-in-hand"): ("X", "flange", "camera_optical_frame"),
+    ("axxb", "eye-to-hand"): ("X", "base", "camera_optical_frame"),
+}
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(NAME, help="calibrate from a robot pose file and a camera pose file, and export",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    formats = ", ".join(format_names())
+    parser.add_argument("--robot", required=True, metavar="FILE",
+                        help="robot flange poses T_base_flange, one per station (.csv .tsv .txt .json .yaml .npz)")
+    parser.add_argument("--robot-format", required=True, metavar="FORMAT", help=f"format of --robot: {formats}")
+    parser.add_argument("--camera", required=True, metavar="FILE",
+                        help="board poses in the camera frame T_cam_target (solvePnP's rvec, tvec), one per "
+                             "station, in the robot file's order")
+    parser.add_argument("--camera-format", required=True, metavar="FORMAT",
+                        help="format of --camera (opencv-rvec for solvePnP's rvec then tvec, or any of the above)")
+    parser.add_argument("--setup", required=True, choices=SETUPS,
+                        help="eye-in-hand: camera on the flange, board fixed; eye-to-hand: camera fixed, board "
+                             "on the flange")
+    parser.add_argument("--problem", default="axyb", choices=("axyb", "axxb"),
+                        help="axyb (default): hand-eye and robot-world from the stations; axxb: hand-eye only, "
+                             "from the motions between stations")
+    parser.add_argument("--robot-unit", choices=UNITS, help="length unit of --robot (default: the file's or the "
+                                                            "robot maker's); the answer is in this unit")
+    parser.add_argument("--camera-unit", choices=UNITS, help="length unit of --camera (default: the file's); "
+                                                             "converted to the robot's")
+    parser.add_argument("--orthonormalize", action="store_true",
+                        help="re-orthonormalise rotation matrices / normalise quaternions exported with few "
+                             "decimals (both files)")
+    parser.add_argument("--pairing", choices=PAIRINGS,
+                        help="axxb: motions between all pairs of stations (default) or consecutive ones")
+    parser.add_argument("--solver", help="solver (default: 'auto' if installed, else 'kron-lstsq'); see handeye list")
+    parser.add_argument("--backend", help="backend of the solver (default: the solver's default)")
+    parser.add_argument("--option", action="append", metavar="KEY=VALUE", help="solver option, repeatable")
+    parser.add_argument("-o", "--output", metavar="FILE", help="write the result as JSON (overwritten if it exists)")
+    parser.add_argument("--yaml", metavar="FILE", help="write the result as YAML (overwritten if it exists)")
+    parser.add_argument("--frame-ids", metavar="PARENT,CHILD",
+                        help="frame ids of the ROS line (default flange,camera_optical_frame eye-in-hand; "
+                             "base,camera_optical_frame eye-to-hand)")
+    parser.add_argument("--json", action="store_true", help="print the result as JSON instead of text")
+    parser.set_defaults(run=run)
+    return parser
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+def _read(path: str, fmt: str, unit: str | None, orthonormalize: bool, which: str) -> PoseStack:
+    """One stream, with the messages' API names replaced by this command's flags."""
+    try:
+        return read_poses(path, fmt, unit=unit, orthonormalize=orthonormalize)
+    except InputError as exc:
+        text = (str(exc).replace("pass unit='mm' or unit='m' (CLI --unit)", f"pass --{which}-unit mm or m")
+                .replace("with orthonormalize=True (CLI --orthonormalize)", "with --orthonormalize")
+                .replace("or pass degrees=True/False (CLI --degrees/--radians)", "")
+                .replace("but unit=", f"but --{which}-unit ").replace(" was passed", " was given"))
+        raise InputError(f"--{which}: {text}") from None
+
+
+def _pairing_checks(robot: PoseStack, camera: PoseStack, robot_path: str, camera_path: str) -> list[str]:
+    """Stations are paired by row: equal counts (else an InputError); warnings when both files
+    name their rows and the names differ, or both carry time stamps further apart than half the
+    spacing of the stations."""
+    names_differ = ""
+    if robot.names is not None and camera.names is not None:
+        diff = [i for i, (a, b) in enumerate(zip(robot.names, camera.names)) if a != b]
+        if diff or len(robot) != len(camera):
+            only_r = [n for n in robot.names if n not in set(camera.names)][:3]
+            only_c = [n for n in camera.names if n not in set(robot.names)][:3]
+            names_differ = "; the row names differ" + (
+                f" (first at row {diff[0] + 1}: {robot.names[diff[0]]!r} vs {camera.names[diff[0]]!r})" if diff else "")
+            if only_r or only_c:
+                names_differ += f"; only in the robot file: {only_r}, only in the camera file: {only_c}"
+    if len(robot) != len(camera):
+        raise InputError(f"the robot file {robot_path!r} has {len(robot)} poses and the camera file {camera_path!r} "
+                         f"has {len(camera)}; stations are paired by row, so both need one pose per station, "
+                         f"in the same order{names_differ}")
+    warnings = []
+    if names_differ:
+        warnings.append(f"stations are paired by row{names_differ}; check that row k of both files is the same station")
+    if robot.stamps is not None and camera.stamps is not None and len(robot) > 1:
+        gap = np.abs(np.asarray(robot.stamps) - np.asarray(camera.stamps))
+        spacing = min(float(np.min(np.abs(np.diff(s)))) for s in (robot.stamps, camera.stamps))
+        k = int(np.argmax(gap))
+        if gap[k] > 0.5 * spacing:
+            warnings.append(f"the time stamps of row {k + 1} differ by {gap[k]:.3g} s, more than half the "
+                            f"{spacing:.3g} s between stations: stations are paired by row; check the order")
+    return warnings
+
+
+# ----------------------------------------------------------------------------- the result
+
+
+def pose_entry(T: np.ndarray, robot_format: str, std: dict[str, float] | None) -> dict[str, Any]:
+    """One unknown as a 4x4, as [x, y, z, qx, qy, qz, qw] (w >= 0), as a row of the robot's
+    format (not for matrix formats) and its 1-sigma (rotation deg, translation robot unit)."""
+    T = np.asarray(T, dtype=float)
+    q = Rotation.from_matrix(T[:3, :3]).as_quat(canonical=True)
+    entry: dict[str, Any] = {"matrix": T.tolist(), "xyz_quat": [*T[:3, 3].tolist(), *q.tolist()]}
+    fmt = parse_format(robot_format)
+    if fmt.kind != "matrix":
+        entry["robot_format"] = dict(zip(fmt.fields, fmt.to_rows(T[None])[0].tolist()))
+    entry["std"] = None if std is None else {"rotation_deg": math.degrees(std["rotation"]),
+                                             "translation": std["translation"]}
+    return entry
+
+
+def ros_line(T: np.ndarray, unit: str, parent: str, child: str) -> str:
+    """``ros2 run tf2_ros static_transform_publisher`` publishing T = T_parent_child (the child
+    frame's pose in the parent's), translation converted from `unit` to metres."""
+    t = np.asarray(T, dtype=float)[:3, 3] * METRES[unit]
+    q = Rotation.from_matrix(np.asarray(T, dtype=float)[:3, :3]).as_quat(canonical=True)
+    values = " ".join(f"--{k} {v:.9g}" for k, v in zip(("x", "y", "z", "qx", "qy", "qz", "qw"), [*t, *q]))
+    return f"ros2 run tf2_ros static_transform_publisher {values} --frame-id {parent} --child-frame-id {child}"
+
+
+def _frame_ids(text: str | None, default: tuple[str, str]) -> tuple[str, str]:
+    if text is None:
+        return default
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != 2 or not all(parts) or any(" " in p for p in parts):
+        raise InputError(f"--frame-ids expects PARENT,CHILD (two frame ids without spaces), got {text!r}")
+    return parts[0], parts[1]
+
+
+def _summary(values: np.ndarray) -> dict[str, float]:
+    values = np.asarray(values, dtype=float)
+    return {"median": float(np.median(values)), "rms": float(np.sqrt(np.mean(values**2))),
+            "max": float(np.max(values))}
+
+
+def run(args: argparse.Namespace) -> int:
+    for flag, fmt in (("--robot-format", args.robot_format), ("--camera-format", args.camera_format)):
+        try:
+            parse_format(fmt)
+        except InputError as exc:
+            raise InputError(f"{flag}: {exc}") from None
+    outputs = [Path(p) for p in (args.output, args.yaml) if p]
+    inputs = {Path(args.robot).resolve(), Path(args.camera).resolve()}
+    if len(outputs) == 2 and outputs[0].resolve() == outputs[1].resolve():
+        raise InputError("-o and --yaml name the same file; give two files")
+    if any(p.resolve() in inputs for p in outputs):
+        raise InputError("an output file (-o / --yaml) is one of the input files; it would be overwritten")
+    if args.pairing is not None and args.problem != "axxb":
+        raise InputError("--pairing applies to --problem axxb (motions between stations); with axyb every "
+                         "station is one pair: drop it")
+    parent, child = _frame_ids(args.frame_ids, ROS_FRAMES[(args.problem, args.setup)][1:])
+    options = parse_key_values(args.option)
+
+    robot = _read(args.robot, args.robot_format, args.robot_unit, args.orthonormalize, "robot")
+    camera_read = _read(args.camera, args.camera_format, args.camera_unit, args.orthonormalize, "camera")
+    warnings = _pairing_checks(robot, camera_read, args.robot, args.camera)
+    camera = camera_read.in_unit(robot.unit)
+    pose_file = from_poses(robot.poses, camera.poses, args.problem, setup=args.setup, pairing=args.pairing,
+                           metadata={"units": robot.unit}, source=f"{args.robot} + {args.camera}")
+    clash = sorted(set(options) & set(pose_file.data))
+    if clash:
+        raise InputError(f"--option {clash} clashes with the data field(s) of problem {args.problem!r}")
+    solver = args.solver or default_solver(args.problem)
+    solution = solve(args.problem, solver=solver, backend=args.backend, **pose_file.data, **options)
+
+    problem = get_registry().problem(args.problem)
+    residuals = problem.residuals(problem.validate(**pose_file.data), solution.unknowns)
+    diagnostics = solution.diagnostics
+    std_all = diagnostics.get("std") or (diagnostics.get("refine") or {}).get("std") or {}
+    frames = FRAMES[(args.problem, args.setup)]
+    unit = robot.unit
+    unknowns = {name: pose_entry(T, robot.format, std_all.get(name)) for name, T in solution.unknowns.items()}
+    published, _, _ = ROS_FRAMES[(args.problem, args.setup)]
+    ros = ros_line(solution.unknowns[published], unit, parent, child)
+    item = EQUATIONS[args.problem][1]
+    result: dict[str, Any] = {
+        **{name: e["matrix"] for name, e in unknowns.items()},
+        "frames": {name: frames[name][0] for name in solution.unknowns},
+        "units": {"translation": unit, "rotation": "deg"},
+        "setup": args.setup,
+        "problem": args.problem,
+        "solver": solution.solver,
+        "backend": solution.backend,
+        "status": str(solution.status),
+        "seconds": solution.seconds,
+        "stations": len(robot),
+        **({"pairing": pose_file.metadata["pairing"]} if "pairing" in pose_file.metadata else {}),
+        "poses": {name: {k: v for k, v in e.items() if k != "matrix"} for name, e in unknowns.items()},
+        "std": {name: e["std"] for name, e in unknowns.items()} if std_all else None,
+        "residuals": {
+            "per": item, "count": len(residuals["rotation"]),
+            "rotation_deg": _summary(np.degrees(residuals["rotation"])),
+            "translation": _summary(residuals["translation"]),
+            "per_" + item: {"rotation_deg": np.degrees(residuals["rotation"]).tolist(),
+                            "translation": np.asarray(residuals["translation"]).tolist()},
+        },
+        "warnings": [*warnings, *solution.warnings],
+        "inputs": {
+            "robot": {"file": args.robot, "format": robot.format, "unit": robot.unit, "poses": len(robot)},
+            "camera": {"file": args.camera, "format": camera_read.format, "unit": camera_read.unit,
+                       "poses": len(camera_read)},
+            "orthonormalize": bool(args.orthonormalize),
+        },
+        "ros": {"command": ros, "unknown": published, "frame_id": parent, "child_frame_id": child,
+                "translation_unit": "m"},
+    }
+    unusable = solution.status in UNUSABLE
+    written = [] if unusable else _write(result, args.output, args.yaml)
+    if args.json:
+        print(dump_json(result))
+    else:
+        print(_text(result, frames, solution.diagnostics))
+    for path in written:
+        print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout)
+    if unusable:
+        print(f"handeye: error: solver {solver!r} ended with status {solution.status}: its "
+              f"{', '.join(solution.unknowns)} (printed above) are not an answer and no file was written; "
+              "try another solver", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _write(result: dict[str, Any], json_path: str | None, yaml_path: str | None) -> list[str]:
+    written = []
+    if json_path:
+        Path(json_path).write_text(dump_json(result) + "\n", encoding="utf-8")
+        written.append(json_path)
+    if yaml_path:
+        import yaml
+
+        Path(yaml_path).write_text(yaml.safe_dump(_plain(result), sort_keys=False, default_flow_style=None), encoding="utf-8")
+        written.append(yaml_path)
+    return written
+
+
+def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: dict[str, Any]) -> str:
+    unit = r["units"]["translation"]
+    inp = r["inputs"]
+    cam_unit = inp["camera"]["unit"] + (f", converted to {unit}" if inp["camera"]["unit"] != unit else "")
+    equation, item = EQUATIONS[r["problem"]]
+    lines = [(f"{r['stations']} stations: robot {inp['robot']['file']} ({inp['robot']['format']}, {unit}), "
+              f"camera {inp['camera']['file']} ({inp['camera']['format']}, {cam_unit})"),
+             f"{r['setup']}, problem {r['problem']} ({equation})"
+             + (f", {r['residuals']['count']} motions ({r['pairing']} pairs of stations)" if "pairing" in r else ""),
+             f"solver {r['solver']} (backend {r['backend']}): status {r['status']}, {r['seconds'] * 1e3:.1f} ms"
+             + _setup_note(diagnostics)]
+    for name in frames:
+        if name not in r["poses"]:
+            continue
+        p = r["poses"][name]
+        lines += ["", f"{name} = {frames[name][0]} ({frames[name][1]}), lengths in {unit}:", format_pose(np.array(r[name]))]
+        x = p["xyz_quat"]
+        lines.append(f"  xyz  {x[0]:.6g} {x[1]:.6g} {x[2]:.6g}   quaternion (x, y, z, w)  "
+                     + " ".join(f"{v:.8f}" for v in x[3:]))
+        if "robot_format" in p:
+            lines.append(f"  {inp['robot']['format']}  " + "  ".join(f"{k}={v:.6g}" for k, v in p["robot_format"].items()))
+        if p["std"] is not None:
+            lines.append(f"  1-sigma  rotation {p['std']['rotation_deg']:.3g} deg, translation "
+                         f"{p['std']['translation']:.3g} {unit} (root of the 3 axes' variances)")
+        else:
+            lines.append(f"  1-sigma  not reported by solver {r['solver']} (solver auto or refine reports it)")
+    res = r["residuals"]
+    lines += ["", (f"residuals over the {res['count']} {item}s (angle and distance between the two sides "
+                   f"of {equation}):"),
+              "  " + " " * 18 + "".join(f"{s:>12}" for s in ("median", "rms", "max"))]
+    for label, key in (("rotation [deg]", "rotation_deg"), (f"translation [{unit}]", "translation")):
+        lines.append(f"  {label:<18}" + "".join(f"{res[key][s]:12.4g}" for s in ("median", "rms", "max")))
+    ros = r["ros"]
+    lines += ["", f"ROS 2 ({ros['unknown']}: {ros['child_frame_id']} in {ros['frame_id']}, metres):",
+              "  " + ros["command"]]
+    if r["status"] in ("not_converged", "failed"):
+        lines.append(f"warning: status {r['status']}: the solver did not reach its answer; do not use it")
+    elif r["status"] == "uncertified":
+        lines.append("note: status uncertified: a valid answer, but the solver could not prove it globally optimal")
+    lines += [f"warning: {w}" for w in r["warnings"]]
+    return "\n".join(lines)
