@@ -21,7 +21,8 @@ ground truth) in every cell, so the start only has to land in the right basin. s
 start because it is the only one that can prove it is the global minimum of its cost, it reached
 the oracle's optimum in every one of 1200 small-m / heavy-noise simulations (kron-lstsq missed
 one), and it fits the time budget. Robust losses are off by default: on clean data they only
-cost efficiency. For A X = X B docs/solvers/auto.md compares auto with OpenCV's five methods.
+cost efficiency, so the Cauchy fit only finds the gross pairs and least squares on the others gives
+the answer. For A X = X B docs/solvers/auto.md compares auto with OpenCV's five methods.
 """
 
 from __future__ import annotations
@@ -29,22 +30,37 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl, nlls
-from handeye.errors import InputError
+from handeye.errors import DegenerateDataError, InputError
+from handeye.options import check_choice
 from handeye.plugins import refine as _refine
 from handeye.robust import DEFAULT_LOSS_SCALE
 from handeye.solution import jsonable
-from handeye.whitening import Whitening
+from handeye.whitening import Whitening, estimate_sigmas
 
 #: keys of an init solver's diagnostics that make up its certificate
 CERTIFICATE_KEYS = ("certified", "eigenvalue_ratio", "relative_gap", "duality_gap", "lower_bound", "cost", "thresholds")
+#: values of option `outliers`
+OUTLIER_CHOICES = ("reject", "keep")
+#: a pair whose whitened residual norm (median-based scales, or the stated weights) exceeds 8 is an
+#: outlier (squared: 64). Not chi^2_6 at 99.9% (22.46): real residuals have heavier tails than
+#: chi^2_6 (a station's rotation noise reaches the translation residual through the lever arm,
+#: anisotropically; consecutive motions share stations), and that threshold flagged a pair in 5-9%
+#: of clean simulated axyb data sets (m = 16-50) and 19-30% of clean consecutive-motion axxb sets;
+#: 64 flagged none of 100 in each cell, while gross pairs (>= 5 deg) sit at norms of ~40 and beyond
+#: (bench/outliers.py, docs/solvers/auto.md).
+OUTLIER_CHI2 = 64.0
 
 
 @dataclasses.dataclass(frozen=True)
 class Options:
     """Options of `auto`: the weighting and loss options of `refine` (see plugins/refine.py), and
     ``init`` to force the starting solver (default: the first registered and available of
-    refine's STARTS for the problem: so3-sdp, then kron-lstsq (then park for axxb))."""
+    refine's STARTS for the problem: so3-sdp, then kron-lstsq (then park for axxb)), and
+    ``outliers``: "reject" (default; with least squares, pairs far off the others are left out
+    and listed, see the module docstring) or "keep" (least squares on every pair). With a robust
+    ``loss`` the loss handles outliers and nothing is left out."""
 
     init: str | None = None
     sigma_rot: float | None = None
@@ -55,8 +71,10 @@ class Options:
     loss_scale: float = DEFAULT_LOSS_SCALE
     max_iter: int = 200
     tol: float = 1e-14
+    outliers: str = "reject"
 
     def __post_init__(self) -> None:
+        check_choice("outliers", self.outliers, OUTLIER_CHOICES)
         if self.init is not None and not isinstance(self.init, str):
             raise InputError(
                 f"option init of auto must be a solver name, got {type(self.init).__name__}; to "
@@ -68,7 +86,7 @@ class Options:
     def refine_options(self, problem: str = "axyb", **overrides: Any) -> _refine._Options:
         """refine's options for `problem` with these values (the covariance given as its
         Cholesky factor, as refine keeps it after validation)."""
-        values = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        values = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "outliers"}
         values.update(overrides)
         return _refine.OPTIONS[problem](**values)
 
@@ -109,8 +127,104 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
             poses, status, diag = poses_b, status_b, diag_b
             diag["init"] = other
 
+    poses, status, diag, report = _outlier_step(data, poses, status, diag, ropts, options, "pairs")
     diagnostics = _diagnostics(pipeline, start, init_status, init_diag, starts, diag, warnings)
+    diagnostics.update(report)
     return SolverOutput(unknowns=dict(zip(ropts.UNKNOWNS, poses)), status=status, diagnostics=diagnostics)
+
+
+def _outlier_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
+                  ropts: _refine._Options, options: Options, what: str) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any], dict[str, Any]]:
+    """`_reject_outliers` when option outliers="reject" and the loss is least squares: the
+    (possibly refitted) poses, status, refine's diagnostics, and auto's diagnostics to add
+    ("outliers", "outlier_test"; the warning goes into refine's)."""
+    if options.outliers != "reject" or ropts.loss != "linear":
+        return poses, status, diag, {}
+    poses, status, diag, outliers, note = _reject_outliers(data, poses, status, diag, ropts, what)
+    report: dict[str, Any] = {
+        "outliers": outliers,
+        "outlier_test": (f"whitened residual norm > {OUTLIER_CHI2 ** 0.5:.3g} at a Cauchy fit, "
+                         "median-based scales (or the stated weights); least squares refitted without them"),
+    }
+    if note:
+        diag = {**diag, "warnings": diag.get("warnings", []) + [f"auto: {note}"]}
+    return poses, status, diag, report
+
+
+def _beyond(e: np.ndarray, W: Whitening | None, scale: float) -> np.ndarray:
+    """Which of the residuals e: (m, 6) are beyond OUTLIER_CHI2 under W (None: median-based
+    scales of e)."""
+    W = W if W is not None else estimate_sigmas(e, scale, robust=True)
+    ew = W.residual(e)
+    return np.einsum("ni,ni->n", ew, ew) > OUTLIER_CHI2
+
+
+def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
+                     ropts: _refine._Options, what: str
+                     ) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any], list[dict[str, Any]], str | None]:
+    """Find pairs far off the others and refit least squares without them.
+
+    1. gate: at the least-squares answer `poses`, is any pair beyond OUTLIER_CHI2 under the
+       median-based scales (or the stated weights)? No: the answer stands (clean data: today's
+       answer, bit for bit).
+    2. Cauchy refinement (IRLS, median-based scales re-estimated to a fixed point, or the stated
+       weights) from that answer: gross pairs get weights ~ 1/s and stop pulling, so it lands at
+       the inliers' fit (measured: from the least-squares answer poisoned by 15% gross pairs,
+       bench/outliers.py).
+    3. the pairs beyond OUTLIER_CHI2 at the Cauchy fit are the outliers; none: the least-squares
+       answer stands. More than half: no majority to trust, the least-squares answer stands with
+       a warning. Else least squares (the user's weights) is refitted on the others from the
+       Cauchy fit.
+    Returns (poses, status, refine's diagnostics, [{"index", "rotation_deg", "translation"}] at
+    the final answer, warning or None).
+    """
+    model = _refine.model_of(data)
+    settings = _refine.settings_of(ropts, data.m)
+    if not _beyond(model.residuals(poses), settings.W, model.scale).any():
+        return poses, status, diag, [], None
+    robust = dataclasses.replace(settings, loss="cauchy", loss_scale=DEFAULT_LOSS_SCALE, estimate="profile")
+    try:
+        fit, _, _ = nlls.refine(model, poses, robust)
+    except DegenerateDataError:
+        return poses, status, diag, [], None
+    flagged = _beyond(model.residuals(fit), settings.W, model.scale)
+    k, m = int(flagged.sum()), data.m
+    if k == 0:
+        return poses, status, diag, [], None
+    inliers = ~flagged
+    if m - k < max(model.profile_min_pairs, (m + 1) // 2):
+        return poses, status, diag, [], (
+            f"{k} of {m} {what} are far off the others at a robust fit, too many to leave out: "
+            "least squares on every pair (check the data, or try loss='cauchy')")
+    W = settings.W
+    sub_settings = settings
+    if W is not None and W.L is not None and W.L.ndim == 3:
+        sub_settings = dataclasses.replace(settings, W=Whitening(L=W.L[inliers]))
+    subset = type(data)(data.A[inliers], data.B[inliers])
+    try:
+        new_poses, new_status, new_diag = nlls.refine(_refine.model_of(subset), fit, sub_settings)
+    except DegenerateDataError:
+        return poses, status, diag, [], (
+            f"{what} {_listing(np.flatnonzero(flagged))} are far off the others, but the rest do not determine "
+            "the unknowns: least squares on every pair")
+    e = model.residuals(new_poses)
+    rot = np.rad2deg(np.linalg.norm(e[:, :3], axis=1))
+    trans = np.linalg.norm(e[:, 3:], axis=1)
+    idx = np.flatnonzero(flagged)
+    outliers = [{"index": int(i), "rotation_deg": float(rot[i]), "translation": float(trans[i])} for i in idx]
+    worst = idx[np.argmax(trans[idx] / max(float(np.median(trans[inliers])), 1e-300)
+                          + rot[idx] / max(float(np.median(rot[inliers])), 1e-300))]
+    label = what if k > 1 else what[:-1]  # "pairs 3, 17 are", "pair 3 is"
+    note = (f"{label} {_listing(idx)} {'is' if k == 1 else 'are'} far off the others (residual "
+            f"{'up to ' if k > 1 else ''}{rot[worst]:.3g} deg / {trans[worst]:.3g} against a typical "
+            f"{np.median(rot[inliers]):.2g} deg / {np.median(trans[inliers]):.2g}, translations in the data's "
+            f"length unit) and {'was' if k == 1 else 'were'} left out; outliers='keep' uses every pair")
+    new_diag["outliers_left_out"] = k
+    return new_poses, new_status, new_diag, outliers, note
+
+
+def _listing(idx: np.ndarray) -> str:
+    return ", ".join(str(int(i)) for i in idx)
 
 
 def _diagnostics(pipeline: list[str], start: str, init_status: Status, init_diag: dict[str, Any],
@@ -162,10 +276,13 @@ def _run_on_stations(data: Any, options: Options, backend: str) -> SolverOutput:
     stations = AXYB.validate(A=A_abs, B=B_abs)
     start, poses, init_status, init_diag, warnings = _refine.start(data, None)
     if _certified(init_status, init_diag):
-        (X, _), status, diag = _refine.refine(stations, (poses[0], poses[0]), options.refine_options("axyb"))
+        ropts = options.refine_options("axyb")
+        fitted, status, diag = _refine.refine(stations, (poses[0], poses[0]), ropts)
         starts = [{"init": f"{start} (motions)", "init_status": str(init_status), "final_cost": diag["final_cost"]}]
+        (X, _), status, diag, report = _outlier_step(stations, fitted, status, diag, ropts, options, "stations")
         diagnostics = _diagnostics([f"{start} (motions)", "refine"], start, init_status, init_diag, starts, diag,
                                    [f"auto: {w}" for w in warnings])
+        diagnostics.update(report)
         output = SolverOutput(unknowns={"X": X}, status=status, diagnostics=diagnostics)
     else:
         output = run(stations, options, backend)

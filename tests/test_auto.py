@@ -251,3 +251,96 @@ def test_auto_axxb_stations_without_a_certified_start_run_the_axyb_pipeline(monk
     assert sol.diagnostics["pipeline"][0] == "stations" and "(motions)" not in " ".join(sol.diagnostics["pipeline"])
     on_stations = handeye.solve("axyb", A=stations["A"], B=stations["B"])
     np.testing.assert_allclose(sol.X[:3, :3], on_stations.X[:3, :3], rtol=0, atol=1e-9)
+
+
+# --------------------------------------------------------------------------- outliers (outliers="reject", default)
+
+def _gross(T, indices, degrees=15.0, length=30.0):
+    """T with the poses at `indices` moved by `degrees` about a fixed oblique axis and `length`
+    along a fixed direction (left-multiplied)."""
+    from handeye.se3 import make_pose, so3_exp
+
+    axis = np.array([1.0, -2.0, 0.5]) / np.linalg.norm([1.0, -2.0, 0.5])
+    E = make_pose(so3_exp(np.deg2rad(degrees) * axis), length * np.array([0.6, 0.0, -0.8]))
+    T = np.array(T, copy=True)
+    T[list(indices)] = E @ T[list(indices)]
+    return T
+
+
+def _angle_deg(R1, R2):
+    return float(np.rad2deg(np.arccos(np.clip((np.trace(R1.T @ R2) - 1.0) / 2.0, -1.0, 1.0))))
+
+
+def test_auto_clean_data_flag_nothing_and_equal_least_squares(noisy):
+    data, _ = noisy
+    sol = handeye.solve("axyb", **data)
+    keep = handeye.solve("axyb", outliers="keep", **data)
+    assert sol.diagnostics["outliers"] == [] and "outliers" not in keep.diagnostics
+    np.testing.assert_allclose(sol.X, keep.X, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(sol.Y, keep.Y, rtol=0, atol=1e-12)
+    with pytest.raises(InputError):
+        handeye.solve("axyb", outliers="drop", **data)
+
+
+def test_auto_flags_and_leaves_out_one_gross_pair(noisy):
+    """One pair off by 15 deg / 30 mm: least squares on every pair is ~12x off; auto lists the
+    pair, warns, and its answer is least squares on the other 15 pairs, within 0.03 deg / 0.3 mm
+    of the clean data's (measured 0.012 deg / 0.056 mm: one pair's information less)."""
+    data, truth = noisy
+    clean = handeye.solve("axyb", **data)
+    B = _gross(data["B"], [3])
+    sol = handeye.solve("axyb", A=data["A"], B=B)
+    d = sol.diagnostics
+    assert [o["index"] for o in d["outliers"]] == [3] and sol.status == Status.OPTIMAL
+    assert d["outliers"][0]["rotation_deg"] > 10 and d["outliers"][0]["translation"] > 10
+    assert any("pair 3 is far off" in w for w in sol.warnings), sol.warnings
+    assert _angle_deg(sol.X[:3, :3], clean.X[:3, :3]) < 0.03 and np.abs(sol.X[:3, 3] - clean.X[:3, 3]).max() < 0.3
+    without = handeye.solve("axyb", outliers="keep", A=np.delete(data["A"], 3, axis=0), B=np.delete(B, 3, axis=0))
+    np.testing.assert_allclose(sol.X[:3, :3], without.X[:3, :3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sol.X[:3, 3], without.X[:3, 3], rtol=0, atol=1e-6)
+    keep = handeye.solve("axyb", outliers="keep", A=data["A"], B=B)
+    assert PROBLEM.errors(keep.unknowns, truth)["X"]["rotation"] > 5 * PROBLEM.errors(sol.unknowns, truth)["X"]["rotation"]
+    robust = handeye.solve("axyb", loss="cauchy", A=data["A"], B=B)  # a robust loss: as before, nothing left out
+    assert "outliers" not in robust.diagnostics and robust.diagnostics["refine"]["loss"] == "cauchy"
+
+
+def test_auto_handles_fifteen_percent_gross_pairs():
+    data, truth = PROBLEM.simulate(pairs=20, seed=5, noise=NOISE)
+    clean = PROBLEM.errors(handeye.solve("axyb", **data).unknowns, truth)
+    bad = [2, 9, 15]
+    B = _gross(_gross(data["B"], [2], 25.0, 80.0), [9, 15], 8.0, -40.0)
+    sol = handeye.solve("axyb", A=data["A"], B=B)
+    assert [o["index"] for o in sol.diagnostics["outliers"]] == bad
+    err = PROBLEM.errors(sol.unknowns, truth)
+    for k in ("X", "Y"):  # within 1.5x of the clean data's errors (plus a small floor)
+        assert err[k]["rotation"] < 1.5 * clean[k]["rotation"] + 2e-4, (k, err, clean)
+        assert err[k]["translation"] < 1.5 * clean[k]["translation"] + 0.1, (k, err, clean)
+
+
+def test_auto_axxb_outlier_motion_and_outlier_station():
+    _axxb_start_or_skip()
+    from handeye.problems.axxb import motions, relative_motions, simulate_stations
+    from handeye.se3 import inverse
+
+    stations, truth = simulate_stations(14, seed=8, noise=NOISE)
+    # consecutive motions, one motion's camera pose corrupted: the per-motion route
+    A, B = relative_motions(stations["A"], stations["B"], "consecutive")
+    clean = handeye.solve("axxb", A=A, B=B)
+    keep = handeye.solve("axxb", outliers="keep", A=A, B=B)
+    assert clean.diagnostics["outliers"] == []
+    np.testing.assert_allclose(clean.X, keep.X, rtol=0, atol=1e-12)
+    sol = handeye.solve("axxb", A=A, B=_gross(B, [6]))
+    assert [o["index"] for o in sol.diagnostics["outliers"]] == [6] and sol.status == Status.OPTIMAL
+    # the answer is least squares on the other motions (one optimum: equal to the iterations' tolerance)
+    without = handeye.solve("axxb", outliers="keep", A=np.delete(A, 6, axis=0), B=np.delete(B, 6, axis=0))
+    np.testing.assert_allclose(sol.X[:3, :3], without.X[:3, :3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sol.X[:3, 3], without.X[:3, 3], rtol=0, atol=1e-6)
+    assert _angle_deg(sol.X[:3, :3], clean.X[:3, :3]) < 0.1 and np.abs(sol.X[:3, 3] - clean.X[:3, 3]).max() < 0.5
+    # every pair of stations, station 5's camera pose corrupted: the station route lists the station
+    clean = handeye.solve("axxb", **motions(stations["A"], inverse(stations["B"])))
+    sol = handeye.solve("axxb", **motions(stations["A"], inverse(_gross(stations["B"], [5]))))
+    assert sol.diagnostics["pipeline"][0] == "stations"
+    assert [o["index"] for o in sol.diagnostics["outliers"]] == [5]
+    assert any("station 5 is far off" in w for w in sol.warnings), sol.warnings
+    assert _angle_deg(sol.X[:3, :3], clean.X[:3, :3]) < 0.05 and np.abs(sol.X[:3, 3] - clean.X[:3, 3]).max() < 0.5
+    assert AXXB.errors(sol.unknowns, truth)["X"]["rotation"] < AXXB_NOISY_BOUNDS["rotation"]
