@@ -10,6 +10,11 @@ noise on A and B, m = 8, 16, 50, every solver against a refinement started at th
 ``refine`` is installed). ``--trials``, ``--seed``, ``--solvers``, ``--units`` and ``--truth``
 override what the study says.
 
+``--data FILE -o OUTDIR`` (or ``--example NAME``) compares the solvers on your own data, which have
+no truth, by held-out residuals: k-fold cross-validation (``--folds``, default 5, seeded by
+``--seed``) over the pairs, or over the stations of a file of absolute poses read as AX=XB
+(docs/harness.md, "Held-out residuals on your own data").
+
 ``--problem axxb`` (A_i X = X B_i) compares the AX=XB solvers the same way: the simulator puts
 the noise on the robot poses (A) and the camera poses (B) of the stations (``--pairs``: how many),
 then forms the motions (``--pairing all``, the default, or ``consecutive``); OpenCV's five methods
@@ -41,6 +46,14 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     which.add_argument("--accuracy", metavar="OUTDIR",
                        help="run the accuracy study (every solver against the oracle) into OUTDIR")
     which.add_argument("--study", metavar="FILE", help="study file (TOML, docs/harness.md)")
+    which.add_argument("--data", metavar="FILE",
+                       help="your own data file: held-out residuals of every solver by k-fold cross-validation "
+                            "(needs -o OUTDIR; docs/harness.md)")
+    which.add_argument("--example", metavar="NAME", help="as --data, on a bundled example (eth-robot-arm, simulated)")
+    parser.add_argument("--folds", type=int, default=None, metavar="K",
+                        help="--data/--example: number of cross-validation folds (default 5)")
+    parser.add_argument("--setup", choices=("eye-in-hand", "eye-to-hand"), default=None,
+                        help="--data/--example: setup of a file of absolute poses (overrides the file's)")
     parser.add_argument("-o", "--output", metavar="OUTDIR", help="output directory (not with --paper/--accuracy)")
     parser.add_argument("--problem", default="axyb", help="problem: axyb (default) or axxb")
     parser.add_argument("--pairing", choices=("consecutive", "all"),
@@ -174,6 +187,13 @@ def _stacks(args: argparse.Namespace, default: tuple[str, ...]) -> tuple[str, ..
 def run(args: argparse.Namespace) -> int:
     from ..harness import run_study, time_table, write_report
 
+    if args.data or args.example:
+        from . import compare_data
+
+        return compare_data.run(args)
+    for flag in ("folds", "setup"):
+        if getattr(args, flag) is not None:
+            raise InputError(f"--{flag} applies to --data FILE / --example NAME only")
     study, outdir = build_study(args)
     if args.scheduler and args.executor != "dask":
         raise InputError("--scheduler needs --executor dask")
