@@ -19,6 +19,9 @@ class Status(str, enum.Enum):
     - ``not_converged``: an iterative method hit its iteration limit or diverged; the returned
       unknowns are its last iterate and must not be trusted.
     - ``failed``: no usable answer (used by the harness for solvers that raised).
+    - ``unreliable``: set by the host, not by a solver: the solver solved its problem, but the
+      residuals are implausible for the data (`handeye.plausibility`: most often a setup mistake
+      such as inverted poses, another Euler order or a unit); the unknowns must not be used.
     """
 
     OPTIMAL = "optimal"
@@ -26,6 +29,7 @@ class Status(str, enum.Enum):
     UNCERTIFIED = "uncertified"
     NOT_CONVERGED = "not_converged"
     FAILED = "failed"
+    UNRELIABLE = "unreliable"
 
     def __str__(self) -> str:
         return self.value

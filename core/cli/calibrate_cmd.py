@@ -24,14 +24,21 @@ eye-to-hand T_base_cam, parent ``base``) with child ``camera_optical_frame``: th
 of solvePnP is the optical frame (z forward, x right, y down), not a driver's ``camera_link``.
 ``--frame-ids PARENT,CHILD`` names your frames (e.g. ``tool0,camera_color_optical_frame``).
 
+Plausibility checks (always, unless ``--no-checks``; handeye.plausibility): residuals beyond
+what a calibrated cell's noise allows, or a usual setup mistake (Euler order, inverted camera
+or robot poses, the other setup, pairs shifted by one, camera unit x1000) that explains the data
+far better, give status ``unreliable``, a warning naming the mistake and its flag, and exit 1;
+duplicated stations and fewer than 5 stations give warnings.
+
 Exit codes as handeye solve: 0 success; 2 bad input (file, format, unit, counts); 1 the solver
-failed or ended not_converged / failed (the answer is printed for inspection, no file is
-written).
+failed or ended not_converged / failed, or the checks found the fit unreliable (the answer is
+printed for inspection, no file is written).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -43,9 +50,11 @@ from scipy.spatial.transform import Rotation
 from ..api import solve
 from ..errors import InputError
 from ..io import PAIRINGS, SETUPS, from_poses
+from ..plausibility import Streams, check
 from ..pose_formats import format_names, parse_format
 from ..pose_readers import UNITS, PoseStack, read_poses
 from ..registry import get_registry
+from ..solution import Status
 from ._common import _plain, dump_json, format_pose, parse_key_values
 from .solve_cmd import EQUATIONS, FRAMES, UNUSABLE, _setup_note, default_solver
 
@@ -98,6 +107,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                         help="frame ids of the ROS line (default flange,camera_optical_frame eye-in-hand; "
                              "base,camera_optical_frame eye-to-hand)")
     parser.add_argument("--json", action="store_true", help="print the result as JSON instead of text")
+    parser.add_argument("--no-checks", action="store_true",
+                        help="skip the plausibility checks (residuals against the cell's noise, the usual setup "
+                             "mistakes, duplicated stations, too few stations; docs/calibrate.md)")
     parser.set_defaults(run=run)
     return parser
 
@@ -115,6 +127,20 @@ def _read(path: str, fmt: str, unit: str | None, orthonormalize: bool, which: st
                 .replace("or pass degrees=True/False (CLI --degrees/--radians)", "")
                 .replace("but unit=", f"but --{which}-unit ").replace(" was passed", " was given"))
         raise InputError(f"--{which}: {text}") from None
+
+
+def _rereader(path: str, stack: PoseStack, unit: str, orthonormalize: bool):
+    """For an Euler format: seq -> the same file read with that Euler sequence (same columns,
+    angle unit and length unit), translations in `unit`; None for other formats."""
+    fmt = parse_format(stack.format)
+    if fmt.kind != "euler":
+        return None
+
+    def reread(seq: str) -> np.ndarray:
+        other = dataclasses.replace(fmt, seq=seq, name=f"euler:{seq}")
+        return read_poses(path, other, unit=stack.unit, orthonormalize=orthonormalize).in_unit(unit).poses
+
+    return reread
 
 
 def _pairing_checks(robot: PoseStack, camera: PoseStack, robot_path: str, camera_path: str) -> list[str]:
@@ -221,6 +247,17 @@ def run(args: argparse.Namespace) -> int:
 
     problem = get_registry().problem(args.problem)
     residuals = problem.residuals(problem.validate(**pose_file.data), solution.unknowns)
+    report = None
+    if not args.no_checks and solution.status not in UNUSABLE:
+        report = check(Streams(robot.poses, camera.poses, robot.unit, args.setup, args.problem,
+                               pose_file.metadata.get("pairing"), robot_format=robot.format,
+                               camera_format=camera_read.format, camera_unit=camera_read.unit,
+                               reread_robot=_rereader(args.robot, robot, robot.unit, args.orthonormalize),
+                               reread_camera=_rereader(args.camera, camera_read, robot.unit, args.orthonormalize)),
+                       residuals)
+        warnings += list(report.warnings)
+        if not report.plausible:
+            solution = dataclasses.replace(solution, status=Status.UNRELIABLE)
     diagnostics = solution.diagnostics
     std_all = diagnostics.get("std") or (diagnostics.get("refine") or {}).get("std") or {}
     frames = FRAMES[(args.problem, args.setup)]
@@ -251,6 +288,7 @@ def run(args: argparse.Namespace) -> int:
                             "translation": np.asarray(residuals["translation"]).tolist()},
         },
         "warnings": [*warnings, *solution.warnings],
+        "checks": None if report is None else report.to_dict(),
         "inputs": {
             "robot": {"file": args.robot, "format": robot.format, "unit": robot.unit, "poses": len(robot)},
             "camera": {"file": args.camera, "format": camera_read.format, "unit": camera_read.unit,
@@ -260,7 +298,7 @@ def run(args: argparse.Namespace) -> int:
         "ros": {"command": ros, "unknown": published, "frame_id": parent, "child_frame_id": child,
                 "translation_unit": "m"},
     }
-    unusable = solution.status in UNUSABLE
+    unusable = solution.status in UNUSABLE or solution.status is Status.UNRELIABLE
     written = [] if unusable else _write(result, args.output, args.yaml)
     if args.json:
         print(dump_json(result))
@@ -268,6 +306,10 @@ def run(args: argparse.Namespace) -> int:
         print(_text(result, frames, solution.diagnostics))
     for path in written:
         print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout)
+    if solution.status is Status.UNRELIABLE:
+        print(f"handeye: error: status unreliable: {report.warnings[0] if report else ''}; no file was written "
+              "(--no-checks skips the checks)", file=sys.stderr)
+        return 1
     if unusable:
         print(f"handeye: error: solver {solver!r} ended with status {solution.status}: its "
               f"{', '.join(solution.unknowns)} (printed above) are not an answer and no file was written; "
@@ -326,6 +368,9 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
               "  " + ros["command"]]
     if r["status"] in ("not_converged", "failed"):
         lines.append(f"warning: status {r['status']}: the solver did not reach its answer; do not use it")
+    elif r["status"] == "unreliable":
+        lines.append("warning: status unreliable: the residuals are implausible for a calibrated cell; do not use "
+                     "this answer (the first warning below says why)")
     elif r["status"] == "uncertified":
         lines.append("note: status uncertified: a valid answer, but the solver could not prove it globally optimal")
     lines += [f"warning: {w}" for w in r["warnings"]]

@@ -16,8 +16,11 @@ solves as AX=YB and as AX=XB. ``--problem axxb --example`` solves the bundled ex
 
 Exit code 0 for status optimal, optimal_inaccurate and uncertified (a valid answer that the
 solver could not certify globally optimal; the output says so). Exit code 1 for not_converged
-and failed: the answer is still printed, for inspection, with a warning and one line on stderr,
-but it must not be used.
+and failed, and for unreliable: the answer is still printed, for inspection, with a warning and
+one line on stderr, but it must not be used. A file of absolute poses (robot and camera) is
+checked for plausibility as handeye calibrate does (docs/calibrate.md; --no-checks skips it):
+residuals no calibrated cell gives, or a usual setup mistake that explains the data far better,
+make the status unreliable.
 """
 
 # The docstring above is this command's --help: it speaks of the user's data and names no
@@ -26,6 +29,7 @@ but it must not be used.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 from typing import Any
@@ -45,6 +49,7 @@ from ..io import (
     station_readers,
     supported_extensions,
 )
+from ..plausibility import Streams, check
 from ..registry import get_registry
 from ..se3 import inverse
 from ..solution import Status
@@ -91,6 +96,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                         help="solver option, repeatable; VALUE true/false (any case) is a bool, else it is "
                              "read as JSON when it parses (1e-8, \"x\"), else as text")
     parser.add_argument("--json", action="store_true", help="machine-readable output")
+    parser.add_argument("--no-checks", action="store_true",
+                        help="files of absolute poses: skip the plausibility checks (docs/calibrate.md)")
     parser.set_defaults(run=run)
     return parser
 
@@ -123,6 +130,13 @@ def run(args: argparse.Namespace) -> int:
     problem = get_registry().problem(args.problem)
     residuals = problem.residuals(problem.validate(**data), solution.unknowns)
     errors = problem.errors(solution.unknowns, truth) if truth is not None else None
+    checks = None
+    if pose_file.poses is not None and not args.no_checks and solution.status not in UNUSABLE:
+        checks = check(Streams(pose_file.poses["robot_poses"], pose_file.poses["camera_poses"],
+                               metadata.get("units") or "length units", metadata["setup"], args.problem,
+                               metadata.get("pairing")), residuals)
+        if not checks.plausible:
+            solution = dataclasses.replace(solution, status=Status.UNRELIABLE)
     frames = FRAMES.get((args.problem, metadata.get("setup", "")), {})
     report = {
         "source": source,
@@ -137,9 +151,14 @@ def run(args: argparse.Namespace) -> int:
         "residuals": {k: _summary(v) for k, v in residuals.items()},
         "residuals_per_pair": {k: np.asarray(v).tolist() for k, v in residuals.items()},
         "errors": errors,
-        "warnings": solution.warnings,
+        "warnings": [*solution.warnings, *(checks.warnings if checks else ())],
+        "checks": None if checks is None else checks.to_dict(),
     }
     print(dump_json(report) if args.json else _text(report, frames))
+    if solution.status is Status.UNRELIABLE:
+        print(f"handeye: error: status unreliable: {checks.warnings[0] if checks else ''} (--no-checks skips "
+              "the checks)", file=sys.stderr)
+        return 1
     if solution.status in UNUSABLE:
         print(f"handeye: error: solver {solver!r} ended with status {solution.status}: its "
               f"{', '.join(solution.unknowns)} (printed above) are not an answer; try another solver or init",
@@ -227,6 +246,9 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
     names = ", ".join(r["unknowns"])
     if r["status"] in UNUSABLE:
         lines.append(f"warning: status {r['status']}: the solver did not reach its answer; do not use {names}")
+    elif r["status"] == Status.UNRELIABLE:
+        lines.append(f"warning: status unreliable: the residuals are implausible for a calibrated cell; do not use "
+                     f"{names} (the first warning below says why)")
     elif r["status"] == Status.UNCERTIFIED:
         lines.append("note: status uncertified: a valid answer, but the solver could not prove it "
                      "globally optimal")

@@ -1,0 +1,306 @@
+"""Plausibility of a calibration from absolute poses, and the setup mistake that explains an
+implausible one.
+
+A solver's status says it solved *its* problem; it cannot say the data were the data the user
+meant. The common setup mistakes (robot angles read in another Euler order, camera or robot
+poses inverted, the other setup, pairs shifted by one station, a camera unit off by 1000) all
+give a solution with status ``optimal`` whose residuals (eqs. 32-33) are 10-100x the data's noise.
+`check` decides whether the residuals are plausible and names the mistake that explains them.
+
+The statistic (docs/calibrate.md, "Plausibility checks"), two parts:
+
+1. **Physical floor.** The residual RMS over the pairs (rotation angle and translation distance
+   between the two sides of the equation) against limits no calibrated cell reaches: a robot's
+   flange pose and a camera's board pose are rarely off by more than 0.5 deg / a few mm per pose,
+   and ten times the accuracy study's noise (camera 1.15 deg / 5 mm per axis, the worst case we
+   accept without alarm) gives residual RMS up to ~2.5 deg / 12 mm over stations (axyb) and
+   ~3.2 deg / 18 mm over motions (axxb, two stations' noise each). A fit is implausible when the
+   rotation RMS exceeds `ROT_LIMIT_DEG` (6 deg) or the translation RMS exceeds
+   `TRANS_LIMIT_FRACTION` (12%) of the cell's size (the RMS distance of the flange positions
+   from their centroid: the lever arms scale with it; the simulated cell's is 220-320 mm, so
+   the limit is 26-38 mm).
+2. **A better explanation.** Every usual mistake is undone on the raw streams and solved with a
+   cheap closed form (`HYPOTHESIS_SOLVER`, kron-lstsq); the as-given data is solved the same way.
+   A hypothesis *explains* the data when its score (the larger of the two RMS, each divided by
+   its limit) is below 1 (plausible) and at least `EXPLAIN_FACTOR` (4) times lower than the
+   as-given data's. Noise cannot do that: a wrong model never fits noisy data better than the
+   right one by more than the few degrees of freedom it drops (shifting pairs drops one
+   station), so on clean data the best hypothesis ratio stays near or below 1.
+
+The fit is unreliable when part 1 fails or part 2 finds an explanation. Nothing is switched:
+the caller keeps the user's answer and reports `Status.UNRELIABLE` with the message.
+
+Also: duplicated stations (two robot poses within `DUPLICATE_DEG` and `DUPLICATE_FRACTION` of the
+cell size) and fewer than `MIN_STATIONS_FOR_SIGMA` stations (the 1-sigma from the covariance of
+the fit is not meaningful) are warnings that do not change the status.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from .errors import HandEyeError
+from .se3 import inverse, rotation_angle
+
+#: residual rotation RMS (deg) no calibrated cell reaches
+ROT_LIMIT_DEG = 6.0
+#: residual translation RMS, as a fraction of the cell size (RMS spread of the flange positions)
+TRANS_LIMIT_FRACTION = 0.12
+#: a hypothesis explains the data when it lowers the score by this factor to below 1
+EXPLAIN_FACTOR = 4.0
+#: other explaining mistakes within this factor of the best score are named too: some are the same
+#: data (axyb: camera poses inverted = the other setup = robot poses inverted with X and Y swapped;
+#: an axxb cell fits both its camera poses inverted and the other setup); a wrong hypothesis
+#: scores >= ~10 on the simulator
+ALTERNATIVE_FACTOR = 10.0
+#: the closed-form solver of the hypotheses (and of the as-given data they are compared with)
+HYPOTHESIS_SOLVER = "kron-lstsq"
+#: two stations are duplicates when their robot poses differ by less than this angle (deg) and
+#: this fraction of the cell size
+DUPLICATE_DEG = 0.1
+DUPLICATE_FRACTION = 1e-3
+#: below this many stations the covariance-based 1-sigma is not meaningful
+MIN_STATIONS_FOR_SIGMA = 5
+#: the Tait-Bryan sequences (scipy: lower case extrinsic, upper case intrinsic)
+TAIT_BRYAN = tuple("".join(p) for p in itertools.permutations("xyz")) + tuple(
+    "".join(p) for p in itertools.permutations("XYZ"))
+
+
+@dataclasses.dataclass(frozen=True)
+class Streams:
+    """The raw streams of a calibration and how they were turned into the problem's data.
+
+    robot: (n, 4, 4) T_base_flange as read; camera: (n, 4, 4) T_cam_target as read, in the robot's
+    unit; unit: the robot's length unit (for messages); setup, problem, pairing: as solved.
+    reread_robot / reread_camera: for Euler formats, a function seq -> (n, 4, 4) that reads the
+    same file's numbers with another scipy Euler sequence (None: no Euler hypotheses);
+    robot_format / camera_format / camera_unit: the names the user gave (for the suggestions).
+    """
+
+    robot: np.ndarray
+    camera: np.ndarray
+    unit: str
+    setup: str
+    problem: str
+    pairing: str | None = None
+    robot_format: str | None = None
+    camera_format: str | None = None
+    camera_unit: str | None = None
+    reread_robot: Callable[[str], np.ndarray] | None = None
+    reread_camera: Callable[[str], np.ndarray] | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Hypothesis:
+    """One usual mistake undone: what it says in the user's words, the flags that would express
+    it, and the residual RMS (rotation deg, translation in the robot unit) of its closed-form fit."""
+
+    description: str
+    suggestion: str
+    rotation_deg: float
+    translation: float
+    score: float
+    ratio: float
+
+
+@dataclasses.dataclass(frozen=True)
+class Report:
+    """What `check` found. plausible: the fit passes both parts; rotation_deg, translation: the
+    solution's residual RMS; limits: (ROT_LIMIT_DEG, translation limit); explanation: the best
+    hypothesis that explains the data (or None); warnings: messages for the user (the
+    implausibility message first, then duplicates and few stations)."""
+
+    plausible: bool
+    rotation_deg: float
+    translation: float
+    cell_size: float
+    limits: tuple[float, float]
+    baseline: tuple[float, float] | None
+    explanation: Hypothesis | None
+    hypotheses: tuple[Hypothesis, ...]
+    warnings: tuple[str, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "plausible": self.plausible,
+            "residual_rms": {"rotation_deg": self.rotation_deg, "translation": self.translation},
+            "limits": {"rotation_deg": self.limits[0], "translation": self.limits[1]},
+            "cell_size": self.cell_size,
+            "explanation": None if self.explanation is None else dataclasses.asdict(self.explanation),
+            "hypotheses": [dataclasses.asdict(h) for h in self.hypotheses],
+        }
+
+
+def cell_size(robot: np.ndarray) -> float:
+    """RMS distance of the flange positions robot[:, :3, 3] from their centroid (robot unit)."""
+    t = np.asarray(robot, dtype=float)[:, :3, 3]
+    return float(np.sqrt(np.mean(np.sum((t - t.mean(axis=0)) ** 2, axis=1))))
+
+
+def _rms(values: Any) -> float:
+    return float(np.sqrt(np.mean(np.asarray(values, dtype=float) ** 2)))
+
+
+def _fit(streams: Streams, robot: np.ndarray, camera: np.ndarray, setup: str) -> tuple[float, float] | None:
+    """Residual RMS (deg, unit) of the closed-form fit of these streams, None if it fails."""
+    from .api import solve
+    from .io import from_poses
+    from .registry import get_registry
+
+    try:
+        pose_file = from_poses(robot, camera, streams.problem, setup=setup, pairing=streams.pairing)
+        sol = solve(streams.problem, solver=HYPOTHESIS_SOLVER, **pose_file.data)
+        problem = get_registry().problem(streams.problem)
+        res = problem.residuals(problem.validate(**pose_file.data), sol.unknowns)
+    except (HandEyeError, np.linalg.LinAlgError, ValueError):
+        return None
+    return math.degrees(_rms(res["rotation"])), _rms(res["translation"])
+
+
+def _hypotheses(s: Streams) -> list[tuple[str, str, np.ndarray, np.ndarray, str]]:
+    """(description, suggestion, robot, camera, setup) of each usual mistake undone."""
+    other = "eye-to-hand" if s.setup == "eye-in-hand" else "eye-in-hand"
+    out = [
+        (("the camera poses are inverted (T_target_cam, the camera's pose in the board, instead of "
+          "T_cam_target)"), "invert the camera poses before calibrating", s.robot, inverse(s.camera), s.setup),
+        ("the robot poses are inverted (T_flange_base instead of T_base_flange)",
+         "invert the robot poses before calibrating", inverse(s.robot), s.camera, s.setup),
+        (f"the setup is {other}", f"--setup {other}", s.robot, s.camera, other),
+    ]
+    n = len(s.robot)
+    if n >= 4:
+        out += [
+            ("the camera file starts one station late (its row k is the station of robot row k+1)",
+             "drop the first robot row and the last camera row", s.robot[1:], s.camera[:-1], s.setup),
+            ("the camera file starts one station early (its row k+1 is the station of robot row k)",
+             "drop the first camera row and the last robot row", s.robot[:-1], s.camera[1:], s.setup),
+        ]
+    other_unit = {"mm": "m", "m": "mm"}
+    for factor, word, true_unit in ((1e-3, "1000 times too large", "mm"), (1e3, "1000 times too small", "m")):
+        cam = np.array(s.camera)
+        cam[:, :3, 3] *= factor
+        if s.camera_unit is not None and other_unit[s.camera_unit] == true_unit:
+            text = f"the camera file is in {true_unit}, not {s.camera_unit}"
+            sugg = f"--camera-unit {true_unit}"
+        else:
+            text = f"the camera translations are {word}"
+            sugg = "check the camera file's length unit (--camera-unit) and the robot's (--robot-unit)"
+        out.append((text, sugg, s.robot, cam, s.setup))
+    for which, reread, fmt in (("robot", s.reread_robot, s.robot_format), ("camera", s.reread_camera, s.camera_format)):
+        if reread is None:
+            continue
+        current = _seq_of(fmt)
+        for seq in TAIT_BRYAN:
+            if seq == current:
+                continue
+            try:
+                poses = reread(seq)
+            except HandEyeError:
+                continue
+            kind = "extrinsic, fixed axes" if seq.islower() else "intrinsic, moving axes"
+            robot, camera = (poses, s.camera) if which == "robot" else (s.robot, poses)
+            out.append((f"the {which} angles are Euler {seq} ({kind})", _euler_flag(which, seq, fmt),
+                        robot, camera, s.setup))
+    return out
+
+
+def _euler_flag(which: str, seq: str, fmt: str | None) -> str:
+    """``--robot-format euler:SEQ:deg`` in the angle unit of `fmt`, with the presets of that sequence."""
+    from .pose_formats import PRESETS, parse_format
+
+    try:
+        degrees = parse_format(fmt).degrees if fmt else True
+    except HandEyeError:
+        degrees = True
+    flag = f"--{which}-format euler:{seq}:{'rad' if degrees is False else 'deg'}"
+    presets = [name for name, f in PRESETS.items() if f.kind == "euler" and f.seq == seq]
+    return flag + (f", as the preset{'s' if len(presets) > 1 else ''} {' / '.join(presets)}" if presets else "")
+
+
+def _seq_of(fmt: str | None) -> str | None:
+    if fmt is None:
+        return None
+    from .pose_formats import parse_format
+
+    try:
+        return parse_format(fmt).seq
+    except HandEyeError:
+        return None
+
+
+def check(streams: Streams, residuals: Mapping[str, np.ndarray], *, hypotheses: bool = True) -> Report:
+    """Whether the fit whose per-pair `residuals` ({"rotation": rad, "translation": unit}) the
+    solver left on `streams` is plausible (module docstring), and which usual mistake explains
+    it; with hypotheses=False only the physical floor (part 1) is tested."""
+    rot = math.degrees(_rms(residuals["rotation"]))
+    trans = _rms(residuals["translation"])
+    size = cell_size(streams.robot)
+    trans_limit = TRANS_LIMIT_FRACTION * size if size > 0 else math.inf
+
+    def score(r: float, t: float) -> float:
+        return max(r / ROT_LIMIT_DEG, t / trans_limit)
+
+    floor_ok = score(rot, trans) <= 1.0
+    baseline = _fit(streams, streams.robot, streams.camera, streams.setup) if hypotheses else None
+    found: list[Hypothesis] = []
+    if baseline is not None:
+        base_score = max(score(*baseline), score(rot, trans))
+        for text, sugg, robot, camera, setup in _hypotheses(streams):
+            fit = _fit(streams, robot, camera, setup)
+            if fit is None:
+                continue
+            s = score(*fit)
+            found.append(Hypothesis(text, sugg, fit[0], fit[1], s, base_score / max(s, 1e-300)))
+        found.sort(key=lambda h: float(f"{h.score:.4g}"))  # stable: equivalent mistakes keep their order
+    explaining = [h for h in found if h.score < 1.0 and h.ratio >= EXPLAIN_FACTOR]
+    best = explaining[0] if explaining else None
+    warnings: list[str] = []
+    unit = streams.unit
+    if best is not None or not floor_ok:
+        head = (f"implausible fit: residual RMS {rot:.3g} deg / {trans:.3g} {unit} (limits {ROT_LIMIT_DEG:g} deg / "
+                f"{trans_limit:.3g} {unit} = {TRANS_LIMIT_FRACTION:.0%} of the cell size {size:.3g} {unit})")
+        if best is not None:
+            same = [h for h in explaining[1:] if h.score <= ALTERNATIVE_FACTOR * best.score]
+            alts = "".join(f"; or {h.description} ({h.suggestion})" for h in same)
+            head = (f"implausible fit: residuals drop from {rot:.3g} deg / {trans:.3g} {unit} to "
+                    f"{best.rotation_deg:.3g} deg / {best.translation:.3g} {unit} if {best.description}: "
+                    f"did you mean that? ({best.suggestion}{alts}). The answer printed is for the data as given "
+                    "and is not to be used")
+        else:
+            head += ("; none of the usual mistakes (Euler order, inverted camera or robot poses, other setup, "
+                     "pairs shifted by one, camera unit x1000) explains it: check the pairing of the files, "
+                     "the formats and the units")
+        warnings.append(head)
+    warnings += station_warnings(streams.robot, unit)
+    return Report(floor_ok and best is None, rot, trans, size, (ROT_LIMIT_DEG, trans_limit), baseline, best,
+                  tuple(found), tuple(warnings))
+
+
+def station_warnings(robot: np.ndarray, unit: str) -> list[str]:
+    """Duplicated stations (robot poses within DUPLICATE_DEG and DUPLICATE_FRACTION of the cell
+    size) and too few stations for a meaningful 1-sigma."""
+    robot = np.asarray(robot, dtype=float)
+    n = len(robot)
+    out = []
+    size = cell_size(robot)
+    if n >= 2:
+        i, j = np.triu_indices(n, k=1)
+        angle = np.degrees(rotation_angle(robot[i, :3, :3] @ np.swapaxes(robot[j, :3, :3], 1, 2)))
+        dist = np.linalg.norm(robot[i, :3, 3] - robot[j, :3, 3], axis=1)
+        dup = np.flatnonzero((angle < DUPLICATE_DEG) & (dist <= DUPLICATE_FRACTION * max(size, 1e-12)))
+        if len(dup):
+            rows = ", ".join(f"{i[k] + 1} and {j[k] + 1}" for k in dup[:5])
+            out.append(f"duplicated stations: the robot poses of rows {rows}{' ...' if len(dup) > 5 else ''} are "
+                       f"nearly the same (< {DUPLICATE_DEG:g} deg, < {DUPLICATE_FRACTION * size:.2g} {unit}); a "
+                       "repeated station adds no information and makes the 1-sigma too small: move the robot "
+                       "between stations")
+    if n < MIN_STATIONS_FOR_SIGMA:
+        out.append(f"only {n} stations: the reported 1-sigma is not meaningful (the noise is estimated from "
+                   f"the residuals, which needs at least {MIN_STATIONS_FOR_SIGMA} stations; 10-20 are usual)")
+    return out

@@ -1,0 +1,138 @@
+"""Plausibility checks of ``handeye calibrate`` (handeye.plausibility): simulated cells written
+with each usual setup mistake are caught (status unreliable, exit 1, the right mistake named
+with its flag); clean noisy cells at 1x and 10x the accuracy study's noise pass without a warning."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from handeye.cli import main
+from handeye.noise import NoiseModel
+from handeye.plausibility import MIN_STATIONS_FOR_SIGMA, station_warnings
+from handeye.pose_readers import write_poses
+from handeye.problems.axxb import simulate_stations
+from handeye.se3 import inverse
+from handeye.solution import Status
+
+
+def noise(level: float) -> NoiseModel:
+    """The accuracy study's noise (handeye.harness.study.ACCURACY_NOISE) times `level`."""
+    return NoiseModel({"A": (0.0002 * level, 0.05 * level), "B": (0.002 * level, 0.5 * level)})
+
+
+def write_cell(tmp_path, mistake=None, *, stations=10, seed=3, level=1.0, setup="eye-in-hand"):
+    """Robot (FANUC-like, yaskawa: x,y,z,rx,ry,rz, extrinsic xyz, mm) and camera (opencv-rvec, mm)
+    files of a simulated cell with one mistake; return (robot, camera, robot format, camera unit)."""
+    st, _ = simulate_stations(stations + (mistake == "shift"), seed=seed, noise=noise(level))
+    robot, camera = np.array(st["A"]), inverse(st["B"]) if setup == "eye-in-hand" else np.array(st["B"])
+    robot_format, camera_unit = "yaskawa", "mm"
+    if mistake == "euler":  # Rx, Ry, Rz about the fixed axes read as intrinsic (Staubli)
+        robot_format = "staubli"
+    elif mistake == "camera-inverted":
+        camera = inverse(camera)
+    elif mistake == "robot-inverted":
+        robot = inverse(robot)
+    elif mistake == "shift":  # the camera file starts one station late
+        robot, camera = robot[:-1], camera[1:]
+    elif mistake == "unit":  # the camera file is in mm, declared in m
+        camera_unit = "m"
+    r = write_poses(tmp_path / "robot.csv", robot, "yaskawa", unit="mm")
+    c = write_poses(tmp_path / "camera.csv", camera, "opencv-rvec", unit="mm")
+    return r, c, robot_format, camera_unit
+
+
+def calibrate(capsys, robot, camera, robot_format, camera_unit, setup="eye-in-hand", *extra):
+    code = main(["calibrate", "--robot", str(robot), "--robot-format", robot_format, "--camera", str(camera),
+                 "--camera-format", "opencv-rvec", "--camera-unit", camera_unit, "--setup", setup, "--json",
+                 *map(str, extra)])
+    out, err = capsys.readouterr()
+    return code, json.loads(out), err
+
+
+@pytest.mark.parametrize("level", [1.0, 10.0])
+@pytest.mark.parametrize("problem", ["axyb", "axxb"])
+def test_clean_noisy_cells_pass(tmp_path, capsys, level, problem):
+    robot, camera, fmt, unit = write_cell(tmp_path, level=level, stations=8)
+    code, r, err = calibrate(capsys, robot, camera, fmt, unit, "eye-in-hand", "--problem", problem)
+    assert code == 0, err
+    assert r["status"] == "optimal" and r["warnings"] == []
+    assert r["checks"]["plausible"] and r["checks"]["explanation"] is None
+
+
+MISTAKES = {
+    # mistake: (setup as given, problem, words of the named hypothesis, flag suggested)
+    "euler": ("eye-in-hand", "axyb", "robot angles are Euler xyz", "--robot-format euler:xyz:deg"),
+    "camera-inverted": ("eye-in-hand", "axyb", "camera poses are inverted", "invert the camera poses"),
+    "robot-inverted": ("eye-in-hand", "axyb", "robot poses are inverted", "invert the robot poses"),
+    "shift": ("eye-in-hand", "axyb", "starts one station late", "drop the first robot row and the last camera row"),
+    "unit": ("eye-in-hand", "axyb", "camera file is in mm, not m", "--camera-unit mm"),
+    "setup": ("eye-in-hand", "axyb", "setup is eye-to-hand", "--setup eye-to-hand"),
+    "setup-axxb": ("eye-in-hand", "axxb", "setup is eye-to-hand", "--setup eye-to-hand"),
+    "euler-axxb": ("eye-in-hand", "axxb", "robot angles are Euler xyz", "fanuc-wpr"),
+}
+
+
+@pytest.mark.parametrize("name", list(MISTAKES))
+def test_each_mistake_is_caught_and_named(tmp_path, capsys, name):
+    setup, problem, words, flag = MISTAKES[name]
+    mistake = name.removesuffix("-axxb")
+    data_setup = "eye-to-hand" if mistake == "setup" else "eye-in-hand"
+    robot, camera, fmt, unit = write_cell(tmp_path, None if mistake == "setup" else mistake, setup=data_setup)
+    out_json = tmp_path / "result.json"
+    code, r, err = calibrate(capsys, robot, camera, fmt, unit, setup, "--problem", problem, "-o", out_json)
+    assert code == 1
+    assert r["status"] == Status.UNRELIABLE.value and not r["checks"]["plausible"]
+    message = r["warnings"][0]
+    assert message.startswith("implausible fit: residuals drop from") and words in message and flag in message
+    assert "status unreliable" in err and not out_json.exists()
+    best = r["checks"]["explanation"]
+    assert best["ratio"] >= 4 and best["score"] < 1
+
+
+def test_no_checks_keeps_the_old_behaviour(tmp_path, capsys):
+    robot, camera, fmt, unit = write_cell(tmp_path, "camera-inverted")
+    code, r, _ = calibrate(capsys, robot, camera, fmt, unit, "eye-in-hand", "--no-checks")
+    assert code == 0 and r["status"] == "optimal" and r["checks"] is None
+
+
+def test_text_output_says_unreliable(tmp_path, capsys):
+    robot, camera, fmt, unit = write_cell(tmp_path, "shift")
+    code = main(["calibrate", "--robot", str(robot), "--robot-format", fmt, "--camera", str(camera),
+                 "--camera-format", "opencv-rvec", "--camera-unit", unit, "--setup", "eye-in-hand"])
+    out, _ = capsys.readouterr()
+    assert code == 1
+    assert "status unreliable" in out and "warning: implausible fit" in out and "did you mean" in out
+
+
+def test_duplicated_and_few_stations_warn(tmp_path, capsys):
+    st, _ = simulate_stations(8, seed=5, noise=noise(1.0))
+    robot = np.array(st["A"])
+    robot[5] = robot[2]
+    warnings = station_warnings(robot, "mm")
+    assert len(warnings) == 1 and "rows 3 and 6" in warnings[0]
+    few = station_warnings(robot[: MIN_STATIONS_FOR_SIGMA - 1], "mm")
+    assert len(few) == 1 and "1-sigma is not meaningful" in few[0]
+    robot_file, camera_file, fmt, unit = write_cell(tmp_path, stations=4, seed=5)
+    code, r, _ = calibrate(capsys, robot_file, camera_file, fmt, unit)
+    assert code == 0 and r["status"] == "optimal" and any("1-sigma is not meaningful" in w for w in r["warnings"])
+
+
+@pytest.mark.parametrize("problem", ["axyb", "axxb"])
+def test_solve_checks_files_of_absolute_poses(tmp_path, capsys, problem):
+    from handeye.io import save_data
+
+    st, _ = simulate_stations(10, seed=4, noise=noise(1.0))
+    path = save_data(tmp_path / "stations.json", {"robot_poses": st["A"], "camera_poses": inverse(st["B"])},
+                     metadata={"setup": "eye-in-hand", "units": "mm"}, problem=problem)
+    assert main(["solve", "--problem", problem, "--json", str(path)]) == 0
+    assert json.loads(capsys.readouterr().out)["checks"]["plausible"]
+    wrong = save_data(tmp_path / "inverted.json", {"robot_poses": st["A"], "camera_poses": st["B"]},
+                      metadata={"setup": "eye-in-hand", "units": "mm"}, problem=problem)
+    assert main(["solve", "--problem", problem, "--json", str(wrong)]) == 1
+    out, err = capsys.readouterr()
+    r = json.loads(out)
+    assert r["status"] == "unreliable" and "camera poses are inverted" in " ".join(r["warnings"])
+    assert "status unreliable" in err
+    assert main(["solve", "--problem", problem, "--no-checks", str(wrong)]) == 0
