@@ -5,6 +5,9 @@ A solver's status says it solved *its* problem; it cannot say the data were the 
 meant. The common setup mistakes (robot angles read in another Euler order, camera or robot
 poses inverted, the other setup, pairs shifted by one station, a camera unit off by 1000) all
 give a solution with status ``optimal`` whose residuals (eqs. 32-33) are 10-100x the data's noise.
+Every "RMS" below is a trimmed RMS, over the `TRIM_KEEP` (80%) smallest residuals: a setup
+mistake raises every pair's residual, while a few gross pairs (which `auto` lists and leaves
+out) must not make a good fit, or the closed-form fits compared in part 2, look implausible.
 `check` decides whether the residuals are plausible and names the mistake that explains them.
 
 The statistic (docs/calibrate.md, "Plausibility checks"), two parts:
@@ -143,8 +146,15 @@ def cell_size(robot: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((t - t.mean(axis=0)) ** 2, axis=1))))
 
 
+#: share of the smallest residuals the RMS is taken over (module docstring)
+TRIM_KEEP = 0.8
+
+
 def _rms(values: Any) -> float:
-    return float(np.sqrt(np.mean(np.asarray(values, dtype=float) ** 2)))
+    """RMS of the TRIM_KEEP smallest of `values` (all of them for fewer than 5)."""
+    squares = np.sort(np.asarray(values, dtype=float).ravel() ** 2)
+    keep = len(squares) if len(squares) < 5 else max(1, int(np.ceil(TRIM_KEEP * len(squares))))
+    return float(np.sqrt(np.mean(squares[:keep])))
 
 
 def _fit(streams: Streams, robot: np.ndarray, camera: np.ndarray, setup: str) -> tuple[float, float] | None:

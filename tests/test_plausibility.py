@@ -136,3 +136,27 @@ def test_solve_checks_files_of_absolute_poses(tmp_path, capsys, problem):
     assert r["status"] == "unreliable" and "camera poses are inverted" in " ".join(r["warnings"])
     assert "status unreliable" in err
     assert main(["solve", "--problem", problem, "--no-checks", str(wrong)]) == 0
+
+
+def test_a_gross_pair_that_auto_leaves_out_is_not_an_implausible_fit(tmp_path, capsys):
+    """One camera pose rotated by 10 deg among 12 stations: auto lists and leaves it out; the
+    plausibility check (trimmed RMS) must not call the fit unreliable for it."""
+    from handeye import cli
+    from handeye.noise import NoiseModel
+    from handeye.pose_readers import write_poses
+    from handeye.problems.axxb import simulate_stations
+    from handeye.se3 import inverse, make_pose, so3_exp
+
+    stations, _ = simulate_stations(12, seed=3, noise=NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)}))
+    camera = inverse(stations["B"])
+    camera[4] = make_pose(so3_exp([np.deg2rad(10.0), 0.0, 0.0]), [0.0, 0.0, 0.0]) @ camera[4]
+    robot_file, camera_file = tmp_path / "robot.csv", tmp_path / "camera.csv"
+    write_poses(robot_file, stations["A"], "matrix", unit="mm")
+    write_poses(camera_file, camera, "matrix", unit="mm")
+    code = cli.main(["calibrate", "--robot", str(robot_file), "--robot-format", "matrix", "--robot-unit", "mm",
+                     "--camera", str(camera_file), "--camera-format", "matrix", "--camera-unit", "mm",
+                     "--setup", "eye-in-hand", "--json"])
+    out = capsys.readouterr().out
+    report = json.loads(out)
+    assert code == 0 and report["status"] == "optimal", report["warnings"]
+    assert any("pair 4" in w for w in report["warnings"])

@@ -32,7 +32,12 @@ duplicated stations and fewer than 5 stations give warnings.
 
 Exit codes as handeye solve: 0 success; 2 bad input (file, format, unit, counts); 1 the solver
 failed or ended not_converged / failed, or the checks found the fit unreliable (the answer is
-printed for inspection, no file is written).
+printed for inspection, no -o / --yaml file is written; a --report is, to see why).
+
+``--report FILE`` writes a quality report: .html (one self-contained page, plots embedded) or .md
+(its PNG plots next to it): the answer with 1-sigma, the residual per station with the outliers
+marked, the data diagnostics and checks, a 3D plot of the poses and solved frames, and the
+warnings with what to do (handeye.quality_report; docs/calibrate.md).
 """
 
 from __future__ import annotations
@@ -53,6 +58,7 @@ from ..io import PAIRINGS, SETUPS, from_poses
 from ..plausibility import Streams, check
 from ..pose_formats import format_names, parse_format
 from ..pose_readers import UNITS, PoseStack, read_poses
+from ..quality_report import check_report_path, collect, write_report
 from ..registry import get_registry
 from ..solution import Status
 from ._common import _plain, dump_json, format_pose, parse_key_values
@@ -103,6 +109,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--option", action="append", metavar="KEY=VALUE", help="solver option, repeatable")
     parser.add_argument("-o", "--output", metavar="FILE", help="write the result as JSON (overwritten if it exists)")
     parser.add_argument("--yaml", metavar="FILE", help="write the result as YAML (overwritten if it exists)")
+    parser.add_argument("--report", metavar="FILE",
+                        help="write a quality report: .html (one self-contained page with plots) or .md (markdown, "
+                             "its PNG plots next to it); written also when the answer is unusable, to see why")
     parser.add_argument("--frame-ids", metavar="PARENT,CHILD",
                         help="frame ids of the ROS line (default flange,camera_optical_frame eye-in-hand; "
                              "base,camera_optical_frame eye-to-hand)")
@@ -221,12 +230,14 @@ def run(args: argparse.Namespace) -> int:
             parse_format(fmt)
         except InputError as exc:
             raise InputError(f"{flag}: {exc}") from None
-    outputs = [Path(p) for p in (args.output, args.yaml) if p]
+    if args.report:
+        check_report_path(args.report)
+    outputs = [Path(p) for p in (args.output, args.yaml, args.report) if p]
     inputs = {Path(args.robot).resolve(), Path(args.camera).resolve()}
-    if len(outputs) == 2 and outputs[0].resolve() == outputs[1].resolve():
-        raise InputError("-o and --yaml name the same file; give two files")
+    if len({p.resolve() for p in outputs}) < len(outputs):
+        raise InputError("two of -o, --yaml, --report name the same file; give different files")
     if any(p.resolve() in inputs for p in outputs):
-        raise InputError("an output file (-o / --yaml) is one of the input files; it would be overwritten")
+        raise InputError("an output file (-o / --yaml / --report) is one of the input files; it would be overwritten")
     if args.pairing is not None and args.problem != "axxb":
         raise InputError("--pairing applies to --problem axxb (motions between stations); with axyb every "
                          "station is one pair: drop it")
@@ -300,6 +311,14 @@ def run(args: argparse.Namespace) -> int:
     }
     unusable = solution.status in UNUSABLE or solution.status is Status.UNRELIABLE
     written = [] if unusable else _write(result, args.output, args.yaml)
+    if args.report:
+        data = collect(problem=args.problem, setup=args.setup, unit=unit, solution=solution, residuals=residuals,
+                       frames=frames, checks=result["checks"], warnings=result["warnings"],
+                       inputs={"robot file": f"{args.robot} ({robot.format}, {robot.unit})",
+                               "camera file": f"{args.camera} ({camera_read.format}, {camera_read.unit})"},
+                       robot_poses=robot.poses, stations=len(robot), pairing=pose_file.metadata.get("pairing"),
+                       command="handeye calibrate")
+        written.append(str(write_report(args.report, data)[0]))
     if args.json:
         print(dump_json(result))
     else:
@@ -307,12 +326,12 @@ def run(args: argparse.Namespace) -> int:
     for path in written:
         print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout)
     if solution.status is Status.UNRELIABLE:
-        print(f"handeye: error: status unreliable: {report.warnings[0] if report else ''}; no file was written "
+        print(f"handeye: error: status unreliable: {report.warnings[0] if report else ''}; no result file was written "
               "(--no-checks skips the checks)", file=sys.stderr)
         return 1
     if unusable:
         print(f"handeye: error: solver {solver!r} ended with status {solution.status}: its "
-              f"{', '.join(solution.unknowns)} (printed above) are not an answer and no file was written; "
+              f"{', '.join(solution.unknowns)} (printed above) are not an answer and no result file was written; "
               "try another solver", file=sys.stderr)
         return 1
     return 0

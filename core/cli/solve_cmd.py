@@ -32,6 +32,7 @@ import argparse
 import dataclasses
 import math
 import sys
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -50,6 +51,7 @@ from ..io import (
     supported_extensions,
 )
 from ..plausibility import Streams, check
+from ..quality_report import check_report_path, collect, write_report
 from ..registry import get_registry
 from ..se3 import inverse
 from ..solution import Status
@@ -96,6 +98,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                         help="solver option, repeatable; VALUE true/false (any case) is a bool, else it is "
                              "read as JSON when it parses (1e-8, \"x\"), else as text")
     parser.add_argument("--json", action="store_true", help="machine-readable output")
+    parser.add_argument("--report", metavar="FILE",
+                        help="write a quality report: .html (one self-contained page with plots) or .md (markdown, "
+                             "its PNG plots next to it); docs/calibrate.md")
     parser.add_argument("--no-checks", action="store_true",
                         help="files of absolute poses: skip the plausibility checks (docs/calibrate.md)")
     parser.set_defaults(run=run)
@@ -113,6 +118,10 @@ def default_solver(problem: str) -> str:
 def run(args: argparse.Namespace) -> int:
     if (args.file is None) == (args.example is None):
         raise InputError("give either a data FILE or --example [NAME] (not both, not neither)")
+    if args.report:
+        check_report_path(args.report)
+        if args.file is not None and Path(args.report).resolve() == Path(args.file).resolve():
+            raise InputError("--report names the data file; it would be overwritten")
     if args.example is not None:
         pose_file = example_file(args.example, args.problem, setup=args.setup, pairing=args.pairing)
         source = f"example {args.example!r}"
@@ -155,6 +164,16 @@ def run(args: argparse.Namespace) -> int:
         "checks": None if checks is None else checks.to_dict(),
     }
     print(dump_json(report) if args.json else _text(report, frames))
+    if args.report:
+        robot_poses = (pose_file.poses["robot_poses"] if pose_file.poses is not None
+                       else data["A"] if args.problem == "axyb" else None)  # axyb: A_i = T_base_flange
+        units = metadata.get("units")
+        written = write_report(args.report, collect(
+            problem=args.problem, setup=metadata.get("setup"), unit=units, solution=solution, residuals=residuals,
+            frames=frames, checks=report["checks"], warnings=report["warnings"],
+            inputs={"data": source + (f" ({units})" if units else "")}, robot_poses=robot_poses,
+            stations=report.get("stations"), pairing=report.get("pairing"), command="handeye solve"))
+        print(f"wrote {written[0]}", file=sys.stderr if args.json else sys.stdout)
     if solution.status is Status.UNRELIABLE:
         print(f"handeye: error: status unreliable: {checks.warnings[0] if checks else ''} (--no-checks skips "
               "the checks)", file=sys.stderr)

@@ -1,0 +1,115 @@
+"""``--report FILE`` of ``handeye calibrate`` and ``handeye solve``: the quality report
+(handeye.quality_report) written as one self-contained HTML page or as markdown with its PNGs,
+on a simulated cell with one corrupted station, and the bad-path exits."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+from handeye.cli import main
+from handeye.noise import NoiseModel
+from handeye.pose_readers import write_poses
+from handeye.problems.axxb import simulate_stations
+from handeye.se3 import inverse
+from scipy.spatial.transform import Rotation
+
+#: the corrupted station (0-based pair index; file row BAD + 1)
+BAD = 4
+
+
+def corrupted_cell(tmp_path, stations=12, corrupt=True):
+    """A noisy simulated eye-in-hand cell (mm) whose camera pose of station BAD is rotated 3 deg
+    (corrupt=False: left as simulated)."""
+    st, _ = simulate_stations(stations, seed=3, noise=NoiseModel({"A": (0.001, 0.1), "B": (0.001, 0.1)}))
+    camera = np.array(inverse(st["B"]))
+    if corrupt:
+        camera[BAD, :3, :3] = Rotation.from_euler("x", 3, degrees=True).as_matrix() @ camera[BAD, :3, :3]
+    robot = write_poses(tmp_path / "robot.csv", st["A"], "fanuc-wpr", unit="mm")
+    cam = write_poses(tmp_path / "camera.csv", camera, "opencv-rvec", unit="mm")
+    return robot, cam
+
+
+def calibrate(robot, camera, *extra):
+    return main([str(a) for a in ("calibrate", "--robot", robot, "--robot-format", "fanuc-wpr", "--camera", camera,
+                                  "--camera-format", "opencv-rvec", "--camera-unit", "mm", "--setup", "eye-in-hand",
+                                  *extra)])
+
+
+def test_html_report_of_a_corrupted_cell(tmp_path, capsys):
+    robot, camera = corrupted_cell(tmp_path)
+    report = tmp_path / "report.html"
+    code = calibrate(robot, camera, "--report", report)
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert f"wrote {report}" in out
+    page = report.read_text(encoding="utf-8")
+    # self-contained: no external asset, both plots embedded
+    assert 'src="http' not in page and "src='http" not in page and "<link" not in page
+    images = re.findall(r"src='([^']*)'", page)
+    assert len(images) == 2 and all(s.startswith("data:image/png;base64,") for s in images)
+    # the answer with frames and uncertainties
+    assert "X = T_flange_cam" in page and "Y = T_base_target" in page
+    assert len(re.findall(r"1-sigma: rotation [\d.e+-]+ deg, translation [\d.e+-]+ mm", page)) == 2
+    # the pair table: one row per station, the corrupted one marked
+    rows = re.findall(r"<tr(?: class='outlier')?><td class='l'>(\d+)</td><td class='l'>row (\d+)</td>", page)
+    assert [int(k) for k, _ in rows] == list(range(12))
+    marked = re.findall(r"<tr class='outlier'><td class='l'>(\d+)</td>", page)
+    assert marked == [str(BAD)]
+    # diagnostics, warnings with actions, run
+    assert "rotation excitation" in page and "plausibility check" in page and "cell size" in page
+    assert f"pair {BAD} (file row {BAD + 1}) is far off the others" in page
+    assert "check those stations&#x27; images" in page
+    assert "record at least" not in page  # 12 stations are enough
+    assert "handeye version" in page and "auto (backend" in page and str(robot) in page
+
+
+def test_markdown_report_writes_pngs_beside_it(tmp_path, capsys):
+    robot, camera = corrupted_cell(tmp_path, stations=6, corrupt=False)
+    report = tmp_path / "out" / "report.md"
+    report.parent.mkdir()
+    code = calibrate(robot, camera, "--report", report, "--solver", "kron-lstsq")
+    assert code == 0, capsys.readouterr().err
+    text = report.read_text(encoding="utf-8")
+    for name in ("report_residuals.png", "report_poses.png"):
+        png = report.parent / name
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert f"]({name})" in text
+    assert "| 5 | row 6 |" in text
+    assert "not reported by solver kron-lstsq" in text
+    assert "record at least 10 stations" in text  # 6 stations
+    assert "data:" not in text
+
+
+def test_solve_report_of_an_example(tmp_path, capsys):
+    report = tmp_path / "r.htm"
+    assert main(["solve", "--example", "--report", str(report), "--json"]) == 0
+    _, err = capsys.readouterr()
+    assert f"wrote {report}" in err
+    page = report.read_text(encoding="utf-8")
+    assert "<h2>Residuals per pair</h2>" in page and "class='outlier'" in page  # the example's outliers
+    assert page.count("data:image/png;base64,") == 2
+
+
+@pytest.mark.parametrize("name, message", [("report.pdf", "unknown extension '.pdf'"),
+                                           ("missing/report.html", "does not exist")])
+def test_bad_report_path(tmp_path, capsys, name, message):
+    robot, camera = corrupted_cell(tmp_path, stations=6)
+    code = calibrate(robot, camera, "--report", tmp_path / name)
+    out, err = capsys.readouterr()
+    assert code == 2 and out == ""
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert main(["solve", "--example", "--report", str(tmp_path / name)]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_report_never_imported_by_a_solve():
+    import subprocess
+    import sys
+
+    code = ("import sys, handeye; d, t, m = handeye.examples.load_example('simulated'); "
+            "handeye.solve('axyb', A=d['A'], B=d['B'], solver='kron-lstsq'); "
+            "assert 'matplotlib' not in sys.modules and 'handeye.quality_report' not in sys.modules")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode == 0, done.stderr
