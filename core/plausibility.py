@@ -140,10 +140,21 @@ class Report:
         }
 
 
-def cell_size(robot: np.ndarray) -> float:
-    """RMS distance of the flange positions robot[:, :3, 3] from their centroid (robot unit)."""
+def cell_size(robot: np.ndarray, camera: np.ndarray | None = None) -> float:
+    """The cell's lever arm (robot unit): the largest of the RMS distance of the flange positions
+    robot[:, :3, 3] from their centroid, their RMS distance from the robot base, and the RMS
+    camera-to-board distance. Rotation noise turns into translation residuals through these
+    arms, and which one dominates depends on the frame the residuals live in (the flange spread
+    for eye-in-hand motions; the base-to-camera distance, up to base-to-flange plus
+    camera-to-board, for eye-to-hand motions, whose residuals are in the base frame). The
+    camera arm counts up to twice the base-to-flange one, so that a camera file in the wrong unit
+    (1000x) cannot widen the limit with it."""
     t = np.asarray(robot, dtype=float)[:, :3, 3]
-    return float(np.sqrt(np.mean(np.sum((t - t.mean(axis=0)) ** 2, axis=1))))
+    arms = [np.sqrt(np.mean(np.sum((t - t.mean(axis=0)) ** 2, axis=1))), np.sqrt(np.mean(np.sum(t * t, axis=1)))]
+    if camera is not None:
+        c = np.asarray(camera, dtype=float)[:, :3, 3]
+        arms.append(min(np.sqrt(np.mean(np.sum(c * c, axis=1))), 2.0 * arms[1]))
+    return float(max(arms))
 
 
 #: share of the smallest residuals the RMS is taken over (module docstring)
@@ -250,7 +261,7 @@ def check(streams: Streams, residuals: Mapping[str, np.ndarray], *, hypotheses: 
     it; with hypotheses=False only the physical floor (part 1) is tested."""
     rot = math.degrees(_rms(residuals["rotation"]))
     trans = _rms(residuals["translation"])
-    size = cell_size(streams.robot)
+    size = cell_size(streams.robot, streams.camera)
     trans_limit = TRANS_LIMIT_FRACTION * size if size > 0 else math.inf
 
     def score(r: float, t: float) -> float:

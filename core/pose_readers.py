@@ -324,9 +324,20 @@ def _read_npz(path: Path, src: str) -> _Table:
         raise InputError(f"{src}: expected poses of shape (n, k) or (n, 4, 4), got {rows.shape}")
     if rows.dtype.kind not in "biuf":
         raise InputError(f"{src}: the pose array holds {rows.dtype} values, expected numbers")
-    unit = arrays["units"].item() if "units" in arrays else None
-    names = tuple(str(s) for s in arrays["names"]) if "names" in arrays else None
-    stamps = arrays.get("stamps")
+    unit = names = stamps = None
+    if "units" in arrays:
+        if arrays["units"].size != 1:
+            raise InputError(f"{src}: 'units' must be one string, 'mm' or 'm'; got {arrays['units'].tolist()!r}")
+        unit = str(arrays["units"].item())
+    if "names" in arrays:
+        if arrays["names"].ndim != 1:
+            raise InputError(f"{src}: 'names' must be a 1-D array of one name per pose, got shape {arrays['names'].shape}")
+        names = tuple(str(s) for s in arrays["names"])
+    if "stamps" in arrays:
+        value = arrays["stamps"]
+        if value.ndim != 1 or value.dtype.kind not in "biuf" or not np.all(np.isfinite(value)):
+            raise InputError(f"{src}: 'stamps' must be a 1-D array of finite numbers (seconds), one per pose")
+        stamps = value
     for key, value in (("names", names), ("stamps", stamps)):
         if value is not None and len(value) != len(rows):
             raise InputError(f"{src}: {key!r} has {len(value)} entries for {len(rows)} poses")

@@ -224,7 +224,9 @@ def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, d
 
 
 def _listing(idx: np.ndarray) -> str:
-    return ", ".join(str(int(i)) for i in idx)
+    """Indices as the user counts them: from 1 (row k of a file), with the 0-based index of the
+    arrays beside them, e.g. "no. 4 (index 3)"."""
+    return ", ".join(f"no. {int(i) + 1} (index {int(i)})" for i in idx)
 
 
 def _diagnostics(pipeline: list[str], start: str, init_status: Status, init_diag: dict[str, Any],

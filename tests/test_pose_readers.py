@@ -293,3 +293,17 @@ def test_explicit_delimiter(tmp_path):
     (tmp_path / "d.json").write_text("[[1, 2, 3, 0, 0, 90]]")
     with pytest.raises(InputError, match="delimiter applies to text files"):
         read_poses(tmp_path / "d.json", "fanuc-wpr", delimiter=",")
+
+
+@pytest.mark.parametrize("extra, message", [
+    ({"names": np.array("one")}, "'names' must be a 1-D array"),
+    ({"stamps": np.array(["a", "b", "c"])}, "'stamps' must be a 1-D array of finite numbers"),
+    ({"stamps": np.array([0.0, np.nan, 2.0])}, "'stamps' must be a 1-D array of finite numbers"),
+    ({"units": np.array(["mm", "m"])}, "'units' must be one string"),
+])
+def test_malformed_npz_side_arrays_are_input_errors(tmp_path, extra, message):
+    path = tmp_path / "poses.npz"
+    np.savez(path, poses=np.tile(np.eye(4), (3, 1, 1)).reshape(3, 16), **extra)
+    with pytest.raises(InputError, match=message) as info:
+        read_poses(path, "matrix", unit="mm")
+    assert "\n" not in str(info.value)
