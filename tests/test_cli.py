@@ -498,3 +498,11 @@ def test_bench_axxb_times_the_solvers_beside_cv2_calibrate_hand_eye(capsys):
     for method in ("TSAI", "PARK", "HORAUD", "ANDREFF", "DANIILIDIS"):
         assert f"\ncv2 direct {method} " in out
     assert f"\n{axxb_solver()}/numpy " in out and "issue" not in out.lower()
+
+
+def test_solve_prints_the_uncertainties(capsys):
+    """The text output gives each unknown's 1-sigma (from the solver's covariance, when it has one)."""
+    code, out, _ = run_cli(capsys, "solve", "--example")
+    assert code == 0 and out.count("  1-sigma: rotation ") == 2  # X and Y, from auto's refinement
+    code, out, _ = run_cli(capsys, "solve", "--example", "--solver", "kron-lstsq")
+    assert code == 0 and "1-sigma" not in out  # a closed form reports none

@@ -243,9 +243,15 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
     lines = [head + (f" ({extras})" if extras else ""),
              f"solver {r['solver']} (backend {r['backend']}): status {r['status']}, "
              f"solver time {_ms(r['seconds'])}" + _setup_note(r["diagnostics"])]
+    diagnostics = r["diagnostics"]
+    std_all = diagnostics.get("std") or (diagnostics.get("refine") or {}).get("std") or {}
     for name, T in r["unknowns"].items():
         frame = f" = {frames[name][0]} ({frames[name][1]})" if name in frames else ""
         lines += ["", f"{name}{frame} =", format_pose(np.array(T))]
+        std = std_all.get(name)
+        if std is not None:
+            lines.append(f"  1-sigma: rotation {_value('rotation', std['rotation'], unit)}   "
+                         f"translation {_value('translation', std['translation'], unit)}")
     if not frames:
         lines += ["", ("(no setup given: docs/conventions.md says which frames the unknowns are for "
                        "eye-in-hand and eye-to-hand data)")]
