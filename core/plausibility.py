@@ -189,7 +189,7 @@ def _hypotheses(s: Streams) -> list[tuple[str, str, np.ndarray, np.ndarray, str]
     other = "eye-to-hand" if s.setup == "eye-in-hand" else "eye-in-hand"
     out = [
         (("the camera poses are inverted (T_target_cam, the camera's pose in the board, instead of "
-          "T_cam_target)"), "invert the camera poses before calibrating", s.robot, inverse(s.camera), s.setup),
+          "T_cam_target)"), "invert the camera poses (--camera-poses camera-in-board)", s.robot, inverse(s.camera), s.setup),
         ("the robot poses are inverted (T_flange_base instead of T_base_flange)",
          "invert the robot poses before calibrating", inverse(s.robot), s.camera, s.setup),
         (f"the setup is {other}", f"--setup {other}", s.robot, s.camera, other),

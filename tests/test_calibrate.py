@@ -222,3 +222,116 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys):
 def test_help(capsys):
     code, out, _ = run_cli(capsys, "calibrate", "--help")
     assert code == 0 and "T_cam_target" in out and "--robot-unit" in out and "overwritten" in out
+
+
+# ----------------------------------------------------------------------------- --match, --camera-poses
+
+from pathlib import Path
+
+from handeye.errors import InputError
+from handeye.station_matching import default_max_dt, match_by_name, match_by_time
+
+ETH = Path(__file__).parents[2] / "shared" / "data" / "ethz_asl_handeye_2017" / "robot_arm"
+
+
+def test_match_by_time_nearest_stamp_and_max_dt():
+    robot = [0.0, 0.02, 0.04, 0.06, 0.08]
+    camera = [-0.05, 0.011, 0.027, 0.0605, 0.2, 0.03]
+    ri, ci, dt = match_by_time(robot, camera, 0.0085)
+    assert ci.tolist() == [2, 3] and ri.tolist() == [1, 3]
+    assert np.allclose(dt, [0.007, 0.0005])
+    ri, ci, _ = match_by_time(robot, camera, 0.0105)  # 0.011 nearest to 0.02 (0.009), not 0.0 (0.011)
+    assert ci.tolist() == [1, 2, 3, 5] and ri.tolist() == [1, 1, 3, 1]
+    assert match_by_time([0.0, 1.0], [0.5], 1.0)[0].tolist() == [0]  # a tie: the earlier stamp
+    ri, ci, _ = match_by_time([0.08, 0.0, 0.04], [0.079, 0.001], 0.005)  # unsorted robot stamps: file rows
+    assert ri.tolist() == [0, 1] and ci.tolist() == [0, 1]
+    assert default_max_dt(robot) == pytest.approx(0.01) and default_max_dt([1.0]) == 0.02
+    with pytest.raises(InputError):
+        match_by_time(robot, camera, -1.0)
+
+
+def test_match_by_name_pairs_and_lists_unmatched():
+    ri, ci = match_by_name(["a", "b", "c"], ["c", "a", "b"])
+    assert ri.tolist() == [0, 1, 2] and ci.tolist() == [1, 2, 0]
+    with pytest.raises(InputError, match=r"only in the robot file: 'c'; only in the camera file: 'd'"):
+        match_by_name(["a", "b", "c"], ["b", "a", "d"])
+    with pytest.raises(InputError, match="more than once"):
+        match_by_name(["a", "a"], ["a", "b"])
+
+
+def _named(path, names, stamps=None):
+    """Prefix the rows of a write_poses CSV with a name (and time) column."""
+    lines = path.read_text().splitlines()
+    head = "name," + ("t," if stamps is not None else "") + lines[1]
+    rows = [f"{n}," + (f"{stamps[i]!r}," if stamps is not None else "") + line
+            for i, (n, line) in enumerate(zip(names, lines[2:]))]
+    path.write_text("\n".join([head, *rows]) + "\n")
+
+
+def test_match_name_and_time_on_shuffled_files(tmp_path, capsys):
+    robot, camera, truth = cell(tmp_path, stations=10)
+    lines = camera.read_text().splitlines()
+    order = [3, 7, 0, 9, 1, 5, 2, 8, 6, 4]
+    camera.write_text("\n".join(lines[:2] + [lines[2 + k] for k in order]) + "\n")
+    _named(robot, [f"s{i}" for i in range(10)], [10.0 * i + 0.5 for i in range(10)])
+    _named(camera, [f"s{k}" for k in order], [10.0 * k + 0.5 + 0.003 for k in order])
+    ok = ["--camera-unit", "mm", "--json"]
+    code, out, err = run_cli(capsys, *args(robot, camera, "fanuc-wpr", "opencv-rvec", "eye-in-hand", *ok,
+                                           "--match", "name"))
+    assert code == 0, err
+    r = json.loads(out)
+    assert r["matching"]["matched"] == 10 and "matched 10 stations by name" in err
+    check_pose(r["X"], truth["X"], 1e-6, 1e-6)
+    code, out, err = run_cli(capsys, *args(robot, camera, "fanuc-wpr", "opencv-rvec", "eye-in-hand", *ok,
+                                           "--match", "time", "--max-dt", "0.01"))
+    assert code == 0, err
+    assert "matched 10 of 10 camera poses by time (max |dt| 3 ms" in err
+    check_pose(json.loads(out)["X"], truth["X"], 1e-6, 1e-6)
+    # row pairing of the shuffled files fails; name matching with a missing partner is exit 2
+    code, out, err = run_cli(capsys, *args(robot, camera, "fanuc-wpr", "opencv-rvec", "eye-in-hand", *ok))
+    assert code == 1
+    text = camera.read_text().replace("s9,", "s99,")
+    camera.write_text(text)
+    _bad(capsys, args(robot, camera, "fanuc-wpr", "opencv-rvec", "eye-in-hand", *ok, "--match", "name"),
+         "'s9'", "'s99'", "no partner")
+    _bad(capsys, args(robot, camera, "fanuc-wpr", "opencv-rvec", "eye-in-hand", *ok, "--max-dt", "0.1"), "--match time")
+
+
+def test_camera_in_board_is_inverted(tmp_path, capsys):
+    robot, camera, truth = cell(tmp_path, camera_format="xyz-quat-xyzw")
+    from handeye.pose_readers import read_poses
+    stack = read_poses(camera, "xyz-quat-xyzw", unit="mm")
+    write_poses(camera, inverse(stack.poses), "xyz-quat-xyzw", unit="mm")
+    code, out, err = run_cli(capsys, *args(robot, camera, "fanuc-wpr", "xyz-quat-xyzw", "eye-in-hand",
+                                           "--camera-unit", "mm", "--camera-poses", "camera-in-board"))
+    assert code == 0, err
+    assert "T_target_cam inverted" in out
+    X = np.array([[float(v) for v in line.split()] for line in out.split("X = T_flange_cam")[1].splitlines()[1:5]])
+    check_pose(X, truth["X"], 1e-5, 1e-5)
+
+
+@pytest.mark.skipif(not ETH.is_dir(), reason="ETH ASL hand-eye data set not present")
+def test_eth_robot_arm_matched_by_time(tmp_path, capsys):
+    """ETH ASL robot_arm (real, asynchronous 50 Hz robot / ~30 Hz camera, camera file T_target_cam):
+    150 evenly spaced camera rows matched to the nearest robot stamp within 20 ms. The data set's
+    README check: median residual 0.52 deg / 7.4 mm, |t_X| 0.017 m, |t_Y| 0.69 m (measured here:
+    148 pairs, 0.46 deg / 7.4 mm, |t_X| 0.0170 m, |t_Y| 0.692 m)."""
+    robot_src = ETH / "robot_arm_complete_bag_color_and_ir_base_link_sr300_hinge.csv"
+    camera_src = ETH / "robot_arm_complete_bag_color_and_ir_target_ir.csv"
+    rows = camera_src.read_text().splitlines()
+    keep = np.linspace(0, len(rows) - 1, 150).round().astype(int)
+    robot, camera = tmp_path / "robot.csv", tmp_path / "camera.csv"
+    robot.write_text(robot_src.read_text())
+    camera.write_text("\n".join(rows[k] for k in keep) + "\n")
+    code, out, err = run_cli(capsys, "calibrate", "--robot", robot, "--robot-format", "xyz-quat-xyzw",
+                             "--robot-unit", "m", "--camera", camera, "--camera-format", "xyz-quat-xyzw",
+                             "--camera-unit", "m", "--camera-poses", "camera-in-board", "--setup", "eye-in-hand",
+                             "--match", "time", "--max-dt", "0.02", "--json")
+    assert code in (0, 1), err
+    r = json.loads(out)
+    assert "camera poses by time" in err and 140 <= r["matching"]["matched"] <= 150 == r["matching"]["camera_poses"]
+    assert r["matching"]["max_abs_dt"] <= 0.02 and r["stations"] == r["matching"]["matched"]
+    assert 0.2 < r["residuals"]["rotation_deg"]["median"] < 1.0
+    assert 0.003 < r["residuals"]["translation"]["median"] < 0.015
+    assert 0.005 < np.linalg.norm(np.array(r["X"])[:3, 3]) < 0.04
+    assert 0.6 < np.linalg.norm(np.array(r["Y"])[:3, 3]) < 0.8

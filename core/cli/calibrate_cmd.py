@@ -2,8 +2,10 @@
 
 Reads the robot's flange poses (``--robot``, T_base_flange, e.g. a FANUC export ``x,y,z,w,p,r``)
 and the camera's board poses (``--camera``, T_cam_target: the pose of the calibration board in
-the camera frame, as cv2.solvePnP gives it, in any pose format), pairs them by row (row k of both
-files is station k), solves, and prints the unknowns with their frames, 1-sigma uncertainties,
+the camera frame, as cv2.solvePnP gives it, in any pose format; ``--camera-poses camera-in-board``
+for T_target_cam, inverted on reading), pairs them into stations (``--match row``, default: row k
+of both files is station k; ``name``: equal name columns; ``time``: each camera pose with the robot
+pose at the nearest time stamp within ``--max-dt``, no interpolation), solves, and prints the unknowns with their frames, 1-sigma uncertainties,
 residuals and a ROS 2 static_transform_publisher line; ``-o`` / ``--yaml`` write the same as
 JSON / YAML (an existing file is overwritten, and the output says "wrote FILE").
 
@@ -60,11 +62,15 @@ from ..pose_formats import format_names, parse_format
 from ..pose_readers import UNITS, PoseStack, read_poses
 from ..quality_report import check_report_path, collect, write_report
 from ..registry import get_registry
+from ..se3 import inverse
 from ..solution import Status
+from ..station_matching import MATCHES, default_max_dt, match_by_name, match_by_time
 from ._common import _plain, dump_json, format_pose, parse_key_values
 from .solve_cmd import EQUATIONS, FRAMES, UNUSABLE, _setup_note, default_solver
 
 NAME = "calibrate"
+#: what the camera file holds: board-in-camera = T_cam_target (as solvePnP), camera-in-board = T_target_cam
+CAMERA_POSES = ("board-in-camera", "camera-in-board")
 #: metres per unit
 METRES = {"mm": 1e-3, "m": 1.0}
 #: (problem, setup) -> (unknown published on ROS, default parent frame id, default child frame id):
@@ -86,9 +92,19 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--robot-format", required=True, metavar="FORMAT", help=f"format of --robot: {formats}")
     parser.add_argument("--camera", required=True, metavar="FILE",
                         help="board poses in the camera frame T_cam_target (solvePnP's rvec, tvec), one per "
-                             "station, in the robot file's order")
+                             "station, in the robot file's order (see --camera-poses, --match)")
     parser.add_argument("--camera-format", required=True, metavar="FORMAT",
                         help="format of --camera (opencv-rvec for solvePnP's rvec then tvec, or any of the above)")
+    parser.add_argument("--camera-poses", choices=CAMERA_POSES, default="board-in-camera",
+                        help="board-in-camera (default): the camera file holds T_cam_target; camera-in-board: it "
+                             "holds T_target_cam (the camera's pose in the board frame), inverted on reading")
+    parser.add_argument("--match", choices=MATCHES, default="row",
+                        help="how robot and camera poses are paired into stations: row (default): row k of both "
+                             "files; name: equal name/index columns; time: each camera pose with the robot pose "
+                             "at the nearest time stamp within --max-dt (no interpolation), others dropped")
+    parser.add_argument("--max-dt", type=float, metavar="SECONDS",
+                        help="--match time: largest |camera stamp - robot stamp| paired (default: half the median "
+                             "interval between robot stamps, or 0.02 s with fewer than two robot stamps)")
     parser.add_argument("--setup", required=True, choices=SETUPS,
                         help="eye-in-hand: camera on the flange, board fixed; eye-to-hand: camera fixed, board "
                              "on the flange")
@@ -138,16 +154,20 @@ def _read(path: str, fmt: str, unit: str | None, orthonormalize: bool, which: st
         raise InputError(f"--{which}: {text}") from None
 
 
-def _rereader(path: str, stack: PoseStack, unit: str, orthonormalize: bool):
+def _rereader(path: str, stack: PoseStack, unit: str, orthonormalize: bool, rows: np.ndarray | None = None,
+              invert: bool = False):
     """For an Euler format: seq -> the same file read with that Euler sequence (same columns,
-    angle unit and length unit), translations in `unit`; None for other formats."""
+    angle unit and length unit), translations in `unit`, the paired `rows` only (default all),
+    inverted if `invert`; None for other formats."""
     fmt = parse_format(stack.format)
     if fmt.kind != "euler":
         return None
 
     def reread(seq: str) -> np.ndarray:
         other = dataclasses.replace(fmt, seq=seq, name=f"euler:{seq}")
-        return read_poses(path, other, unit=stack.unit, orthonormalize=orthonormalize).in_unit(unit).poses
+        poses = read_poses(path, other, unit=stack.unit, orthonormalize=orthonormalize).in_unit(unit).poses
+        poses = poses if rows is None else poses[rows]
+        return inverse(poses) if invert else poses
 
     return reread
 
@@ -181,6 +201,57 @@ def _pairing_checks(robot: PoseStack, camera: PoseStack, robot_path: str, camera
             warnings.append(f"the time stamps of row {k + 1} differ by {gap[k]:.3g} s, more than half the "
                             f"{spacing:.3g} s between stations: stations are paired by row; check the order")
     return warnings
+
+
+def _take(stack: PoseStack, rows: np.ndarray) -> PoseStack:
+    """The poses (names, stamps) of `rows`, in that order."""
+    poses = np.array(stack.poses[rows])
+    poses.setflags(write=False)
+    names = None if stack.names is None else tuple(stack.names[i] for i in rows)
+    stamps = None if stack.stamps is None else np.array(stack.stamps)[rows]
+    return dataclasses.replace(stack, poses=poses, names=names, stamps=stamps)
+
+
+def _match(args: argparse.Namespace, robot: PoseStack, camera: PoseStack) -> tuple[np.ndarray, np.ndarray, dict, list[str]]:
+    """(robot rows, camera rows, the `matching` entry of the result, warnings) of --match."""
+    if args.max_dt is not None and args.match != "time":
+        raise InputError("--max-dt applies to --match time; drop it")
+    if args.match == "row":
+        warnings = _pairing_checks(robot, camera, args.robot, args.camera)
+        rows = np.arange(len(robot))
+        return rows, rows, {"method": "row", "matched": len(robot)}, warnings
+    if args.match == "name":
+        missing = [f"--{w} {p!r}" for w, p, s in (("robot", args.robot, robot), ("camera", args.camera, camera))
+                   if s.names is None]
+        if missing:
+            raise InputError(f"--match name: {' and '.join(missing)} has no name/index column (e.g. a header "
+                             "'name' or 'index'); use --match row or time")
+        ri, ci = match_by_name(robot.names, camera.names)
+        note = f"matched {len(ri)} stations by name"
+        return ri, ci, {"method": "name", "matched": len(ri), "message": note}, []
+    missing = [f"--{w} {p!r}" for w, p, s in (("robot", args.robot, robot), ("camera", args.camera, camera))
+               if s.stamps is None]
+    if missing:
+        raise InputError(f"--match time: {' and '.join(missing)} has no time stamp column (a header 't', 'time' or "
+                         "'stamp', or a first column of non-integer numbers); use --match row or name")
+    max_dt = default_max_dt(robot.stamps) if args.max_dt is None else args.max_dt
+    ri, ci, dt = match_by_time(robot.stamps, camera.stamps, max_dt)
+    worst = float(np.max(np.abs(dt))) if len(dt) else float("nan")
+    note = (f"matched {len(ci)} of {len(camera)} camera poses by time (max |dt| {worst * 1e3:.3g} ms, "
+            f"limit {max_dt * 1e3:.3g} ms{'' if args.max_dt is not None else ' = default'})")
+    if len(ci) == 0:
+        span = lambda t: f"{float(np.min(t)):.6g}..{float(np.max(t)):.6g} s"
+        raise InputError(f"--match time: no camera pose has a robot pose within {max_dt:.3g} s (robot stamps "
+                         f"{span(robot.stamps)}, camera stamps {span(camera.stamps)}); check that both use the "
+                         "same clock and unit (seconds), or raise --max-dt")
+    entry = {"method": "time", "matched": len(ci), "camera_poses": len(camera), "max_dt": max_dt,
+             "max_abs_dt": worst, "median_abs_dt": float(np.median(np.abs(dt))), "message": note}
+    warnings = []
+    if len(np.unique(ri)) < len(ri):
+        warnings.append(f"--match time: {len(ri) - len(np.unique(ri))} robot poses were paired with more than "
+                        "one camera pose (the camera stream is faster than the robot's); fine for a moving "
+                        "stream, but check --max-dt")
+    return ri, ci, entry, warnings
 
 
 # ----------------------------------------------------------------------------- the result
@@ -244,10 +315,19 @@ def run(args: argparse.Namespace) -> int:
     parent, child = _frame_ids(args.frame_ids, ROS_FRAMES[(args.problem, args.setup)][1:])
     options = parse_key_values(args.option)
 
-    robot = _read(args.robot, args.robot_format, args.robot_unit, args.orthonormalize, "robot")
-    camera_read = _read(args.camera, args.camera_format, args.camera_unit, args.orthonormalize, "camera")
-    warnings = _pairing_checks(robot, camera_read, args.robot, args.camera)
+    robot_file = _read(args.robot, args.robot_format, args.robot_unit, args.orthonormalize, "robot")
+    camera_file = _read(args.camera, args.camera_format, args.camera_unit, args.orthonormalize, "camera")
+    robot_rows, camera_rows, matching, warnings = _match(args, robot_file, camera_file)
+    invert = args.camera_poses == "camera-in-board"
+    robot = _take(robot_file, robot_rows)
+    camera_read = _take(camera_file, camera_rows)
+    if invert:
+        inverted = inverse(camera_read.poses)
+        inverted.setflags(write=False)
+        camera_read = dataclasses.replace(camera_read, poses=inverted)
     camera = camera_read.in_unit(robot.unit)
+    if args.json and "message" in matching:
+        print(matching["message"], file=sys.stderr)
     pose_file = from_poses(robot.poses, camera.poses, args.problem, setup=args.setup, pairing=args.pairing,
                            metadata={"units": robot.unit}, source=f"{args.robot} + {args.camera}")
     clash = sorted(set(options) & set(pose_file.data))
@@ -263,8 +343,10 @@ def run(args: argparse.Namespace) -> int:
         report = check(Streams(robot.poses, camera.poses, robot.unit, args.setup, args.problem,
                                pose_file.metadata.get("pairing"), robot_format=robot.format,
                                camera_format=camera_read.format, camera_unit=camera_read.unit,
-                               reread_robot=_rereader(args.robot, robot, robot.unit, args.orthonormalize),
-                               reread_camera=_rereader(args.camera, camera_read, robot.unit, args.orthonormalize)),
+                               reread_robot=_rereader(args.robot, robot, robot.unit, args.orthonormalize,
+                                                      robot_rows),
+                               reread_camera=_rereader(args.camera, camera_read, robot.unit, args.orthonormalize,
+                                                       camera_rows, invert)),
                        residuals)
         warnings += list(report.warnings)
         if not report.plausible:
@@ -288,6 +370,7 @@ def run(args: argparse.Namespace) -> int:
         "status": str(solution.status),
         "seconds": solution.seconds,
         "stations": len(robot),
+        "matching": matching,
         **({"pairing": pose_file.metadata["pairing"]} if "pairing" in pose_file.metadata else {}),
         "poses": {name: {k: v for k, v in e.items() if k != "matrix"} for name, e in unknowns.items()},
         "std": {name: e["std"] for name, e in unknowns.items()} if std_all else None,
@@ -301,9 +384,9 @@ def run(args: argparse.Namespace) -> int:
         "warnings": [*warnings, *solution.warnings],
         "checks": None if report is None else report.to_dict(),
         "inputs": {
-            "robot": {"file": args.robot, "format": robot.format, "unit": robot.unit, "poses": len(robot)},
+            "robot": {"file": args.robot, "format": robot.format, "unit": robot.unit, "poses": len(robot_file)},
             "camera": {"file": args.camera, "format": camera_read.format, "unit": camera_read.unit,
-                       "poses": len(camera_read)},
+                       "poses": len(camera_file), "holds": "T_target_cam" if invert else "T_cam_target"},
             "orthonormalize": bool(args.orthonormalize),
         },
         "ros": {"command": ros, "unknown": published, "frame_id": parent, "child_frame_id": child,
@@ -354,9 +437,12 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
     unit = r["units"]["translation"]
     inp = r["inputs"]
     cam_unit = inp["camera"]["unit"] + (f", converted to {unit}" if inp["camera"]["unit"] != unit else "")
+    if inp["camera"].get("holds") == "T_target_cam":
+        cam_unit += ", T_target_cam inverted"
     equation, item = EQUATIONS[r["problem"]]
     lines = [(f"{r['stations']} stations: robot {inp['robot']['file']} ({inp['robot']['format']}, {unit}), "
               f"camera {inp['camera']['file']} ({inp['camera']['format']}, {cam_unit})"),
+             *([r["matching"]["message"]] if "message" in r["matching"] else []),
              f"{r['setup']}, problem {r['problem']} ({equation})"
              + (f", {r['residuals']['count']} motions ({r['pairing']} pairs of stations)" if "pairing" in r else ""),
              f"solver {r['solver']} (backend {r['backend']}): status {r['status']}, {r['seconds'] * 1e3:.1f} ms"
