@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
+from .solution import jsonable
 
 #: extension -> report format
 FORMATS = {".html": "html", ".htm": "html", ".md": "markdown"}
@@ -117,7 +118,7 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
         rel = np.einsum("iab,jac->ijbc", R, R)  # R_i^T R_j
         cos = np.clip((np.trace(rel, axis1=2, axis2=3) - 1.0) / 2.0, -1.0, 1.0)
         data.setdefault("largest_rotation", float(np.arccos(cos).max()))
-    return _plain({
+    return jsonable({
         "command": command,
         "version": __version__,
         "problem": problem,
@@ -144,18 +145,6 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
         "inputs": dict(inputs),
         "robot_poses": None if robot_poses is None else np.asarray(robot_poses, dtype=float).tolist(),
     })
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 # ----------------------------------------------------------------------------- advice
