@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
-from .solution import jsonable
+from .solution import jsonable, standard_deviations
 
 #: extension -> report format
 FORMATS = {".html": "html", ".htm": "html", ".md": "markdown"}
@@ -66,11 +66,9 @@ def check_report_path(path: str | Path) -> str:
 
 def _std_of(diagnostics: Mapping[str, Any]) -> dict[str, dict[str, float]] | None:
     """1-sigma per unknown (rotation deg, translation) from the solver's diagnostics, or None."""
-    std = diagnostics.get("std") or (diagnostics.get("refine") or {}).get("std")
-    if not std:
-        return None
-    return {name: {"rotation_deg": math.degrees(float(s["rotation"])), "translation": float(s["translation"])}
-            for name, s in std.items()}
+    std = standard_deviations(diagnostics)
+    return {name: {"rotation_deg": math.degrees(s["rotation"]), "translation": s["translation"]}
+            for name, s in std.items()} or None
 
 
 def _joined(n: int, pairing: str | None) -> list[tuple[int, int]] | None:

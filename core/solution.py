@@ -96,6 +96,15 @@ class Solution:
         }
 
 
+def standard_deviations(diagnostics: Mapping[str, Any]) -> dict[str, dict[str, float]]:
+    """The 1-sigma of each unknown a solver reported, {name: {"rotation": rad, "translation":
+    data unit}} (root of the sum of the three axes' variances), from its covariance: refine's
+    ``diagnostics["std"]``, or auto's ``diagnostics["refine"]["std"]``; empty when it gave none."""
+    std = diagnostics.get("std") or (diagnostics.get("refine") or {}).get("std") or {}
+    return {name: {"rotation": float(s["rotation"]), "translation": float(s["translation"])}
+            for name, s in std.items()}
+
+
 def jsonable(value: Any) -> Any:
     """`value` with numpy arrays, numpy scalars and enums turned into plain Python (JSON-ready);
     mappings (keys as str) and sequences converted recursively."""

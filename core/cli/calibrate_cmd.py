@@ -63,7 +63,7 @@ from ..pose_readers import UNITS, PoseStack, read_poses
 from ..quality_report import check_report_path, collect, write_report
 from ..registry import get_registry
 from ..se3 import inverse
-from ..solution import Status
+from ..solution import Status, standard_deviations
 from ..station_matching import MATCHES, default_max_dt, match_by_name, match_by_time
 from ._common import _plain, dump_json, format_pose, parse_key_values
 from .solve_cmd import EQUATIONS, FRAMES, UNUSABLE, _setup_note, default_solver
@@ -352,7 +352,7 @@ def run(args: argparse.Namespace) -> int:
         if not report.plausible:
             solution = dataclasses.replace(solution, status=Status.UNRELIABLE)
     diagnostics = solution.diagnostics
-    std_all = diagnostics.get("std") or (diagnostics.get("refine") or {}).get("std") or {}
+    std_all = standard_deviations(diagnostics)
     frames = FRAMES[(args.problem, args.setup)]
     unit = robot.unit
     unknowns = {name: pose_entry(T, robot.format, std_all.get(name)) for name, T in solution.unknowns.items()}

@@ -54,7 +54,7 @@ from ..plausibility import Streams, check
 from ..quality_report import check_report_path, collect, write_report
 from ..registry import get_registry
 from ..se3 import inverse
-from ..solution import Status
+from ..solution import Status, standard_deviations
 from ._common import dump_json, format_pose, parse_key_values
 
 NAME = "solve"
@@ -244,7 +244,7 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
              f"solver {r['solver']} (backend {r['backend']}): status {r['status']}, "
              f"solver time {_ms(r['seconds'])}" + _setup_note(r["diagnostics"])]
     diagnostics = r["diagnostics"]
-    std_all = diagnostics.get("std") or (diagnostics.get("refine") or {}).get("std") or {}
+    std_all = standard_deviations(diagnostics)
     for name, T in r["unknowns"].items():
         frame = f" = {frames[name][0]} ({frames[name][1]})" if name in frames else ""
         lines += ["", f"{name}{frame} =", format_pose(np.array(T))]
