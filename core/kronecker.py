@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -131,6 +133,28 @@ class PosePairs:
 
     A: np.ndarray
     B: np.ndarray
+
+    @classmethod
+    def validated(cls, problem: str, data: Mapping[str, Any], min_pairs: int):
+        """The data object of `problem` from its raw fields {"A", "B"}: no other key and both
+        present, every pose checked (`handeye.validation.pose_stacks`: shapes, SE(3), the same
+        length >= min_pairs), and sums of squared translations that do not overflow (every
+        solver needs them: the linear systems, the unit normalisation). Raises InputError /
+        DegenerateDataError naming what is wrong; the problem adds its own degeneracy checks."""
+        from .validation import pose_stacks
+
+        fields = ("A", "B")
+        unexpected = set(data) - set(fields)
+        if unexpected:
+            raise InputError(f"problem {problem!r} takes data {list(fields)}, not {sorted(unexpected)}")
+        missing = [f for f in fields if f not in data]
+        if missing:
+            raise InputError(f"problem {problem!r} needs data {list(fields)}; missing {missing}")
+        out = cls(*pose_stacks({f: data[f] for f in fields}, min_pairs).values())
+        with np.errstate(over="ignore", invalid="ignore"):
+            if not np.isfinite(out.translation_scale):
+                raise overflow_error("the sums of squared translations")
+        return out
 
     @property
     def m(self) -> int:

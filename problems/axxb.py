@@ -30,11 +30,11 @@ from typing import Any
 import numpy as np
 from handeye import hookimpl, so3_fast
 from handeye.errors import DegenerateDataError, InputError
-from handeye.kronecker import PosePairs, overflow_error
+from handeye.kronecker import PosePairs
 from handeye.noise import NoiseModel
 from handeye.problem import Problem, StationReader, pose_discrepancy
 from handeye.se3 import inverse
-from handeye.validation import pose_stack, pose_stacks, same_length
+from handeye.validation import pose_stack, same_length
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
 PAIRINGS = ("consecutive", "all")
@@ -273,17 +273,7 @@ class AXXB(Problem):
                                    cell_truth={"eye-in-hand": {"X": "X"}, "eye-to-hand": {"X": "Y"}})
 
     def validate(self, **data: Any) -> AXXBData:
-        unexpected = set(data) - set(self.data_fields)
-        if unexpected:
-            raise InputError(f"problem 'axxb' takes data {list(self.data_fields)}, not {sorted(unexpected)}")
-        missing = [f for f in self.data_fields if f not in data]
-        if missing:
-            raise InputError(f"problem 'axxb' needs data {list(self.data_fields)}; missing {missing}")
-        A, B = pose_stacks({"A": data["A"], "B": data["B"]}, self.min_pairs).values()
-        out = AXXBData(A, B)
-        with np.errstate(over="ignore", invalid="ignore"):
-            if not np.isfinite(out.translation_scale):
-                raise overflow_error("the sums of squared translations")
+        out = AXXBData.validated(self.name, data, self.min_pairs)
         moving = int(np.sum(out.angles[0] > MIN_MOTION_ANGLE))
         if moving < 2 or out.axis_spread < DEGENERATE_AXIS_SPREAD:
             raise DegenerateDataError(

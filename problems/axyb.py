@@ -28,7 +28,6 @@ from handeye.kinematics import random_flange_poses
 from handeye.kronecker import (
     KroneckerSystem,
     PosePairs,
-    overflow_error,
     reduce_normal_equations,
 )
 from handeye.noise import NoiseModel
@@ -38,7 +37,7 @@ from handeye.se3 import (
     make_pose,
     project_to_so3,
 )
-from handeye.validation import pose_stack, pose_stacks
+from handeye.validation import pose_stack
 
 #: Ground truth of the paper's simulation (Sec. IV-A), projected onto SO(3): the printed 4-digit
 #: rotation blocks are not exactly orthonormal. Translations in mm.
@@ -193,16 +192,7 @@ class AXYB(Problem):
     station_reader = StationReader(pairs_from_stations)
 
     def validate(self, **data: Any) -> AXYBData:
-        unexpected = set(data) - set(self.data_fields)
-        if unexpected:
-            raise InputError(f"problem 'axyb' takes data {list(self.data_fields)}, not {sorted(unexpected)}")
-        A, B = pose_stacks({"A": data["A"], "B": data["B"]}, self.min_pairs).values()
-        out = AXYBData(A, B)
-        # Every solver needs sums of squared translations (eq. 8's normal equations, the RMS
-        # translation that normalises units): data whose sums overflow are refused for all alike.
-        with np.errstate(over="ignore", invalid="ignore"):
-            if not np.isfinite(out.translation_scale):
-                raise overflow_error("the sums of squared translations")
+        out = AXYBData.validated(self.name, data, self.min_pairs)
         excitation = out.rotation_excitation
         if excitation < DEGENERATE_EXCITATION:
             raise DegenerateDataError(

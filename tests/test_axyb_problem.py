@@ -273,3 +273,12 @@ def test_reduce_normal_equations_refuses_overflowed_sums():
     data = _huge()
     with np.errstate(over="ignore", invalid="ignore"), pytest.raises(handeye.InputError, match="sums of the linear system overflow"):
         reduce_system(data["A"], data["B"])
+
+
+def test_validate_names_a_missing_or_unexpected_field():
+    """Called directly (not through handeye.solve), validation still says what is missing."""
+    data, _ = PROBLEM.simulate(pairs=5, seed=1)
+    with pytest.raises(handeye.InputError, match=r"needs data \['A', 'B'\]; missing \['B'\]"):
+        PROBLEM.validate(A=data["A"])
+    with pytest.raises(handeye.InputError, match=r"takes data \['A', 'B'\], not \['C'\]"):
+        PROBLEM.validate(**data, C=data["A"])
