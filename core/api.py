@@ -11,6 +11,7 @@ from .errors import BackendUnavailableError, InputError, SolverError, UnknownPlu
 from .options import parse_options
 from .registry import get_registry
 from .se3 import orthonormality_error
+from .self_check import assess
 from .solution import Solution, SolverOutput, Status
 
 DEFAULT_SOLVER = "auto"
@@ -44,6 +45,9 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
     BackendUnavailableError : the backend's package is missing (names it).
     SolverError : the solver failed numerically.
     """
+    for what, name in (("problem", problem), ("solver", solver), ("backend", backend)):
+        if name is not None and not isinstance(name, str):
+            raise InputError(f"{what} must be a name (str), got {type(name).__name__} {name!r}")
     registry = get_registry()
     spec_problem = registry.problem(problem)
     if solver is None:
@@ -65,8 +69,13 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
     missing = [f for f in fields if f not in data_and_options]
     if missing:
         raise InputError(f"problem {problem!r} needs data {list(fields)}; missing {missing}")
-    data = spec_problem.validate(**{f: data_and_options[f] for f in fields})
-    options = parse_options(spec.options, {k: v for k, v in data_and_options.items() if k not in fields}, solver)
+    given = tuple(fields) + tuple(f for f in spec_problem.optional_fields if f in data_and_options)
+    data = spec_problem.validate(**{f: data_and_options[f] for f in given})
+    if getattr(data, "planar", None) is not None and not spec.planar_mode:
+        able = [n for n in registry.solver_names(problem) if registry.solver(n, problem).planar_mode]
+        raise InputError(f"solver {solver!r} has no planar (4-DOF) mode for data whose robot rotates about one "
+                         f"axis; use one of {', '.join(able) or '(none registered)'}")
+    options = parse_options(spec.options, {k: v for k, v in data_and_options.items() if k not in given}, solver)
 
     start = time.perf_counter()
     output = spec.run(data, options, backend)
@@ -77,14 +86,27 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
     unknowns = {name: _checked_pose(output.unknowns, name, solver) for name in spec_problem.unknowns}
     diagnostics = dict(output.diagnostics)
     weak = spec_problem.diagnose(data)
-    diagnostics["warnings"] = list(weak.pop("warnings", [])) + list(diagnostics.get("warnings", []))
+    status = Status(output.status)
+    check = assess(spec_problem, data, unknowns, diagnostics)
+    diagnostics["self_check"] = {"reliable": check.reliable, "failures": list(check.failures), **check.figures}
+    warnings = list(weak.pop("warnings", [])) + list(diagnostics.get("warnings", [])) + list(check.warnings)
+    if not check.reliable:
+        instead = ("use solver 'auto'" if solver != DEFAULT_SOLVER else
+                   "check the data (handeye calibrate checks files for the usual setup mistakes)")
+        message = f"self-check failed, do not use this answer: {'; '.join(check.failures)}; {instead}"
+        if status in (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED):
+            status = Status.UNRELIABLE
+            warnings.insert(0, message)  # the reason for the status comes first
+        else:
+            warnings.append(message)  # the solver's own reason for its status comes first
+    diagnostics["warnings"] = warnings
     diagnostics.setdefault("data", weak)
     return Solution(
         unknowns=unknowns,
         problem=problem,
         solver=solver,
         backend=backend,
-        status=Status(output.status),
+        status=status,
         seconds=seconds,
         diagnostics=diagnostics,
     )

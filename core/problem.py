@@ -49,6 +49,9 @@ class Problem(ABC):
     #: names of the data stacks, e.g. ("A", "B"), each (m, 4, 4)
     data_fields: ClassVar[tuple[str, ...]]
     min_pairs: ClassVar[int]
+    #: facts about the cell the data may carry besides the stacks, passed to `validate` when given
+    #: (e.g. ``tz_X``, the translation a planar robot's motions cannot determine)
+    optional_fields: ClassVar[tuple[str, ...]] = ()
     #: how the data are made from a cell's absolute poses, or None when they cannot be
     station_reader: ClassVar[StationReader | None] = None
 
@@ -75,6 +78,24 @@ class Problem(ABC):
     def diagnose(self, data: Any) -> dict[str, Any]:
         """Figures describing how well the data determine the unknowns, and ``warnings``."""
         return {"warnings": []}
+
+    def check_model(self, data: Any, unknowns: Poses) -> tuple[Any, tuple[np.ndarray, ...], tuple[str, ...]] | None:
+        """For the host's self-check (`handeye.self_check`): a least-squares model of the data
+        (`handeye.nlls.PoseModel`), the poses to start it from (the answer's, with any nuisance
+        unknown of the model fitted to it) and the names among the model's unknowns that are
+        the answer's; None: the problem offers no such check."""
+        return None
+
+    def expected_rotation_residual(self, data: Any) -> float | None:
+        """The median rotation residual (rad, of `residuals`) a correct answer leaves at the
+        noise these data show, measured without the unknowns (e.g. from the rotation angles of
+        paired motions, which must agree); None when the data cannot tell."""
+        return None
+
+    def rotation_axes(self, data: Any) -> dict[str, np.ndarray]:
+        """Per unknown, the robot's main rotation axis (unit) in the frame the unknown is
+        expressed in, for naming a poorly determined direction; empty when not known."""
+        return {}
 
     def random_unknowns(self, rng: np.random.Generator, translation_scale: float = 500.0) -> dict[str, np.ndarray]:
         """Random unknowns for tests and studies: uniform rotations, translations

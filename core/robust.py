@@ -22,6 +22,10 @@ LOSSES = ("linear", "huber", "cauchy")
 #: sqrt of the 95% quantile of chi^2 with 6 degrees of freedom: a pair whose whitened 6-vector is
 #: longer than this is an outlier at the 5% level; the default threshold of the robust losses.
 DEFAULT_LOSS_SCALE = 3.5484626592
+#: a pair whose residual, whitened by median-based scales, has squared norm beyond this (8 robust
+#: sigmas) is far off the others: a gross error, not noise (`auto`'s outlier step, the host's
+#: self-check)
+OUTLIER_CHI2 = 64.0
 
 
 def loss_terms(s: np.ndarray, loss: str, c: float) -> tuple[np.ndarray, np.ndarray]:

@@ -75,3 +75,37 @@ class AXXBModel(AXYBModel):
         X, = poses
         g_rot, g_trans, H = super().normal_equations((X, X), e, wr, wt, d)
         return g_rot[:6] + g_rot[6:], g_trans[:6] + g_trans[6:], H[:6, :6] + H[:6, 6:] + H[6:, :6] + H[6:, 6:]
+
+
+# --------------------------------------------------------------------------- the host's self-check
+
+def expected_rotation_residual(data: AXXBData) -> float | None:
+    """`Problem.expected_rotation_residual` for A_i X = X B_i: from the angle differences of the
+    motions themselves; a motion's residual carries two stations' noise, as its angle difference."""
+    from handeye.self_check import angle_noise, chi3_expected
+
+    sigma = angle_noise(*data.angles)
+    return None if sigma is None else chi3_expected(sigma, 2.0)
+
+
+def rotation_axes(data: AXXBData) -> dict[str, np.ndarray]:
+    """The robot's main rotation axis in X's frame: that of the motions A_i."""
+    from handeye.self_check import main_axis
+
+    axis = main_axis(data.rotation_vectors[0])
+    return {} if axis is None else {"X": axis}
+
+
+def check_model(data: AXXBData, unknowns: dict[str, np.ndarray]) -> tuple[AXYBModel, tuple[np.ndarray, ...], tuple[str, ...]]:
+    """`Problem.check_model` for A_i X = X B_i. Motions made from every pair of n stations share
+    their noise, so a motion model would count each station n - 1 times: when the stations are
+    recoverable (`AXXBData.stations`) the model is A_k X = Y B_k on them, with Y (the pose of
+    station 0, a nuisance) fitted to the answer's X; else the motion model."""
+    from handeye.problems.axyb import AXYBData
+    from handeye.problems.axyb_geometry import fitted_Y
+
+    X = np.asarray(unknowns["X"], dtype=float)
+    if data.stations is not None:
+        A, B = data.stations
+        return AXYBModel(AXYBData(A, B)), (X, fitted_Y(A, B, X)), ("X",)
+    return AXXBModel(data), (X,), ("X",)

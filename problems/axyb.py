@@ -50,10 +50,10 @@ PAPER_Y = make_pose(
     [165.0, 300.0, -962.0],
 )
 
-#: Relative rotation excitation (see `AXYB.diagnose`) below which the rotations are undetermined.
+#: Relative rotation excitation (see `AXYBData.rotation_excitation`) below which the rotations
+#: are undetermined. (How well stronger data determine X and Y at their noise is the host's
+#: self-check, `handeye.self_check`, not a threshold on the data alone.)
 DEGENERATE_EXCITATION = 1e-10
-#: ... and below which a warning says the data are weak.
-WEAK_EXCITATION = 1e-4
 
 
 @dataclasses.dataclass(frozen=True)
@@ -203,20 +203,27 @@ class AXYB(Problem):
         return out
 
     def diagnose(self, data: AXYBData) -> dict[str, Any]:
-        excitation = data.rotation_excitation
-        warnings = []
-        if excitation < WEAK_EXCITATION:
-            warnings.append(
-                f"weak rotation excitation ({excitation:.1e} < {WEAK_EXCITATION:g}): the robot poses "
-                "rotate too little or about too few axes, so X and Y will be poorly determined; add "
-                "poses with larger rotations about other axes"
-            )
-        return {"pairs": data.m, "rotation_excitation": excitation, "warnings": warnings}
+        return {"pairs": data.m, "rotation_excitation": data.rotation_excitation, "warnings": []}
 
     def residuals(self, data: AXYBData, unknowns: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Per pair: rotation angle of (A_i X)(Y B_i)^-1 (eq. 32), |t(A_i X) - t(Y B_i)| (eq. 33)."""
         return pose_discrepancy(data.A @ np.asarray(unknowns["X"], dtype=float),
                                 np.asarray(unknowns["Y"], dtype=float) @ data.B)
+
+    def check_model(self, data: AXYBData, unknowns: Mapping[str, np.ndarray]) -> tuple[Any, tuple[np.ndarray, ...], tuple[str, ...]]:
+        from handeye.problems import axyb_geometry
+
+        return axyb_geometry.check_model(data, unknowns)
+
+    def expected_rotation_residual(self, data: AXYBData) -> float | None:
+        from handeye.problems import axyb_geometry
+
+        return axyb_geometry.expected_rotation_residual(data)
+
+    def rotation_axes(self, data: AXYBData) -> dict[str, np.ndarray]:
+        from handeye.problems import axyb_geometry
+
+        return axyb_geometry.rotation_axes(data)
 
     def simulate(self, *, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
                  X: np.ndarray | None = None, Y: np.ndarray | None = None,

@@ -143,3 +143,57 @@ class AXYBModel(PoseModel):
         H[6:9, 9:12] = wt * (RY.T @ so3_fast.skew(dq.sum(axis=0)) @ RY)
         Hw = np.triu(H) + np.triu(H, 1).T  # mirror the upper blocks filled above
         return g_rot, g_trans, Hw
+
+
+# --------------------------------------------------------------------------- the host's self-check
+
+def consecutive_motions(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Rotation vectors and angles of the robot's consecutive motions A_k^-1 A_k+1 (in the flange
+    frame) and A_k+1 A_k^-1 (in the base frame), and the angles of the camera's B_k^-1 B_k+1:
+    (phi_right (m-1, 3), phi_left (m-1, 3), angle_A (m-1,), angle_B (m-1,))."""
+    RA, RB = A[:, :3, :3], B[:, :3, :3]
+    right = np.swapaxes(RA[:-1], 1, 2) @ RA[1:]
+    left = RA[1:] @ np.swapaxes(RA[:-1], 1, 2)
+    cam = np.swapaxes(RB[:-1], 1, 2) @ RB[1:]
+    phi_right, phi_left, phi_cam = (so3_fast.log(R) for R in (right, left, cam))
+    return phi_right, phi_left, np.linalg.norm(phi_right, axis=1), np.linalg.norm(phi_cam, axis=1)
+
+
+def expected_rotation_residual(data: AXYBData) -> float | None:
+    """`Problem.expected_rotation_residual` for A_i X = Y B_i: from the angle differences of
+    consecutive motions; a station's residual carries one station's noise."""
+    from handeye.self_check import angle_noise, chi3_expected
+
+    if data.m < 4:
+        return None
+    _, _, angle_A, angle_B = consecutive_motions(data.A, data.B)
+    sigma = angle_noise(angle_A, angle_B)
+    return None if sigma is None else chi3_expected(sigma, 1.0)
+
+
+def rotation_axes(data: AXYBData) -> dict[str, np.ndarray]:
+    """The robot's main rotation axis in X's frame (the flange: motions A_k^-1 A_k+1) and in Y's
+    (the base: A_k+1 A_k^-1)."""
+    from handeye.self_check import main_axis
+
+    if data.m < 2:
+        return {}
+    phi_right, phi_left, _, _ = consecutive_motions(data.A, data.B)
+    axes = {"X": main_axis(phi_right), "Y": main_axis(phi_left)}
+    return {k: v for k, v in axes.items() if v is not None}
+
+
+def check_model(data: AXYBData, unknowns: dict[str, np.ndarray]) -> tuple[AXYBModel, tuple[np.ndarray, ...], tuple[str, ...]]:
+    """`Problem.check_model` for A_i X = Y B_i: this model at the answer (X, Y)."""
+    return AXYBModel(data), (np.asarray(unknowns["X"], dtype=float), np.asarray(unknowns["Y"], dtype=float)), ("X", "Y")
+
+
+def fitted_Y(A: np.ndarray, B: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """The Y that best fits A_k X = Y B_k for a given X: the chordal mean rotation of
+    R_A R_X R_B^T and the mean translation of t(A_k X) - R_Y t_B."""
+    from handeye.se3 import make_pose, project_to_so3
+
+    AX = A @ X
+    RY = project_to_so3(np.einsum("nij,nkj->ik", AX[:, :3, :3], B[:, :3, :3]))
+    tY = np.mean(AX[:, :3, 3] - B[:, :3, 3] @ RY.T, axis=0)
+    return make_pose(RY, tY)

@@ -10,8 +10,6 @@ from handeye.noise import NoiseModel
 from handeye.problems.axxb import (
     MISMATCH_ANGLE_FLOOR,
     PROBLEM,
-    WEAK_AXIS_SPREAD,
-    WEAK_ROTATION,
     motions,
     normal_equations,
     regression_blocks,
@@ -218,20 +216,16 @@ def test_parallel_axes_are_degenerate_in_words():
                          B=np.stack([make_pose(np.eye(3), [2, 1, k]) for k in range(3)]))
 
 
-def test_weak_axis_spread_and_small_rotations_warn_with_numbers():
+def test_axis_spread_and_largest_rotation_are_figures():
     data = _about_one_axis(8)
     A = data["A"].copy()
     A[0] = make_pose(so3_exp([0.02, 0.0, 0.5]), A[0, :3, 3])  # tilted by ~2.3 deg
     X = PROBLEM.random_unknowns(np.random.default_rng(9))["X"]
     diag = PROBLEM.diagnose(PROBLEM.validate(A=A, B=inverse(X) @ A @ X))
-    assert diag["axis_spread"] < WEAK_AXIS_SPREAD
-    assert any("rotation axes of the robot motions differ by only" in w and "deg" in w for w in diag["warnings"])
-    small = _about_one_axis(4)
+    assert 0.01 < diag["axis_spread"] < 0.05 and diag["warnings"] == []  # judged at the noise: test_self_check
     small_A = make_pose(so3_exp(np.random.default_rng(2).normal(0, 0.02, (5, 3))), np.ones((5, 3)))
     diag = PROBLEM.diagnose(PROBLEM.validate(A=small_A, B=inverse(X) @ small_A @ X))
-    assert diag["largest_rotation"] < WEAK_ROTATION
-    assert any("rotate by at most" in w for w in diag["warnings"])
-    assert small  # the helper builds valid data
+    assert diag["largest_rotation"] < 0.1 and diag["warnings"] == []
 
 
 def test_good_data_have_no_warnings(noisy):

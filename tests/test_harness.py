@@ -205,7 +205,8 @@ def test_non_optimal_answers_are_kept_with_their_warnings(test_plugin):
     result = run_study(tiny_study(specs=(Spec("harness-test-unsure"),)), jobs=1, progress=False)
     for row in result.records:
         assert row["status"] == "not_converged" and row["error"] == ""
-        assert row["warnings"] == 1 and row["notes"] == "harness test: gave up after 0 iterations"
+        # the solver's warning, then the host's self-check (identity is far from the best fit)
+        assert row["warnings"] == 2 and row["notes"].startswith("harness test: gave up after 0 iterations")
         assert np.isfinite(row["err_rot_X"]) and row["err_rot_X"] > 1.0  # identity vs the paper's X
     assert [e["not_optimal"] for e in result.summary()] == [2, 2]
 

@@ -53,8 +53,16 @@ PROBLEM_DEFAULT: dict[tuple[str, str], dict[str, float]] = {
 
 #: (problem, solver, regime) -> overrides, each with its reason in a comment
 TOLERANCES: dict[tuple[str, str, str], dict[str, float]] = {
-    # li reads t_X, t_Y from beta of eq. 8 (no re-solve, by design): t Y median 9.5, worst 12.5 mm over seeds 0..19
+    # li reads t_X, t_Y from beta of eq. 8 (no re-solve, by design): t Y median 9.5, worst 12.5 mm over seeds 0..19;
+    # the data determine t_Y to 0.73 mm (1-sigma), so the self-check finds li's answer 142 sigma from
+    # the best fit and reports it unreliable (STATUS below)
     ("axyb", "li", "noisy"): {"translation": 30.0},
+}
+
+#: (problem, solver, regime) -> the status the shared noisy case must end with when it is not one
+#: of optimal / optimal_inaccurate / uncertified, with the figures in a comment at TOLERANCES
+STATUS: dict[tuple[str, str, str], str] = {
+    ("axyb", "li", "noisy"): "unreliable",
 }
 
 

@@ -17,7 +17,9 @@ solves as AX=YB and as AX=XB. ``--problem axxb --example`` solves the bundled ex
 Exit code 0 for status optimal, optimal_inaccurate and uncertified (a valid answer that the
 solver could not certify globally optimal; the output says so). Exit code 1 for not_converged
 and failed, and for unreliable: the answer is still printed, for inspection, with a warning and
-one line on stderr, but it must not be used. A file of absolute poses (robot and camera) is
+one line on stderr, but it must not be used. Every answer is checked against the data it came
+from (residuals against the noise the data show, distance from the best fit, gross pairs): an
+answer that fails is unreliable, whichever solver gave it. A file of absolute poses (robot and camera) is
 checked for plausibility as handeye calibrate does (docs/calibrate.md; --no-checks skips it):
 residuals no calibrated cell gives, or a usual setup mistake that explains the data far better,
 make the status unreliable.
@@ -175,8 +177,9 @@ def run(args: argparse.Namespace) -> int:
             stations=report.get("stations"), pairing=report.get("pairing"), command="handeye solve"))
         print(f"wrote {written[0]}", file=sys.stderr if args.json else sys.stdout)
     if solution.status is Status.UNRELIABLE:
-        print(f"handeye: error: status unreliable: {checks.warnings[0] if checks else ''} (--no-checks skips "
-              "the checks)", file=sys.stderr)
+        why = checks.warnings[0] if checks and not checks.plausible else solution.warnings[0]
+        skip = " (--no-checks skips the file checks)" if checks and not checks.plausible else ""
+        print(f"handeye: error: status unreliable: {why}{skip}", file=sys.stderr)
         return 1
     if solution.status in UNUSABLE:
         print(f"handeye: error: solver {solver!r} ended with status {solution.status}: its "
@@ -272,7 +275,7 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
     if r["status"] in UNUSABLE:
         lines.append(f"warning: status {r['status']}: the solver did not reach its answer; do not use {names}")
     elif r["status"] == Status.UNRELIABLE:
-        lines.append(f"warning: status unreliable: the residuals are implausible for a calibrated cell; do not use "
+        lines.append(f"warning: status unreliable: the data do not support this answer; do not use "
                      f"{names} (the first warning below says why)")
     elif r["status"] == Status.UNCERTIFIED:
         lines.append("note: status uncertified: a valid answer, but the solver could not prove it "

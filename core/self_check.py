@@ -1,0 +1,298 @@
+"""The host's self-check of every answer, and how precisely the data determine it.
+
+A solver's status says it solved *its* problem. Under heavy noise, with few pairs, tiny
+translations or gross pairs, a closed form can solve its problem and still return a rotation
+tens of degrees off, with status ``optimal``. `handeye.solve` therefore checks every answer, any
+solver's (third parties' too), against the data it was computed from:
+
+1. **Residuals against the noise the data show.** The rotation angle of a motion is the same
+   for the robot and the camera (A = X B X^-1 conjugates), so the differences of those angles
+   measure the rotation noise without knowing X (`angle_noise`). The median residual rotation of
+   a correct answer is about CHI3_MEDIAN times that noise (per pair); an answer whose median
+   residual rotation exceeds `ROTATION_RESIDUAL_FACTOR` times it is broken.
+2. **Distance from the best fit.** From the answer, a local maximum-likelihood fit of the same
+   data (`handeye.nlls`, the engine of ``refine``; Cauchy loss when some pairs are far off the
+   others) gives the best answer near it and its covariance. The answer's distance from it in
+   standard deviations, d = sqrt(delta^T Sigma^-1 delta), is ~0-3 for a good estimator; beyond
+   `DISTANCE_WARN` a warning says how far and that ``auto`` fits better; beyond `DISTANCE_FAIL`
+   the answer is unreliable. (Sigma gets a floor of NUMERICAL_FLOOR so that noise-free data, where
+   every numerical solver is "infinitely many sigmas" from the exact answer at 1e-8, pass.)
+3. **Gross pairs.** Pairs whose whitened residual exceeds OUTLIER_CHI2 (`handeye.robust`) at the
+   least-squares fit make the best fit of check 2 a robust (Cauchy) one; the pairs still far off
+   at it, unless the solver reports having left them out (``diagnostics["outliers"]``, as
+   ``auto`` does), are named in check 2's message, as the reason its answer is pulled away.
+4. **Signs a solver reports of a broken estimate** (``diagnostics["rotation_blocks"]``: the
+   determinant and singular values of each rotation block before projection onto SO(3), see
+   `rotation_block_figures`): det <= 0 or singular values further apart than BLOCK_SPREAD.
+
+Then **observability**: the covariance of the best fit, at the noise the data show, says how
+precisely the data determine each unknown; where the 1-sigma of a rotation exceeds
+`PRECISION_ROTATION_DEG` or of a translation exceeds `PRECISION_TRANSLATION` of the data's lever
+arm (their RMS translation), a warning gives the figures and the worst direction, named when it
+is the robot's main rotation axis (few or nearly parallel rotation axes).
+
+A problem takes part through three optional methods of `handeye.problem.Problem`:
+``check_model`` (the least-squares model of check 2, with nuisance unknowns fitted),
+``expected_rotation_residual`` (check 1) and ``rotation_axes`` (for naming directions).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from . import nlls, so3_fast
+from .errors import DegenerateDataError
+from .robust import OUTLIER_CHI2
+from .whitening import CHI3_MEDIAN, estimate_sigmas
+
+#: check 1: median residual rotation beyond this many times what the data's noise gives
+ROTATION_RESIDUAL_FACTOR = 10.0
+#: check 2: distance from the best fit (standard deviations) beyond which a warning is given ...
+DISTANCE_WARN = 5.0
+#: ... and beyond which the answer is unreliable. Between the two the answer is wrong beyond the
+#: data's uncertainty but not broken: the paper's lmi-sdp and li, whose Kronecker cost is not the
+#: likelihood, land at 20-70 sigma on ordinary data (0.01-0.1 deg, 1-5 mm from the best fit);
+#: the broken answers of the reliability campaign (docs/reliability.md) at 100-20000.
+DISTANCE_FAIL = 100.0
+#: rotation (rad), and translation relative to the data's lever arm, below which differences are
+#: exact for every practical purpose (numerical solvers stop at ~1e-8 on noise-free data, where
+#: the best fit's sigma is ~1e-13 and every such answer would otherwise be "many sigmas" off)
+NUMERICAL_FLOOR = 1e-6
+#: check 4: largest ratio of the singular values of a rotation block before projection
+BLOCK_SPREAD = 2.0
+#: motions rotating less than this (rad) give no usable angle difference (check 1)
+MIN_ANGLE = 0.1
+#: fewest usable motions for check 1
+MIN_MOTIONS = 3
+#: observability: 1-sigma beyond which the data do not determine an unknown well enough
+PRECISION_ROTATION_DEG = 0.25
+PRECISION_TRANSLATION = 0.01
+#: the rotations are "mostly about one axis" when the second eigenvalue of sum phi phi^T is below
+#: this share of the first (axes within ~35 deg of each other)
+AXIS_SHARE = 0.1
+#: a direction within this angle (deg) of the robot's main rotation axis is named as that axis
+AXIS_NAMING_DEG = 25.0
+#: iterations of the local fit (it starts at the answer; good answers converge in a few) and
+#: its tolerance: the fit stops when a Gauss-Newton step would lower the objective (~3m, in
+#: whitened units) by less than FIT_TOL of it, i.e. d^2 / 2 is known to ~1e-6 * 3m
+MAX_ITER = 50
+FIT_TOL = 1e-6
+
+
+@dataclasses.dataclass(frozen=True)
+class Assessment:
+    """What the self-check found: reliable (all checks passed), failures (why not, for the
+    user), warnings (weaker findings and precision), figures (JSON-ready, for diagnostics)."""
+
+    reliable: bool
+    failures: tuple[str, ...]
+    warnings: tuple[str, ...]
+    figures: Mapping[str, Any]
+
+
+def angle_noise(angle_A: np.ndarray, angle_B: np.ndarray) -> float | None:
+    """Robust standard deviation (rad) of the differences of the rotation angles of paired
+    motions (1.4826 x their median absolute value), over the motions that rotate by more than
+    MIN_ANGLE on both sides; None with fewer than MIN_MOTIONS such motions."""
+    use = (angle_A > MIN_ANGLE) & (angle_B > MIN_ANGLE)
+    if use.sum() < MIN_MOTIONS:
+        return None
+    return 1.4826 * float(np.median(np.abs(angle_A[use] - angle_B[use])))
+
+
+def main_axis(rotation_vectors: np.ndarray) -> np.ndarray | None:
+    """The unit axis the rotations (rotation vectors, (n, 3)) turn mostly about: the principal
+    eigenvector of sum phi phi^T (sign free), when its eigenvalue is at least 1 / AXIS_SHARE times
+    the next one (the rotations are mostly about one axis); else None."""
+    S = rotation_vectors.T @ rotation_vectors
+    w, V = np.linalg.eigh(S)
+    return V[:, 2] if w[2] > MIN_ANGLE**2 and w[1] < AXIS_SHARE * w[2] else None
+
+
+def rotation_block_figures(M: np.ndarray) -> dict[str, Any]:
+    """What a solver reports of a 3x3 rotation block before projecting it onto SO(3): its
+    determinant and singular values, after scaling to |det| = 1 (check 4)."""
+    M = np.asarray(M, dtype=float)
+    det = float(np.linalg.det(M))
+    s = np.linalg.svd(M, compute_uv=False)
+    scale = abs(det) ** (1.0 / 3.0) if det != 0 and math.isfinite(det) else float(s.max() or 1.0)
+    return {"det": float(np.sign(det)), "singular_values": (s / scale).tolist()}
+
+
+def assess(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any]) -> Assessment:
+    """Run the checks of the module docstring on `unknowns`, the answer a solver gave for the
+    validated `data` of `problem` (with its `diagnostics`)."""
+    failures: list[str] = []
+    warnings: list[str] = []
+    figures: dict[str, Any] = {}
+    _rotation_residual(problem, data, unknowns, failures, figures)
+    _rotation_blocks(diagnostics, failures, figures)
+    spec = problem.check_model(data, unknowns)
+    if spec is not None:
+        _local_fit(problem, data, spec, diagnostics, failures, warnings, figures)
+    return Assessment(not failures, tuple(failures), tuple(warnings), figures)
+
+
+def _rotation_residual(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], failures: list[str],
+                       figures: dict[str, Any]) -> None:
+    """Check 1."""
+    expected = problem.expected_rotation_residual(data)
+    if expected is None:
+        return
+    median = float(np.median(problem.residuals(data, unknowns)["rotation"]))
+    ratio = median / max(expected, NUMERICAL_FLOOR)
+    figures["rotation_residual"] = {"median_deg": math.degrees(median), "expected_deg": math.degrees(expected),
+                                    "ratio": ratio}
+    if median > NUMERICAL_FLOOR and ratio > ROTATION_RESIDUAL_FACTOR:
+        failures.append(
+            f"the answer leaves a median rotation residual of {math.degrees(median):.3g} deg per pair, "
+            f"{ratio:.3g} times what the noise of these data gives ({math.degrees(expected):.2g} deg, from the "
+            "rotation angles of robot and camera motions, which must agree)")
+
+
+def _rotation_blocks(diagnostics: Mapping[str, Any], failures: list[str], figures: dict[str, Any]) -> None:
+    """Check 4."""
+    blocks = diagnostics.get("rotation_blocks") or {}
+    for name, block in blocks.items():
+        s = np.asarray(block.get("singular_values", []), dtype=float)
+        det = float(block.get("det", 1.0))
+        if det <= 0 or (len(s) and s.min() * BLOCK_SPREAD < s.max()):
+            failures.append(
+                f"the solver's rotation of {name} before projection was far from a rotation (determinant "
+                f"{'<= 0' if det <= 0 else '> 0'}, singular values {', '.join(f'{v:.2g}' for v in s)} where a "
+                "rotation has 1, 1, 1): its linear system does not determine the rotation with this noise")
+    if blocks:
+        figures["rotation_blocks"] = dict(blocks)
+
+
+def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...], tuple[str, ...]],
+               diagnostics: Mapping[str, Any], failures: list[str], warnings: list[str],
+               figures: dict[str, Any]) -> None:
+    """Checks 2 and 3, and the observability warnings."""
+    model, poses, interest = spec
+    settings = nlls.Settings(W=None, weights="estimated", max_iter=MAX_ITER, tol=FIT_TOL)
+    try:
+        fit, _, diag = nlls.refine(model, poses, settings)
+        e = model.residuals(fit)
+        flagged = _beyond(e, model.scale)
+        if flagged.any():
+            robust = dataclasses.replace(settings, loss="cauchy")
+            fit, _, diag = nlls.refine(model, fit, robust)
+            flagged = _beyond(model.residuals(fit), model.scale)
+    except DegenerateDataError:
+        failures.append("the data do not determine the unknowns near this answer (the least-squares fit from it "
+                        "is singular)")
+        return
+    names = model.unknowns
+    cov = np.asarray(diag["covariance_" + "".join(names)], dtype=float)
+    delta = np.concatenate([_difference(T, F) for T, F in zip(poses, fit)])
+    keep = np.concatenate([np.arange(6 * j, 6 * j + 6) for j, n in enumerate(names) if n in interest])
+    floor = np.tile(np.r_[np.full(3, NUMERICAL_FLOOR), np.full(3, NUMERICAL_FLOOR * model.scale)], len(keep) // 6)
+    sigma = cov[np.ix_(keep, keep)] + np.diag(floor**2)
+    d = math.sqrt(max(float(delta[keep] @ np.linalg.solve(sigma, delta[keep])), 0.0))
+    figures["distance_sigmas"] = d
+    gap = {n: _gap(poses[j], fit[j]) for j, n in enumerate(names) if n in interest}
+    gap_text = "; ".join(f"{n} differs by {g[0]:.2g} deg / {g[1]:.3g}" for n, g in gap.items()) + \
+        ", translations in the data's length unit"
+    left_out = {int(o["index"]) for o in diagnostics.get("outliers", []) if isinstance(o, Mapping) and "index" in o}
+    used = [int(i) for i in np.flatnonzero(flagged) if int(i) not in left_out]
+    figures["far_off_pairs"] = np.flatnonzero(flagged).tolist()
+    why = ""
+    if used:
+        listing = ", ".join(f"no. {i + 1} (index {i})" for i in used[:8]) + (" ..." if len(used) > 8 else "")
+        why = (f"; {len(used)} of the {model.m} {'stations' if model.m != problem_pairs(data) else 'pairs'} "
+               f"({listing}) are far off the others (gross errors: a failed detection, a mismatched pair) and "
+               "this solver used them")
+    if d > DISTANCE_FAIL:
+        failures.append(f"the answer is {d:.3g} standard deviations from the best fit of these data ({gap_text}){why}")
+    elif d > DISTANCE_WARN:
+        warnings.append(f"self-check: the answer is {d:.3g} standard deviations from the best fit of these data "
+                        f"({gap_text}), so the data support it far less than that fit{why}; solver 'auto' returns "
+                        "the best fit")
+    figures["std"] = _precision(problem, data, model, fit, cov, interest, warnings, figures)
+
+
+def problem_pairs(data: Any) -> int | None:
+    """The number of pairs of the problem's own data (to tell when the check's model is on
+    stations rather than pairs), None if the data do not say."""
+    return getattr(data, "m", None)
+
+
+def _beyond(e: np.ndarray, scale: float) -> np.ndarray:
+    """Pairs whose residual, whitened by median-based scales, is beyond OUTLIER_CHI2."""
+    ew = estimate_sigmas(e, scale, robust=True).residual(e)
+    return np.einsum("ni,ni->n", ew, ew) > OUTLIER_CHI2
+
+
+def _difference(T: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """xi with T = F exp(xi) (to first order in the translation): (omega, v) in F's frame."""
+    R = F[:3, :3].T @ T[:3, :3]
+    return np.concatenate([so3_fast.log(R[None])[0], F[:3, :3].T @ (T[:3, 3] - F[:3, 3])])
+
+
+def _gap(T: np.ndarray, F: np.ndarray) -> tuple[float, float]:
+    """Rotation angle (deg) and translation distance between two poses."""
+    R = F[:3, :3].T @ T[:3, :3]
+    return math.degrees(float(np.linalg.norm(so3_fast.log(R[None])[0]))), float(np.linalg.norm(T[:3, 3] - F[:3, 3]))
+
+
+def _precision(problem: Any, data: Any, model: Any, fit: tuple[np.ndarray, ...], cov: np.ndarray,
+               interest: tuple[str, ...], warnings: list[str], figures: dict[str, Any]) -> dict[str, Any]:
+    """1-sigma per unknown (rotation deg, translation; the worst direction in the frame the
+    unknown is expressed in) from the covariance of the best fit; warnings beyond the precision."""
+    axes = problem.rotation_axes(data)
+    out: dict[str, Any] = {}
+    for j, name in enumerate(model.unknowns):
+        if name not in interest:
+            continue
+        R = fit[j][:3, :3]
+        rot_deg, rot_dir = _worst(R, cov[6 * j:6 * j + 3, 6 * j:6 * j + 3])
+        trans, trans_dir = _worst(R, cov[6 * j + 3:6 * j + 6, 6 * j + 3:6 * j + 6])
+        rot_deg = math.degrees(rot_deg)
+        out[name] = {"rotation_deg": rot_deg, "rotation_axis": rot_dir.tolist(),
+                     "translation": trans, "translation_direction": trans_dir.tolist()}
+        limit = PRECISION_TRANSLATION * model.scale
+        if rot_deg > PRECISION_ROTATION_DEG:
+            warnings.append(f"the data determine the rotation of {name} only to {rot_deg:.2g} deg (1-sigma, about "
+                            f"{_direction(rot_dir, axes.get(name))} in the frame {name} is expressed in); "
+                            f"{_advice(rot_dir, axes.get(name))}")
+        if trans > limit:
+            warnings.append(f"the data determine the translation of {name} only to {trans:.3g} in their length unit (1-sigma, along "
+                            f"{_direction(trans_dir, axes.get(name))} in the frame {name} is expressed in; "
+                            f"{PRECISION_TRANSLATION:.0%} of the data's lever arm is {limit:.3g}); "
+                            f"{_advice(trans_dir, axes.get(name))}")
+    return out
+
+
+def _worst(R: np.ndarray, block: np.ndarray) -> tuple[float, np.ndarray]:
+    """Largest standard deviation of a 3x3 covariance block (in the unknown's own frame) and its
+    direction in the frame the unknown is expressed in (R v)."""
+    w, V = np.linalg.eigh(0.5 * (block + block.T))
+    return math.sqrt(max(float(w[2]), 0.0)), R @ V[:, 2]
+
+
+def _direction(v: np.ndarray, axis: np.ndarray | None) -> str:
+    text = "(" + ", ".join(f"{c:+.2f}" for c in v) + ")"
+    if axis is not None and abs(float(v @ axis)) > math.cos(math.radians(AXIS_NAMING_DEG)):
+        text += ", the robot's main rotation axis"
+    return text
+
+
+def _advice(v: np.ndarray, axis: np.ndarray | None) -> str:
+    if axis is not None and abs(float(v @ axis)) > math.cos(math.radians(AXIS_NAMING_DEG)):
+        return "the robot rotates mostly about one axis: add stations that rotate about other axes"
+    return "add stations (larger rotations about different axes), or reduce the noise"
+
+
+def chi3_expected(angle_sigma: float, stations_per_pair: float) -> float:
+    """Expected median norm of a pair's rotation residual (rad) when the angle differences of
+    motions have robust standard deviation `angle_sigma` and each pair's residual carries the
+    noise of `stations_per_pair` stations (a motion's angle difference carries two): the
+    per-axis noise of a station is angle_sigma / sqrt(2) (the angle difference is the noise's
+    component along the motion's axis, from two stations)."""
+    return CHI3_MEDIAN * angle_sigma * math.sqrt(stations_per_pair / 2.0)
