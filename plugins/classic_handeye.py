@@ -47,6 +47,7 @@ from handeye.linalg import triangular_factor
 from handeye.options import check_bool
 from handeye.problems.axxb import AXXBData, regression_blocks, solve_translation
 from handeye.se3 import make_pose, project_to_so3, skew
+from handeye.self_check import rotation_block_figures
 
 #: Tsai as OpenCV: keep a motion when |P_A| and |P_B| (P = 2 sin(theta/2) n) both lie in this range.
 TSAI_RANGE = (0.3, 1.7)
@@ -237,7 +238,8 @@ def _andreff(data: AXXBData) -> tuple[np.ndarray, dict[str, Any]]:
     if abs(det) < np.finfo(np.float32).eps:  # OpenCV's test
         raise DegenerateDataError(f"andreff: the estimated rotation block is singular (det {det:.1e}): {_PARALLEL}")
     RX = project_to_so3(np.sign(det) * M)  # eq. 15: scaled to det +1, then the orthogonal polar factor
-    return make_pose(RX, beta[9:]), {"sigma_ratio": ratio, "det_rotation_block": det}
+    return make_pose(RX, beta[9:]), {"sigma_ratio": ratio, "det_rotation_block": det,
+                                     "rotation_blocks": {"X": rotation_block_figures(M)}}
 
 
 def andreff(A: Any, B: Any) -> np.ndarray:

@@ -47,6 +47,7 @@ from handeye.linalg import triangular_factor
 from handeye.plugins.shah import normalize_rotation
 from handeye.problems.axyb import AXYBData, regression_blocks, split_beta
 from handeye.se3 import make_pose
+from handeye.self_check import rotation_block_figures
 
 
 @dataclasses.dataclass(frozen=True)
@@ -119,7 +120,8 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     return SolverOutput(
         unknowns={"X": make_pose(RX, scale * tX), "Y": make_pose(RY, scale * tY)},
         status=Status.OPTIMAL,
-        diagnostics={"sigma_min_scaled_H": sigma_min, "least_squares": method, "normalize": options.normalize},
+        diagnostics={"sigma_min_scaled_H": sigma_min, "least_squares": method, "normalize": options.normalize,
+                     "rotation_blocks": {"X": rotation_block_figures(MX), "Y": rotation_block_figures(MY)}},
     )
 
 

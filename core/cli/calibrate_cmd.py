@@ -33,8 +33,10 @@ far better, give status ``unreliable``, a warning naming the mistake and its fla
 duplicated stations and fewer than 5 stations give warnings.
 
 Exit codes as handeye solve: 0 success; 2 bad input (file, format, unit, counts); 1 the solver
-failed or ended not_converged / failed, or the checks found the fit unreliable (the answer is
-printed for inspection, no -o / --yaml file is written; a --report is, to see why).
+failed or ended not_converged / failed, or the checks found the fit unreliable: these file
+checks, or the self-check every solve runs (residuals against the noise the data show, distance
+from the best fit; docs/reliability.md; not skipped by --no-checks). The answer is then printed
+for inspection, no -o / --yaml file is written; a --report is, to see why.
 
 ``--report FILE`` writes a quality report: .html (one self-contained page, plots embedded) or .md
 (its PNG plots next to it): the answer with 1-sigma, the residual per station with the outliers
