@@ -116,9 +116,16 @@ def _checked_pose(unknowns: Any, name: str, solver: str) -> np.ndarray:
     """A read-only float64 copy of unknown `name`, with an exact last row; raise if not SE(3)."""
     if name not in unknowns:
         raise SolverError(f"solver {solver!r} did not return unknown {name!r}")
-    T = np.array(unknowns[name], dtype=float)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise SolverError(f"solver {solver!r} returned a non-finite or non-4x4 {name}: {T!r}")
+    try:
+        T = np.array(unknowns[name], dtype=float)
+    except (TypeError, ValueError):
+        raise SolverError(f"solver {solver!r} returned {name} as a {type(unknowns[name]).__name__} that is "
+                          "not an array of numbers") from None
+    if T.shape != (4, 4):
+        raise SolverError(f"solver {solver!r} returned {name} of shape {T.shape}, not a 4x4 pose")
+    if not np.all(np.isfinite(T)):
+        raise SolverError(f"solver {solver!r} returned {name} with {int(np.sum(~np.isfinite(T)))} non-finite "
+                          "entries (NaN or inf)")
     R = T[:3, :3]
     if orthonormality_error(R) > OUTPUT_ORTHONORMALITY_TOL or np.linalg.det(R) < 0:
         raise SolverError(

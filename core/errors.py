@@ -10,6 +10,13 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 
+def shown(value: object, limit: int = 60) -> str:
+    """repr(value) on one line, cut to `limit` characters (with "..."), for a message that quotes
+    what the user passed: that may be a huge integer or a whole array, whose repr spans lines."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
 class HandEyeError(ValueError):
     """Base class of every error raised by handeye."""
 

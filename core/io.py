@@ -28,17 +28,17 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import zipfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .errors import HandEyeError, InputError
+from .errors import HandEyeError, InputError, shown
+from .npz import load_npz
 from .problem import StationReader
 from .registry import get_registry
-from .validation import pose_stack
+from .validation import float_array, pose_stack
 
 #: metadata keys a file may carry (all optional, all strings)
 METADATA_KEYS = ("units", "setup", "pairing", "description", "source", "license")
@@ -100,7 +100,8 @@ class RawFile:
     data: dict[str, Any]
     truth: dict[str, Any] | None
     metadata: dict[str, Any]
-    #: keys the file held that the reader did not recognise (reported by `_finish`)
+    #: keys the file held that the reader did not recognise (reported by `_finish`, unless they
+    #: are data fields or absolute pose stacks: their values are in `data`, reported as bad values)
     unexpected: tuple[str, ...] = ()
 
 
@@ -193,9 +194,10 @@ def _finish(raw: RawFile, path: Path, problem: str, writing: bool = False, *,
     spec = get_registry().problem(problem)
     fields, unknowns = tuple(spec.data_fields), tuple(spec.unknowns)
     where = f"{str(path)!r}"
-    if raw.unexpected:
+    unexpected = [k for k in raw.unexpected if k not in fields and k not in POSE_FIELDS]
+    if unexpected:
         raise InputError(
-            f"{where}: unexpected key(s) {sorted(raw.unexpected)}; a {problem!r} file holds "
+            f"{where}: unexpected key(s) {sorted(unexpected)}; a {problem!r} file holds "
             f"{_key_listing(path, problem, fields, unknowns)}"
         )
     metadata = _metadata(raw.metadata, where)
@@ -252,7 +254,7 @@ def _metadata(raw: Mapping[str, Any], where: str) -> dict[str, str]:
         if key not in METADATA_KEYS:
             raise InputError(f"{where}: unknown metadata key {key!r}; known: {list(METADATA_KEYS)}")
         if not isinstance(value, str):
-            raise InputError(f"{where}: metadata {key!r} must be a string, got {value!r}")
+            raise InputError(f"{where}: metadata {key!r} must be a string, got {shown(value)}")
         metadata[key] = value
     for key, allowed in (("units", UNITS), ("setup", SETUPS), ("pairing", PAIRINGS)):
         if key in metadata and metadata[key] not in allowed:
@@ -322,9 +324,9 @@ def _poses(value: Any, name: str, where: str, single: bool = False) -> np.ndarra
 
 def _as_float(value: Any, name: str, where: str) -> np.ndarray:
     try:
-        return np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{where}: {name} must be a 4x4 array of numbers ({exc})") from None
+        return float_array(value, name, "a 4x4 array of numbers")
+    except InputError as exc:
+        raise InputError(f"{where}: {exc}") from None
 
 
 def _key_listing(path: Path, problem: str, fields: tuple[str, ...], unknowns: tuple[str, ...]) -> str:
@@ -346,21 +348,17 @@ def _key_listing(path: Path, problem: str, fields: tuple[str, ...], unknowns: tu
 def _read_npz(path: Path) -> RawFile:
     """NPZ: one array per data field (``A``, ``B``) or absolute pose stack (``robot_poses``,
     ``camera_poses``), ``<unknown>_true`` (``X_true``), and 0-d string arrays for metadata. Object arrays are refused (no pickle)."""
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            arrays = {key: npz[key] for key in npz.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise InputError(f"{str(path)!r}: not a readable NPZ file ({exc})") from None
+    arrays = load_npz(path, repr(str(path)))
     data, truth, metadata, unexpected = {}, {}, {}, []
     for key, value in arrays.items():
         if key.endswith(TRUTH_SUFFIX):
             truth[key[: -len(TRUTH_SUFFIX)]] = value
         elif key in METADATA_KEYS:
             metadata[key] = str(value) if value.ndim == 0 and value.dtype.kind in "US" else value
-        elif value.dtype.kind in "US":
-            unexpected.append(key)
         else:
             data[key] = value
+            if value.dtype.kind in "US":  # reported as a bad value if a data field, else as unexpected
+                unexpected.append(key)
     return RawFile(data, truth or None, metadata, tuple(unexpected))
 
 
@@ -388,13 +386,16 @@ def _read_json(path: Path) -> RawFile:
         obj = json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"{str(path)!r}: invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
+    except RecursionError:
+        raise InputError(f"{str(path)!r}: JSON nested too deeply to read (a pose is a 4x4 list of lists)") from None
     if not isinstance(obj, dict):
         raise InputError(f"{str(path)!r}: expected a JSON object with keys such as 'A' and 'B', got {type(obj).__name__}")
     truth = obj.pop("truth", None)
     metadata = {k: obj.pop(k) for k in METADATA_KEYS if k in obj}
+    # every other key is data; one whose value is not a list is unexpected unless it names a data
+    # field (then `_finish` reports its value, e.g. "A": null, as bad)
     unexpected = tuple(k for k, v in obj.items() if not isinstance(v, list))
-    data = {k: v for k, v in obj.items() if isinstance(v, list)}
-    return RawFile(data, truth, metadata, unexpected)
+    return RawFile(obj, truth, metadata, unexpected)
 
 
 def _write_json(path: Path, pose_file: PoseFile) -> None:

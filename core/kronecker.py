@@ -31,6 +31,28 @@ def overflow_error(where: str) -> InputError:
     )
 
 
+#: Smallest accepted largest translation entry max |t| (data units) of data whose translations
+#: are not all exactly zero. Below it the least squares under- and overflow float64: the solvers square
+#: translations and weigh residuals by 1 / sigma^2, with sigma floored at 1e-12 times the RMS
+#: translation s (`handeye.whitening.SIGMA_FLOOR`), so they form numbers of order s^2 and
+#: 1 / (1e-12 s)^2, which leave float64's normal range (2e-308 .. 2e308) from s ~ 1e-142 on
+#: (measured with every solver: overflow warnings from max |t| ~ 2e-142 on, a ZeroDivisionError
+#: at ~2e-152).
+#: 1e-100 keeps a margin of 1e40 in the squares; no measurement is that small in any length
+#: unit (a proton is 1e-15 m), so such data are a unit mix-up or rounding noise, and an error
+#: saying so serves better than solving them through a rescaling of every solver's input.
+MIN_TRANSLATION = 1e-100
+
+
+def underflow_error(largest: float) -> InputError:
+    """The error for data whose translations are too small to compute with (`MIN_TRANSLATION`)."""
+    return InputError(
+        f"the translations of the poses are too small to compute with: the largest is {largest:.1e} in the "
+        f"data's unit (at least {MIN_TRANSLATION:g} is needed, or all exactly 0). Express them in a smaller "
+        "unit (e.g. mm instead of km), or set them to 0 if they are rounding noise, and solve again"
+    )
+
+
 @dataclasses.dataclass(frozen=True)
 class KroneckerSystem:
     """H beta = w reduced by QR (eq. 10): |H beta - w|^2 = |R1 beta - q1|^2 + rest.
@@ -138,8 +160,9 @@ class PosePairs:
     def validated(cls, problem: str, data: Mapping[str, Any], min_pairs: int):
         """The data object of `problem` from its raw fields {"A", "B"}: no other key and both
         present, every pose checked (`handeye.validation.pose_stacks`: shapes, SE(3), the same
-        length >= min_pairs), and sums of squared translations that do not overflow (every
-        solver needs them: the linear systems, the unit normalisation). Raises InputError /
+        length >= min_pairs), and sums of squared translations that do not overflow nor
+        underflow (`MIN_TRANSLATION`; every solver needs them: the linear systems, the unit
+        normalisation, the weights of the least squares). Raises InputError /
         DegenerateDataError naming what is wrong; the problem adds its own degeneracy checks."""
         from .validation import pose_stacks
 
@@ -154,6 +177,9 @@ class PosePairs:
         with np.errstate(over="ignore", invalid="ignore"):
             if not np.isfinite(out.translation_scale):
                 raise overflow_error("the sums of squared translations")
+        largest = max(float(np.max(np.abs(out.A[:, :3, 3]))), float(np.max(np.abs(out.B[:, :3, 3]))))
+        if 0.0 < largest < MIN_TRANSLATION:
+            raise underflow_error(largest)
         return out
 
     @property

@@ -15,7 +15,12 @@ once:
   parameters), its weight modes (`mode_of`: fixed, profile, irls, initial) and its convergence
   rules (`levenberg_marquardt`);
 - the covariance of the unknowns from the information matrix, with the variance factor when the
-  weights were estimated, and the diagnostics (`refine`).
+  weights were estimated, and the diagnostics (`refine`);
+- fixed translation components (`PoseModel.fixed`, e.g. the planar mode of
+  `handeye.problems.planar`, where the data cannot determine a translation along the robot's
+  rotation axis): the steps are restricted to the 6k - r dimensional subspace that keeps them
+  (`fixed_basis`, recomputed at every point), and the covariance is the projected inverse, with
+  zero variance along them.
 
 The model builds the normal equations from its Jacobian (`_jacobian_model`: one BLAS product
 J^T J); a model may also sum them in closed form (`PoseModel.normal_equations`, used for
@@ -72,7 +77,11 @@ class PoseModel(abc.ABC):
     data's length unit, e.g. RMS translation, for the floors of estimated sigmas),
     `profile_min_pairs` (fewest pairs for which the profile likelihood is bounded: below it the
     translation residuals can be fitted exactly), `sums_min_pairs` (from this many pairs on,
-    `normal_equations` replaces the Jacobian for per-group sigmas; inf: never).
+    `normal_equations` replaces the Jacobian for per-group sigmas; inf: never), `fixed`
+    (translation components the refinement keeps: pairs (index of the unknown, unit direction d
+    in the frame its translation is expressed in), so that t_j . d stays as it starts; empty: none).
+    The constraint travels with the model, not with a solver's settings, so that every fit of
+    the same data (a solver's, the host's self-check) honours it.
     """
 
     unknowns: tuple[str, ...]
@@ -80,6 +89,7 @@ class PoseModel(abc.ABC):
     scale: float
     profile_min_pairs: int
     sums_min_pairs: float = math.inf
+    fixed: tuple[tuple[int, np.ndarray], ...] = ()
 
     @abc.abstractmethod
     def residuals(self, poses: Poses) -> np.ndarray:
@@ -109,6 +119,33 @@ def retract(T: np.ndarray, xi: np.ndarray) -> np.ndarray:
 def retract_all(poses: Poses, xi: np.ndarray) -> Poses:
     """Each pose j retracted by its 6 parameters xi[6j:6j+6]."""
     return tuple(map(retract, poses, xi.reshape(-1, 6)))
+
+
+def fixed_basis(poses: Poses, fixed: Sequence[tuple[int, np.ndarray]]) -> np.ndarray | None:
+    """P: (6k, 6k - r), an orthonormal basis of the perturbations xi that keep the fixed
+    translation components (None when nothing is fixed): the retraction moves t_j by R_j v_j, so
+    t_j . d stays when v_j . (R_j^T d) = 0. P is the identity except in the v-block of each
+    unknown with fixed directions, where it holds a basis of the plane (or line) normal to them,
+    so that rotation and translation parameters are never mixed (Marquardt's scaling stays
+    unit-invariant)."""
+    if not fixed:
+        return None
+    columns, identity = [], np.eye(6 * len(poses))
+    for j, T in enumerate(poses):
+        eye = identity[:, 6 * j:6 * j + 6]
+        columns.append(eye[:, :3])
+        normals = [T[:3, :3].T @ np.asarray(d, dtype=float) for k, d in fixed if k == j]
+        if not normals:
+            columns.append(eye[:, 3:])
+            continue
+        Q = np.linalg.qr(np.stack(normals, axis=1), mode="complete")[0][:, len(normals):]
+        columns.append(eye[:, 3:] @ Q)
+    return np.concatenate(columns, axis=1)
+
+
+def _full(P: np.ndarray | None, step: np.ndarray) -> np.ndarray:
+    """A step in the restricted coordinates as the 6k perturbation parameters."""
+    return step if P is None else P @ step
 
 
 def mode_of(W: Whitening | None, loss: str, m: int, estimate: str = "profile", profile_min_pairs: int = 4) -> str:
@@ -149,7 +186,7 @@ def cost_of(model: PoseModel, poses: Poses, W: Whitening, loss: str, c: float) -
 
 
 def _jacobian_model(e: np.ndarray, J: np.ndarray, W: Whitening, mode: str, loss: str, c: float,
-                    scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+                    scale: float, P: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """Gradient g (n), Gauss-Newton Hessian H of the objective, Hw = sum rho' J_w^T J_w (the
     information matrix, for the covariance) and F under W, from residuals e: (m, 6) and their
     Jacobian J: (m, 6, n).
@@ -158,7 +195,11 @@ def _jacobian_model(e: np.ndarray, J: np.ndarray, W: Whitening, mode: str, loss:
     H = Hw - 2 / (3m) sum_groups a a^T with a = J_w,group^T e_w,group (the log's curvature), for
     each group (rotation, translation) whose sigma is above its floor; Hw when that is not
     positive definite (far from the minimum), which keeps the step a descent direction.
+    With a basis P of the allowed perturbations (`fixed_basis`) everything is in its
+    coordinates (J P).
     """
+    if P is not None:
+        J = J @ P
     n = J.shape[2]
     ew, Jw = W.residual(e), W.jacobian(J)
     if loss == "linear":
@@ -178,12 +219,14 @@ def _jacobian_model(e: np.ndarray, J: np.ndarray, W: Whitening, mode: str, loss:
 
 
 def _sums_model(model: PoseModel, poses: Poses, e: np.ndarray, W: Whitening, mode: str, loss: str,
-                c: float, scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+                c: float, scale: float, P: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """`_jacobian_model` for per-group sigmas from the model's closed-form `normal_equations`."""
     ew = W.residual(e)
     rho, d = loss_terms(np.einsum("ni,ni->n", ew, ew), loss, c)
     F = 0.5 * float(np.sum(rho))
     g_rot, g_trans, Hw = model.normal_equations(poses, e, 1.0 / W.sigma_rot**2, 1.0 / W.sigma_trans**2, d)
+    if P is not None:
+        g_rot, g_trans, Hw = g_rot @ P, g_trans @ P, P.T @ Hw @ P
     g = g_rot + g_trans
     H = _profile_hessian(Hw, np.stack([g_rot, g_trans]), W, model.m, scale) if mode == "profile" else Hw
     return g, H, Hw, F
@@ -200,12 +243,13 @@ def _profile_hessian(Hw: np.ndarray, a: np.ndarray, W: Whitening, m: int, scale:
 
 
 def local_model(model: PoseModel, poses: Poses, e: np.ndarray, W: Whitening, mode: str, loss: str,
-                c: float, scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+                c: float, scale: float, P: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """(g, H, Hw, F) at the poses: the model's closed-form sums for per-group sigmas and
-    m >= sums_min_pairs, else from the explicit Jacobian (fewer numpy calls: faster at small m)."""
+    m >= sums_min_pairs, else from the explicit Jacobian (fewer numpy calls: faster at small m);
+    in the coordinates of the basis P of allowed perturbations when given (`fixed_basis`)."""
     if W.L is None and model.m >= model.sums_min_pairs:
-        return _sums_model(model, poses, e, W, mode, loss, c, scale)
-    return _jacobian_model(e, model.jacobian(poses, e), W, mode, loss, c, scale)
+        return _sums_model(model, poses, e, W, mode, loss, c, scale, P)
+    return _jacobian_model(e, model.jacobian(poses, e), W, mode, loss, c, scale, P)
 
 
 @dataclasses.dataclass
@@ -215,11 +259,12 @@ class LMResult:
     cost: float  # the objective at the end (see `objective`)
     iterations: int
     converged: bool
-    H: np.ndarray  # (6k, 6k) Gauss-Newton matrix sum_i rho'_i J_i^T J_i (whitened) at the end
+    H: np.ndarray  # (n, n) Gauss-Newton matrix sum_i rho'_i J_i^T J_i (whitened) at the end, n = 6k - fixed
     ew: np.ndarray  # (m, 6) whitened residuals at the end
     e: np.ndarray  # (m, 6) residuals at the end
     mode: str
     e0: np.ndarray  # (m, 6) residuals at the start
+    P: np.ndarray | None = None  # (6k, n) basis of the allowed perturbations at the end (`fixed_basis`), None: all
 
 
 def levenberg_marquardt(model: PoseModel, poses: Poses, W: Whitening | None, loss: str, c: float,
@@ -235,9 +280,11 @@ def levenberg_marquardt(model: PoseModel, poses: Poses, W: Whitening | None, los
     weights for "irls"); Marquardt's damping lam * diag(Hw) keeps the method invariant to the
     units of the parameters. Converged: the decrease predicted by the Gauss-Newton step is below
     tol * F; that last (tiny) step is then taken without testing the objective, whose rounding
-    is larger than the change.
+    is larger than the change. The model's fixed translation components (`PoseModel.fixed`) keep
+    their starting values: every step lies in the span of `fixed_basis` at its point.
     """
     scale = model.scale
+    fixed = model.fixed
     mode = mode_of(W, loss, model.m, estimate, model.profile_min_pairs)
     e0 = e = model.residuals(poses)
     if mode == "profile":  # the objective (carried along with e: each point is evaluated once) and its weights
@@ -247,7 +294,8 @@ def levenberg_marquardt(model: PoseModel, poses: Poses, W: Whitening | None, los
     weight_change = np.inf if mode == "irls" else 0.0
     lam, iterations, converged, unjudged = 0.0, 0, False, 0
     while True:
-        g, H, Hw, F = local_model(model, poses, e, W, mode, loss, c, scale)
+        P = fixed_basis(poses, fixed)
+        g, H, Hw, F = local_model(model, poses, e, W, mode, loss, c, scale, P)
         if mode != "profile":
             value = F
         step_gn = _newton_step(H, g)
@@ -258,7 +306,7 @@ def levenberg_marquardt(model: PoseModel, poses: Poses, W: Whitening | None, los
                 # so it can no longer be judged; it is tiny and taken as is: it removes the last
                 # ~1e-7 (relative to the errors) that tol leaves, so the answer does not depend
                 # on the path taken (unit invariance to ~1e-14, one answer from every start).
-                poses = retract_all(poses, step_gn)
+                poses = retract_all(poses, _full(P, step_gn))
                 e = model.residuals(poses)
                 if mode == "profile":
                     value, W = objective(e, None, mode, loss, c, scale)
@@ -280,7 +328,7 @@ def levenberg_marquardt(model: PoseModel, poses: Poses, W: Whitening | None, los
                 converged = True
                 break
             iterations += 1
-            poses = retract_all(poses, step_gn)
+            poses = retract_all(poses, _full(P, step_gn))
             e = model.residuals(poses)
             if mode == "profile":
                 value, W = objective(e, None, mode, loss, c, scale)
@@ -297,7 +345,7 @@ def levenberg_marquardt(model: PoseModel, poses: Poses, W: Whitening | None, los
             else:
                 step = _newton_step(H + lam * np.diag(Hw.diagonal()), g)
                 predicted = -float(g @ step + 0.5 * step @ H @ step)
-            trial = retract_all(poses, step)
+            trial = retract_all(poses, _full(P, step))
             en = model.residuals(trial)
             value_n, Wn = objective(en, W, mode, loss, c, scale)
             if value_n < value and predicted > 0:
@@ -326,10 +374,11 @@ def levenberg_marquardt(model: PoseModel, poses: Poses, W: Whitening | None, los
         if mode == "irls":
             new = estimate_sigmas(e, scale, robust=True)
             weight_change, W = relative_change(new, W), new
-    _, _, Hw, F = local_model(model, poses, e, W, "fixed", loss, c, scale)
+    P = fixed_basis(poses, fixed)
+    _, _, Hw, F = local_model(model, poses, e, W, "fixed", loss, c, scale, P)
     if mode != "profile":
         value = F
-    return LMResult(poses, W, value, iterations, converged, Hw, W.residual(e), e, mode, e0)
+    return LMResult(poses, W, value, iterations, converged, Hw, W.residual(e), e, mode, e0, P)
 
 
 def _newton_step(H: np.ndarray, g: np.ndarray) -> np.ndarray:
@@ -376,6 +425,8 @@ def refine(model: PoseModel, poses0: Sequence[np.ndarray], settings: Settings) -
     objective, loss, loss_scale, variance_factor, covariance {name: (6, 6)} and
     covariance_<names> (6k, 6k) of (omega, v) of each unknown in its own frame, std {name:
     {rotation, translation}}, residual_rms, and sigma_rot, sigma_trans for per-group weights.
+    With fixed translation components (`PoseModel.fixed`) the covariance is P H^-1 P^T in the
+    basis P of the allowed perturbations: zero variance along the fixed directions.
     """
     loss, c, scale, max_iter = settings.loss, float(settings.loss_scale), model.scale, int(settings.max_iter)
     poses0 = tuple(poses0)
@@ -392,12 +443,14 @@ def refine(model: PoseModel, poses0: Sequence[np.ndarray], settings: Settings) -
         if again.cost < res.cost:
             res = again
 
-    n = 6 * len(poses0)
+    n = res.H.shape[0]  # free parameters: 6k less the fixed components
     _, cov, info = lapack.dposv(res.H, np.eye(n))  # the inverse, by Cholesky (as the steps)
     if info != 0:
         raise DegenerateDataError("the refinement's normal matrix is singular at the solution: the data do not "
                                   "determine the unknowns there (do the poses rotate about at least two "
                                   "different axes?)")
+    if res.P is not None:
+        cov = res.P @ cov @ res.P.T
     cov = 0.5 * (cov + cov.T)
     s = (res.ew * res.ew).sum(axis=1)
     _, drho = loss_terms(s, loss, c)

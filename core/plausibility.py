@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import HandEyeError
+from .errors import DegenerateDataError, HandEyeError
 from .se3 import inverse, rotation_angle
 
 #: residual rotation RMS (deg) no calibrated cell reaches
@@ -84,6 +84,8 @@ class Streams:
     reread_robot / reread_camera: for Euler formats, a function seq -> (n, 4, 4) that reads the
     same file's numbers with another scipy Euler sequence (None: no Euler hypotheses);
     robot_format / camera_format / camera_unit: the names the user gave (for the suggestions).
+    facts: facts about the cell given besides the poses (``tz_X`` of a planar robot,
+    `handeye.problems.planar`), passed to the fits of data that need them.
     """
 
     robot: np.ndarray
@@ -97,6 +99,7 @@ class Streams:
     camera_unit: str | None = None
     reread_robot: Callable[[str], np.ndarray] | None = None
     reread_camera: Callable[[str], np.ndarray] | None = None
+    facts: Mapping[str, float] = dataclasses.field(default_factory=dict)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -169,16 +172,26 @@ def _rms(values: Any) -> float:
 
 
 def _fit(streams: Streams, robot: np.ndarray, camera: np.ndarray, setup: str) -> tuple[float, float] | None:
-    """Residual RMS (deg, unit) of the closed-form fit of these streams, None if it fails."""
+    """Residual RMS (deg, unit) of the closed-form fit of these streams, None if it fails. The
+    facts of the streams (a planar robot's tz_X) are passed to data that need them (a hypothesis
+    may make the robot's rotations planar or not); they do not change the residuals."""
     from .api import solve
     from .io import from_poses
     from .registry import get_registry
 
     try:
         pose_file = from_poses(robot, camera, streams.problem, setup=setup, pairing=streams.pairing)
-        sol = solve(streams.problem, solver=HYPOTHESIS_SOLVER, **pose_file.data)
         problem = get_registry().problem(streams.problem)
-        res = problem.residuals(problem.validate(**pose_file.data), sol.unknowns)
+        try:
+            facts: Mapping[str, float] = {}
+            data = problem.validate(**pose_file.data)
+        except DegenerateDataError:
+            if not streams.facts:
+                raise
+            facts = streams.facts
+            data = problem.validate(**pose_file.data, **facts)
+        sol = solve(streams.problem, solver=HYPOTHESIS_SOLVER, **pose_file.data, **facts)
+        res = problem.residuals(data, sol.unknowns)
     except (HandEyeError, np.linalg.LinAlgError, ValueError):
         return None
     return math.degrees(_rms(res["rotation"])), _rms(res["translation"])

@@ -22,7 +22,6 @@ import dataclasses
 import json
 import math
 import numbers
-import zipfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -30,10 +29,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import InputError
+from .errors import InputError, shown
+from .npz import load_npz
 from .pose_formats import PoseFormat, normalise_header, parse_format
 from .se3 import ORTHONORMALITY_TOL, make_pose, orthonormality_error, project_to_so3
-from .validation import LAST_ROW_TOL, pose_stack
+from .validation import LAST_ROW_TOL, is_masked, masked_count, pose_stack
 
 Array = NDArray[np.float64]
 
@@ -140,7 +140,11 @@ def read_poses(path: str | Path, format: str | PoseFormat, *, unit: str | None =
     elif ext == ".npz":
         table = _read_npz(path, src)
     else:
-        table = _structure(_load_structured(path, src, ext), src)
+        try:
+            table = _structure(_load_structured(path, src, ext), src)
+        except RecursionError:  # json, yaml and _flatten recurse once per level of nesting
+            raise InputError(f"{src}: nested too deeply to read; a pose is a row of numbers or a 4x4 "
+                             "list of lists") from None
     return _convert(table, fmt, src, unit=unit, columns=columns, degrees=degrees, orthonormalize=orthonormalize)
 
 
@@ -148,6 +152,9 @@ def poses_from_rows(rows: ArrayLike, format: str | PoseFormat, *, unit: str | No
                     degrees: bool | None = None, orthonormalize: bool = False, source: str = "rows") -> PoseStack:
     """`read_poses` on numbers in memory: rows (n, width) of `format` (or (n, 4, 4) / (n, 3, 4)
     matrices for ``matrix`` / ``matrix34``). `source` names the data in messages."""
+    if is_masked(rows):  # np.asarray would keep the values under the mask
+        raise InputError(f"{source}: a masked array with {masked_count(rows)}, and masks are not used; "
+                         "remove the rows with masked entries and pass a plain array")
     arr = np.asarray(rows, dtype=object)
     if arr.ndim < 2 or len(arr) == 0:
         raise InputError(f"{source}: expected rows of numbers with shape (n, k), got shape {arr.shape}")
@@ -299,7 +306,7 @@ def _structure(obj: Any, src: str) -> _Table:
     rows = []
     for w, r in zip(where, obj):
         if not isinstance(r, (list, tuple)):
-            raise InputError(f"{src}: {w} is {r!r}, expected a list of numbers or a matrix")
+            raise InputError(f"{src}: {w} is {shown(r)}, expected a list of numbers or a matrix")
         rows.append(_flatten(r))
     width = len(rows[0])
     for w, r in zip(where, rows):
@@ -309,11 +316,7 @@ def _structure(obj: Any, src: str) -> _Table:
 
 
 def _read_npz(path: Path, src: str) -> _Table:
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-    except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
-        raise InputError(f"{src}: not a readable NPZ file without pickles ({' '.join(str(exc).split())})") from None
+    arrays = load_npz(path, src)
     if POSES_KEY in arrays:
         rows = arrays[POSES_KEY]
     elif len(arrays) == 1:
@@ -327,7 +330,7 @@ def _read_npz(path: Path, src: str) -> _Table:
     unit = names = stamps = None
     if "units" in arrays:
         if arrays["units"].size != 1:
-            raise InputError(f"{src}: 'units' must be one string, 'mm' or 'm'; got {arrays['units'].tolist()!r}")
+            raise InputError(f"{src}: 'units' must be one string, 'mm' or 'm'; got {shown(arrays['units'].tolist())}")
         unit = str(arrays["units"].item())
     if "names" in arrays:
         if arrays["names"].ndim != 1:

@@ -2,12 +2,14 @@
 
 `pose_stack` turns user input (array or sequence of 4x4) into a read-only float64 copy of shape
 (m, 4, 4) after checking that every entry is a rigid motion: finite, last row [0, 0, 0, 1],
-rotation block orthonormal to `ORTHONORMALITY_TOL` with det +1.
+rotation block orthonormal to `ORTHONORMALITY_TOL` with det +1. `float_array` is its conversion,
+which refuses what numpy would convert wrongly (complex numbers, masked arrays, None, text).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import numbers
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -16,6 +18,8 @@ from .errors import DegenerateDataError, InputError
 from .se3 import ORTHONORMALITY_TOL, orthonormality_error
 
 LAST_ROW_TOL = 1e-9
+#: what a pose stack is, for messages
+POSE_STACK = "an array of 4x4 poses with shape (m, 4, 4)"
 
 
 def pose_stack(value: Any, name: str, *, tol: float = ORTHONORMALITY_TOL) -> np.ndarray:
@@ -53,16 +57,47 @@ def _is_complex(value: Any) -> bool:
         return False
 
 
-def _float_copy(value: Any, name: str) -> np.ndarray:
-    """A float64 copy of `value`; InputError for complex numbers (their imaginary part would be
-    dropped silently), non-numbers and numbers beyond float64."""
+def is_masked(value: Any) -> bool:
+    """Whether `value` is a numpy masked array with at least one masked entry (converting it
+    would keep the values under the mask, ignoring it)."""
+    return isinstance(value, np.ma.MaskedArray) and bool(np.ma.getmaskarray(value).any())
+
+
+def masked_count(value: np.ma.MaskedArray) -> str:
+    """"1 masked entry", "3 masked entries": how many entries of a masked array are masked."""
+    count = int(np.ma.getmaskarray(value).sum())
+    return f"{count} masked {'entry' if count == 1 else 'entries'}"
+
+
+def float_array(value: Any, name: str, expected: str) -> np.ndarray:
+    """A float64 copy of `value`, or InputError naming `name` and what was `expected` (e.g. "an
+    array of 4x4 poses with shape (m, 4, 4)"): for None (a JSON null), complex numbers (their
+    imaginary part would be dropped silently), masked arrays with masked entries (the mask would
+    be ignored), text, mappings and other non-numbers, and numbers beyond float64."""
+    if value is None:
+        raise InputError(f"{name} has no value (None); expected {expected}")
     if _is_complex(value):
-        raise InputError(f"{name} holds complex numbers; poses must be real (m, 4, 4) arrays")
+        raise InputError(f"{name} holds complex numbers; expected {expected} with real entries "
+                         "(an imaginary part would be dropped)")
+    if is_masked(value):
+        what = ("remove the poses with masked entries from every stack (the pairs must stay aligned)"
+                if expected == POSE_STACK else "remove or fill the masked entries")
+        raise InputError(f"{name} is a masked array with {masked_count(value)}, and masks are not used: "
+                         f"{what} and pass a plain array")
+    if isinstance(value, (str, bytes, Mapping)) or not (
+            isinstance(value, (Sequence, np.ndarray, numbers.Number, np.generic)) or hasattr(value, "__array__")):
+        raise InputError(f"{name} must be {expected}; could not convert it to floats (got a value of type "
+                         f"{type(value).__name__!r})")
     try:
         return np.array(value, dtype=float, copy=True)
-    except (TypeError, ValueError, OverflowError) as exc:
-        raise InputError(f"{name} must be an array of 4x4 poses with shape (m, 4, 4); could not convert it "
-                         f"to floats ({' '.join(str(exc).split())})") from None
+    except (TypeError, ValueError, OverflowError, RecursionError) as exc:
+        raise InputError(f"{name} must be {expected}; could not convert it to floats "
+                         f"({' '.join(str(exc).split())})") from None
+
+
+def _float_copy(value: Any, name: str) -> np.ndarray:
+    """`float_array` of a pose stack."""
+    return float_array(value, name, POSE_STACK)
 
 
 def same_length(stacks: dict[str, np.ndarray], min_pairs: int) -> int:
@@ -95,7 +130,8 @@ def pose_stacks(stacks: Mapping[str, Any], min_pairs: int) -> dict[str, np.ndarr
     or raise their one-line errors naming the stack and the poses.
     """
     try:
-        arrays = [] if any(_is_complex(v) for v in stacks.values()) else [np.asarray(v, dtype=float) for v in stacks.values()]
+        checked_one_by_one = any(_is_complex(v) or is_masked(v) or v is None for v in stacks.values())
+        arrays = [] if checked_one_by_one else [np.asarray(v, dtype=float) for v in stacks.values()]
     except (TypeError, ValueError, OverflowError):
         arrays = []  # pose_stack says what is wrong
     shape = arrays[0].shape if arrays else None

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
+from .validation import float_array
 
 #: median of the chi distribution with 3 degrees of freedom: median |n| for n ~ N(0, sigma^2 I3)
 #: is CHI3_MEDIAN * sigma; turns the median residual norm into a per-axis standard deviation.
@@ -72,11 +73,15 @@ def stated(sigma_rot: float | None, sigma_trans: float | None, L: np.ndarray | N
 def covariance_factor(value: Any) -> np.ndarray:
     """The lower Cholesky factor of a stated covariance of [r_i; t_i]: (6, 6) or (m, 6, 6),
     finite, symmetric and positive definite (else InputError); read-only."""
-    C = np.array(value, dtype=float)
+    C = float_array(value, "option covariance", "a (6, 6) or (m, 6, 6) array of numbers")
     if C.shape[-2:] != (6, 6) or C.ndim not in (2, 3):
         raise InputError(f"option covariance must have shape (6, 6) or (m, 6, 6), got {C.shape}")
-    if not np.all(np.isfinite(C)) or np.max(np.abs(C - np.swapaxes(C, -1, -2))) > 1e-12 * np.max(np.abs(C)):
-        raise InputError("option covariance must be finite and symmetric")
+    if not np.all(np.isfinite(C)):
+        raise InputError("option covariance must be finite; it holds NaN or inf")
+    with np.errstate(over="ignore"):  # entries near 1e308 of opposite signs: asymmetric anyway
+        asymmetry = np.max(np.abs(C - np.swapaxes(C, -1, -2)))
+    if asymmetry > 1e-12 * np.max(np.abs(C)):
+        raise InputError("option covariance must be symmetric")
     try:
         L = np.linalg.cholesky(C)
     except np.linalg.LinAlgError:

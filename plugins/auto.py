@@ -23,6 +23,11 @@ the oracle's optimum in every one of 1200 small-m / heavy-noise simulations (kro
 one), and it fits the time budget. Robust losses are off by default: on clean data they only
 cost efficiency, so the Cauchy fit only finds the gross pairs and least squares on the others gives
 the answer. For A X = X B docs/solvers/auto.md compares auto with OpenCV's five methods.
+
+Planar mode (a robot whose rotations share one axis, `handeye.problems.planar`, docs/planar.md):
+the start is kron-lstsq in planar mode (so3-sdp has none), then refine in planar mode, with the
+translation component the user gave kept; the outlier step and the stations of A X = X B keep it
+too. The answer carries a warning naming the value assumed.
 """
 
 from __future__ import annotations
@@ -97,6 +102,8 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
         return _run_on_stations(data, options, backend)
     start, poses, init_status, init_diag, warnings = _refine.start(data, options.init)
     warnings = [f"auto: {w}" for w in warnings]
+    if _refine.is_planar(data):
+        warnings.insert(0, data.planar.warning())
     certified = _certified(init_status, init_diag)
     pipeline = [start, "refine"]
     ropts = options.refine_options(problem)
@@ -130,6 +137,8 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
     poses, status, diag, report = _outlier_step(data, poses, status, diag, ropts, options, "pairs")
     diagnostics = _diagnostics(pipeline, start, init_status, init_diag, starts, diag, warnings)
     diagnostics.update(report)
+    if _refine.is_planar(data):
+        diagnostics["planar"] = data.planar.figures()
     return SolverOutput(unknowns=dict(zip(ropts.UNKNOWNS, poses)), status=status, diagnostics=diagnostics)
 
 
@@ -200,7 +209,7 @@ def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, d
     sub_settings = settings
     if W is not None and W.L is not None and W.L.ndim == 3:
         sub_settings = dataclasses.replace(settings, W=Whitening(L=W.L[inliers]))
-    subset = type(data)(data.A[inliers], data.B[inliers])
+    subset = dataclasses.replace(data, A=data.A[inliers], B=data.B[inliers])  # keeps the planar mode
     try:
         new_poses, new_status, new_diag = nlls.refine(_refine.model_of(subset), fit, sub_settings)
     except DegenerateDataError:
@@ -271,13 +280,22 @@ def _run_on_stations(data: Any, options: Options, backend: str) -> SolverOutput:
     The start is the certified start of the motions (so3-sdp for one rotation, a 10x10 SDP):
     the first station is the origin on both sides, so A_0 X = Y B_0 gives Y = X there and
     (X0, X0) starts the AX=YB refinement. When that start is not certified, the whole AX=YB
-    pipeline runs on the stations instead (its own certified start, 19x19, and safeguard)."""
+    pipeline runs on the stations instead (its own certified start, 19x19, and safeguard).
+
+    Planar mode: A_k X = Y B_k on the stations keeps the same component of X (X's axis in its
+    parent frame is that of the motions), and the whole AX=YB pipeline runs on them (its planar
+    start, kron-lstsq, is not certified)."""
     from handeye.problems.axyb import PROBLEM as AXYB
+    from handeye.problems.axyb import AXYBData
 
     A_abs, B_abs = data.stations
-    stations = AXYB.validate(A=A_abs, B=B_abs)
-    start, poses, init_status, init_diag, warnings = _refine.start(data, None)
-    if _certified(init_status, init_diag):
+    if _refine.is_planar(data):
+        stations = AXYBData(A_abs, B_abs, planar=data.planar)  # exact products of validated motions
+        start, poses, init_status, init_diag, warnings = None, None, None, {}, []
+    else:
+        stations = AXYB.validate(A=A_abs, B=B_abs)
+        start, poses, init_status, init_diag, warnings = _refine.start(data, None)
+    if start is not None and _certified(init_status, init_diag):
         ropts = options.refine_options("axyb")
         fitted, status, diag = _refine.refine(stations, (poses[0], poses[0]), ropts)
         starts = [{"init": f"{start} (motions)", "init_status": str(init_status), "final_cost": diag["final_cost"]}]
@@ -304,6 +322,7 @@ SPECS = (
         summary="default: so3-sdp (certified) or kron-lstsq start, then maximum-likelihood refine",
         citation="Pan et al., IEEE T-ASE 2022 (eq. 8); see docs/solvers/auto.md",
         unit_invariant=True,
+        planar_mode=True,
     ),
     SolverSpec(
         name="auto",
@@ -313,6 +332,7 @@ SPECS = (
         summary="default for A_i X = X B_i: so3-sdp (certified), kron-lstsq or park start, then maximum-likelihood refine",
         citation="Pan et al., IEEE T-ASE 2022 (eq. 8); see docs/solvers/auto.md",
         unit_invariant=True,
+        planar_mode=True,
     ),
 )
 #: the A_i X = Y B_i spec (kept under its old name)

@@ -69,8 +69,7 @@ import dataclasses
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.errors import InputError
-from handeye.options import check_choice, check_positive
+from handeye.options import check_choice, check_int, check_positive
 from handeye.problems.axyb import AXYBData, solve_translations, split_beta
 from handeye.se3 import make_pose, project_to_so3, skew, vee
 
@@ -91,9 +90,7 @@ class Options:
     def __post_init__(self) -> None:
         check_choice("init", self.init, INITS)
         check_positive("tol", self.tol)
-        check_positive("max_iter", self.max_iter)
-        if int(self.max_iter) != self.max_iter:
-            raise InputError(f"option max_iter={self.max_iter!r} must be a positive integer")
+        check_int("max_iter", self.max_iter, minimum=1)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -17,13 +17,25 @@ sign is free where the translations carry no scale), and t_X re-solved given R_X
 With ``normalize=True`` (default) translations are divided by the data's RMS translation before
 the system is built, which balances the rotation and translation rows and makes the answer
 independent of the length unit.
+
+Planar mode (a robot whose rotations share one axis; `handeye.problems.planar`, docs/planar.md):
+the translation component the user gave (t_X . b = tz_X, or t_Y . a = tz_Y) is substituted into
+the linear system exactly (beta = z0 + T y, `planar.fixed_substitution`), and each rotation block
+gets the rows M c = b (weight sqrt(m), as many as the pairs): R_X maps the camera's rotation axis
+c to the robot's b, which holds exactly for the true rotation and fixes what the rotation rows
+cannot when all rotations share one axis (the scale of M along the axis, and for AX=XB the
+overall scale, so no sphere constraint is needed). Then the SVD projection as usual, and the
+translations by least squares given the rotations with the same component fixed.
 """
 
 from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye.kronecker import reduce_normal_equations
+from handeye.problems import planar as planar_mode
 from handeye.problems.axxb import AXXBData, solve_translation
 from handeye.problems.axyb import AXYBData, solve_translations, split_beta
 from handeye.rotation_cost import RotationCost, signed_rotations, sphere_least_squares
@@ -38,6 +50,8 @@ class Options:
 
 
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
+    if data.planar is not None:
+        return _run_planar(data, options)
     system = data.kronecker(data.translation_scale if options.normalize else 1.0)
     MX, MY, _, _ = split_beta(system.least_squares())
     RX, RY = project_to_so3(MX), project_to_so3(MY)
@@ -51,6 +65,8 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
 
 def run_axxb(data: AXXBData, options: Options, backend: str) -> SolverOutput:
     """``axxb``: least squares on the sphere |vec R_X|^2 = 3 (module docstring)."""
+    if data.planar is not None:
+        return _run_planar(data, options)
     scale = data.translation_scale if options.normalize else 1.0
     cost = RotationCost.from_normal_equations(*data.normal_equations(scale), rotations=1)
     trs = sphere_least_squares(cost)
@@ -72,6 +88,45 @@ def run_axxb(data: AXXBData, options: Options, backend: str) -> SolverOutput:
     )
 
 
+def _run_planar(data: AXYBData | AXXBData, options: Options) -> SolverOutput:
+    """Planar mode, both problems (module docstring)."""
+    planar = data.planar
+    scale = data.translation_scale if options.normalize else 1.0
+    N, g, ww = data.normal_equations(scale)
+    n, weight = len(g), float(np.sqrt(data.m))
+    if isinstance(data, AXXBData):
+        blocks = [(0, planar.axis, *data.rotation_vectors)]  # (start of the block in beta, robot axis, motions)
+        index = 9  # t_X in beta = [vec R_X; t_X]
+    else:
+        moving, fixed = planar_mode.station_motions(data.A), planar_mode.station_motions(data.A, moving=False)
+        axis_X = planar.axis if planar.unknown == "X" else planar_mode.main_axis(moving)[0]
+        axis_Y = planar.axis if planar.unknown == "Y" else planar_mode.main_axis(fixed)[0]
+        blocks = [(0, axis_X, moving, planar_mode.station_motions(data.B)),
+                  (9, axis_Y, fixed, planar_mode.station_motions(data.B, moving=False))]
+        index = 18 if planar.unknown == "X" else 21  # beta = [vec R_X; vec R_Y; t_X; t_Y]
+    for start, b, robot, camera in blocks:
+        c = planar_mode.camera_axis(robot, camera, b)
+        if c is None:
+            continue  # the camera does not rotate: the rotation rows say so, this row would not help
+        E, d = planar_mode.axis_rows(c, b, weight, n, start)
+        N, g, ww = N + E.T @ E, g + E.T @ d, ww + float(d @ d)
+    T, z0 = planar_mode.fixed_substitution(n, index, planar.axis, planar.value / scale)
+    Nz0 = N @ z0
+    system = reduce_normal_equations(T.T @ N @ T, T.T @ (g - Nz0), ww - 2.0 * float(g @ z0) + float(z0 @ Nz0))
+    beta = z0 + T @ system.least_squares()
+    diagnostics = {"residual": system.rest, "sigma_min_R1": system.smallest_singular_value(),
+                   "planar": planar.figures(), "warnings": [planar.warning()]}
+    if isinstance(data, AXXBData):
+        RX = project_to_so3(beta[:9].reshape(3, 3, order="F"))
+        unknowns = {"X": make_pose(RX, planar_mode.axxb_translation(data, RX, planar))}
+    else:
+        MX, MY, _, _ = split_beta(beta)
+        RX, RY = project_to_so3(MX), project_to_so3(MY)
+        tX, tY = planar_mode.axyb_translations(data, RX, RY, planar)
+        unknowns = {"X": make_pose(RX, tX), "Y": make_pose(RY, tY)}
+    return SolverOutput(unknowns=unknowns, status=Status.OPTIMAL, diagnostics=diagnostics)
+
+
 SPEC = SolverSpec(
     name="kron-lstsq",
     problems=("axyb",),
@@ -80,6 +135,7 @@ SPEC = SolverSpec(
     summary="closed-form linear least squares on all pose pairs (Kronecker form), SVD projection",
     citation="Pan et al., IEEE T-ASE 2022, eq. 8; cf. Li, Wang, Wu, Int. J. Phys. Sci. 2010",
     unit_invariant=lambda options: options.normalize,  # not with normalize=False (module docstring)
+    planar_mode=True,
 )
 
 #: ``axxb``: its own run (the sphere constraint), the same options.

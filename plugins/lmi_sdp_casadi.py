@@ -45,13 +45,20 @@ the data's own units, as the paper has it.
 
 from __future__ import annotations
 
+import contextlib
+import io
+import os
+import re
+import sys
+import tempfile
 import threading
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import numpy as np
 from handeye import SolverOutput, Status
 from handeye.errors import InputError, SolverError
+from handeye.options import check_int
 from handeye.problems.axxb import AXXBData
 from handeye.problems.axyb import AXYBData, split_beta
 from handeye.rotation_cost import (
@@ -80,6 +87,10 @@ IPOPT_DEFAULTS: dict[str, Any] = {
 }
 
 SUCCESS = {"Solve_Succeeded": Status.OPTIMAL, "Solved_To_Acceptable_Level": Status.OPTIMAL_INACCURATE}
+#: Largest ``multistart``: each start is one IPOPT solve of 5-10 ms (m-independent: the NLP is
+#: over the rotations only), so 1000 starts take 5-10 s; more would only repeat minima already
+#: found, and a mistyped count (10**10) would otherwise allocate its starts (~600 GB) first.
+MAX_MULTISTART = 1000
 #: Relative cost difference below which two starts count as the same minimum (rounding of the
 #: cost at a converged point is ~1e-14 relative).
 TIE_RTOL = 1e-10
@@ -139,13 +150,53 @@ def _build(options: Mapping[str, Any], rotations: int):
         c1, c2, c3 = x[k:k + 3], x[k + 3:k + 6], x[k + 6:k + 9]
         g += [ca.dot(c1, c1) - 1, ca.dot(c2, c2) - 1, ca.dot(c1, c2), c3 - ca.cross(c1, c2)]
     nlp = {"x": x, "p": p, "f": ca.dot(e, e), "g": ca.vertcat(*g)}
-    opts = {"print_time": False, "error_on_fail": False}
+    # no CasADi text either: NaN/inf warnings of the evaluations (the status says it) and the
+    # multipliers of the parameters, which are not used (their failure printed a warning)
+    opts = {"print_time": False, "error_on_fail": False, "show_eval_warnings": False, "calc_lam_p": False}
     opts.update({f"ipopt.{k}": v for k, v in options.items()})
+    with _captured_stdout() as printed:
+        try:
+            return ca.nlpsol("lmi_sdp_casadi", "ipopt", nlp, opts)
+        except RuntimeError as exc:  # IPOPT validates its options when the solver is created
+            error = exc
+    lines = [line.strip() for line in printed[0].splitlines() if line.strip()] or [str(error).strip().splitlines()[-1]]
+    given = {k: v for k, v in options.items() if IPOPT_DEFAULTS.get(k, object()) != v}
+    reason = re.sub(r"^.*?\.cpp:\d+:\s*", "", lines[0])  # CasADi's source location first
+    raise InputError(f"lmi-sdp/casadi: IPOPT rejected ipopt_options {given}: {reason}")
+
+
+@contextlib.contextmanager
+def _captured_stdout() -> Iterator[list[str]]:
+    """Capture what is printed while the block runs, through Python's sys.stdout (where CasADi's
+    bindings send its output) and to file descriptor 1 (C code): IPOPT prints an invalid option
+    value and its documentation, whatever print_level says. The text is the yielded list's one
+    item once the block has ended. Used only while a solver is built (once per option set, under
+    `_LOCK`), so that no IPOPT text reaches the user's terminal."""
+    printed: list[str] = []
+    sys.stdout.flush()
+    _flush_c_stdout()
+    saved = os.dup(1)
+    python_text = io.StringIO()  # CasADi's Python bindings route its (and IPOPT's) output to sys.stdout
+    with tempfile.TemporaryFile() as sink, contextlib.redirect_stdout(python_text):
+        os.dup2(sink.fileno(), 1)
+        try:
+            yield printed
+        finally:
+            _flush_c_stdout()  # C's stdout buffers when it is not a terminal: empty it into the sink
+            os.dup2(saved, 1)
+            os.close(saved)
+            sink.seek(0)
+            printed.append(python_text.getvalue() + sink.read().decode("utf-8", "replace"))
+
+
+def _flush_c_stdout() -> None:
+    """fflush(NULL) of the C library (every C stdio stream), where ctypes can reach it."""
     try:
-        return ca.nlpsol("lmi_sdp_casadi", "ipopt", nlp, opts)
-    except RuntimeError as exc:  # IPOPT validates its options when the solver is created
-        detail = str(exc).strip().splitlines()[-1]
-        raise InputError(f"lmi-sdp/casadi: IPOPT rejected ipopt_options {dict(options)}: {detail}") from None
+        import ctypes
+
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError, TypeError):  # no C library by that name (e.g. Windows): nothing buffered to lose
+        pass
 
 
 def _constraint_violation(r: np.ndarray) -> float:
@@ -156,9 +207,12 @@ def _constraint_violation(r: np.ndarray) -> float:
     return float(np.max(np.abs(out)))
 
 
-def _check_multistart(multistart: Any) -> None:
-    if isinstance(multistart, bool) or not isinstance(multistart, (int, np.integer)) or multistart < 0:
-        raise InputError(f"option multistart={multistart!r} must be an integer >= 0")
+def check_starts(multistart: Any, seed: Any) -> None:
+    """InputError unless ``multistart`` is an integer from 0 to `MAX_MULTISTART` and ``seed`` is
+    None or an integer >= 0 (``numpy.random.default_rng`` refuses negative seeds)."""
+    check_int("multistart", multistart, minimum=0, maximum=MAX_MULTISTART)
+    if seed is not None:
+        check_int("seed", seed, minimum=0)
 
 
 def solve_casadi(data: AXYBData, *, normalize: bool, multistart: int = 0, seed: int | None = None,
@@ -166,8 +220,9 @@ def solve_casadi(data: AXYBData, *, normalize: bool, multistart: int = 0, seed: 
     """Minimise eq. 8 over SE(3) x SE(3) with IPOPT, from the kron-lstsq point (+ random starts).
 
     data: validated `AXYBData` (A, B: (m, 4, 4)). normalize: divide translations by the data's
-    RMS translation first (unit invariance). multistart: number of extra random starts (>= 0),
-    drawn from ``numpy.random.default_rng(seed)``. ipopt_options: extra IPOPT options.
+    RMS translation first (unit invariance). multistart: number of extra random starts (0 to
+    `MAX_MULTISTART`), drawn from ``numpy.random.default_rng(seed)`` (seed None or >= 0).
+    ipopt_options: extra IPOPT options.
 
     Returns a `SolverOutput` with X, Y (4, 4) exactly in SE(3), the status of the chosen start
     (module docstring, item 4) and diagnostics: ``ipopt_status`` (= ``solver_status``), ``success``
@@ -178,7 +233,7 @@ def solve_casadi(data: AXYBData, *, normalize: bool, multistart: int = 0, seed: 
     ``translation_scale``, ``sigma_min_R1`` (of R1 of eq. 10, normalised data when normalize),
     ``warnings``. Raises SolverError when no start gave an iterate.
     """
-    _check_multistart(multistart)
+    check_starts(multistart, seed)
     scale = data.translation_scale if normalize else 1.0
     system = data.kronecker(scale)
     cost = eliminate_translations(system)
@@ -198,7 +253,7 @@ def solve_casadi_axxb(data: AXXBData, *, normalize: bool, multistart: int = 0, s
     kron-lstsq point (least squares on |vec R_X|^2 = 3, projected) plus ``multistart`` random
     starts. Arguments, result and diagnostics as `solve_casadi` (``cost`` is |H beta - w|^2 of
     the ``axxb`` system; no ``sigma_min_R1``: this H may be rank deficient)."""
-    _check_multistart(multistart)
+    check_starts(multistart, seed)
     scale = data.translation_scale if normalize else 1.0
     cost = RotationCost.from_normal_equations(*data.normal_equations(scale), rotations=1)
     start, _ = signed_rotations(cost, sphere_least_squares(cost).x)

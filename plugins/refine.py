@@ -26,6 +26,12 @@ Weights: stated (``sigma_rot`` and ``sigma_trans``, or a 6x6 / (m, 6, 6) ``covar
 function, so the answer does not depend on the start within its basin and scales exactly with
 the length unit); with a robust loss by robust scales re-estimated to a fixed point. See
 docs/solvers/refine.md for the models, the Jacobians and measured figures.
+
+Planar mode (a robot whose rotations share one axis, `handeye.problems.planar`, docs/planar.md):
+the model keeps the translation component the user gave (`handeye.nlls.PoseModel.fixed`: the
+steps stay in the 6k - 1 dimensional subspace that keeps it, and its variance is zero); the
+default start is the first start solver with a planar mode (kron-lstsq), and a start given as
+poses is moved onto the constraint first.
 """
 
 from __future__ import annotations
@@ -75,12 +81,15 @@ class _Options:
     tol: float = 1e-14
 
     def __post_init__(self) -> None:
+        from handeye.errors import shown
+        from handeye.options import check_int
+        from handeye.validation import float_array
+
         check_choice("loss", self.loss, LOSSES)
         check_choice("estimate", self.estimate, nlls.ESTIMATES)
         check_positive("loss_scale", self.loss_scale)
         check_positive("tol", self.tol)
-        if not isinstance(self.max_iter, (int, np.integer)) or self.max_iter < 1:
-            raise InputError(f"option max_iter={self.max_iter!r} must be an integer >= 1")
+        check_int("max_iter", self.max_iter, minimum=1)
         names, fields = self.UNKNOWNS, self.INIT_FIELDS
         if isinstance(self.init, Mapping):  # {"X": 4x4, ...}: start from given poses
             if set(self.init) != set(names) or any(getattr(self, f) is not None for f in fields):
@@ -91,7 +100,7 @@ class _Options:
             object.__setattr__(self, "init", None)
         if self.init is not None:
             if not isinstance(self.init, str):
-                raise InputError(f"option init={self.init!r} must be a solver name (str) or a mapping {self._init_listing()}")
+                raise InputError(f"option init={shown(self.init)} must be a solver name (str) or a mapping {self._init_listing()}")
             if self.init in RECURSIVE:
                 raise InputError(
                     f"option init={self.init!r} would make refine start from itself; use a "
@@ -101,7 +110,9 @@ class _Options:
         if any(given) and not all(given):
             raise InputError(f"options {' and '.join(fields)} must be given together (4x4 poses)")
         if any(given):
-            for f, T in zip(fields, _pose_options([getattr(self, f) for f in fields], fields)):
+            # numbers first (one-line InputError for text, None, complex or masked values)
+            values = [float_array(getattr(self, f), f"option {f}", "a 4x4 pose") for f in fields]
+            for f, T in zip(fields, _pose_options(values, fields)):
                 object.__setattr__(self, f, T)
         if (self.sigma_rot is None) != (self.sigma_trans is None):
             raise InputError("options sigma_rot and sigma_trans must be given together (the ratio sets the weights)")
@@ -201,26 +212,33 @@ def model_of(data: Any) -> nlls.PoseModel:
     return _served(data)[1](data)
 
 
-def _available(name: str, problem: str) -> bool:
+def _available(name: str, problem: str, planar: bool = False) -> bool:
     from handeye.registry import get_registry
 
     spec = get_registry().solvers.get(name, {}).get(problem)
-    return spec is not None and spec.unavailable_reason(spec.default_backend) is None
+    return (spec is not None and spec.unavailable_reason(spec.default_backend) is None
+            and (spec.planar_mode or not planar))
 
 
-def default_init(problem: str = "axyb") -> str:
-    """The first of STARTS[problem] that is registered and available here (else the last,
-    whose absence then raises an error listing the solvers)."""
+def default_init(problem: str = "axyb", planar: bool = False) -> str:
+    """The first of STARTS[problem] that is registered and available here, with a planar mode
+    when `planar` (else the last, whose absence then raises an error listing the solvers)."""
     starts = STARTS[problem]
-    return next((name for name in starts if _available(name, problem)), starts[-1])
+    return next((name for name in starts if _available(name, problem, planar)), starts[-1])
 
 
-def fallback_init(problem: str, after: str) -> str | None:
+def fallback_init(problem: str, after: str, planar: bool = False) -> str | None:
     """The start to use when `after` failed (and auto's second start): the first registered and
-    available start listed after it in STARTS[problem]; None when there is none."""
+    available start listed after it in STARTS[problem] (with a planar mode when `planar`); None
+    when there is none."""
     starts = STARTS[problem]
     later = starts[starts.index(after) + 1:] if after in starts else ()
-    return next((name for name in later if _available(name, problem)), None)
+    return next((name for name in later if _available(name, problem, planar)), None)
+
+
+def is_planar(data: Any) -> bool:
+    """Whether validated data are in the planar mode (`handeye.problems.planar`)."""
+    return getattr(data, "planar", None) is not None
 
 
 def start(data: Any, requested: str | None) -> tuple[str, tuple[np.ndarray, ...], Status, dict[str, Any], list[str]]:
@@ -231,13 +249,14 @@ def start(data: Any, requested: str | None) -> tuple[str, tuple[np.ndarray, ...]
     used, and so on, each time with a warning. A start the user asked for by name is never replaced: its
     failure raises.
     """
-    problem = problem_of(data)
-    name, warnings = requested or default_init(problem), []
+    problem, planar = problem_of(data), is_planar(data)
+    name, warnings = requested or (default_init(problem, planar=True) if planar else default_init(problem)), []
     while True:
         try:
             return (name, *run_init(name, data), warnings)
         except (SolverError, BackendUnavailableError) as exc:
-            fallback = None if requested is not None else fallback_init(problem, name)
+            fallback = (None if requested is not None else
+                        fallback_init(problem, name, planar=True) if planar else fallback_init(problem, name))
             if fallback is None:
                 raise
             warnings.append(f"the start solver {name!r} failed ({exc}); started from {fallback!r}")
@@ -255,6 +274,9 @@ def run_init(name: str, data: Any) -> tuple[tuple[np.ndarray, ...], Status, dict
         raise InputError(f"init solver {name!r} would call refine recursively")
     problem = problem_of(data)
     spec = get_registry().solver(name, problem)  # UnknownPluginError listing the solvers
+    if is_planar(data) and not spec.planar_mode:
+        raise InputError(f"init solver {name!r} has no planar (4-DOF) mode for data whose robot rotates about one "
+                         f"axis; use init='{default_init(problem, planar=True)}'")
     reason = spec.unavailable_reason(spec.default_backend)
     if reason:
         raise BackendUnavailableError(f"init solver {name!r} is unavailable: {reason}")
@@ -282,9 +304,14 @@ def run(data: Any, options: _Options, backend: str) -> SolverOutput:
     poses0 = options.start_poses()
     if poses0 is not None:
         init_name, init_status, init_diag, warnings = "given", None, {}, []
+        if is_planar(data):
+            poses0 = data.planar.constrain(options.UNKNOWNS, poses0)
     else:
         init_name, poses0, init_status, init_diag, warnings = start(data, options.init)
     poses, status, diagnostics = refine(data, poses0, options)
+    if is_planar(data):
+        warnings.insert(0, data.planar.warning())
+        diagnostics["planar"] = data.planar.figures()
     if getattr(data, "stations", None) is not None:
         warnings.append(
             f"the {data.m} motions are every pair of {len(data.stations[0])} stations and share "
@@ -313,6 +340,7 @@ SPECS = (
         citation=CITATION,
         unit_invariant=True,
         exact=True,
+        planar_mode=True,
     ),
     SolverSpec(
         name="refine",
@@ -323,6 +351,7 @@ SPECS = (
         citation=CITATION,
         unit_invariant=True,
         exact=True,
+        planar_mode=True,
     ),
 )
 #: the A_i X = Y B_i spec (kept under its old name)

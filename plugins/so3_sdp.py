@@ -8,7 +8,9 @@ Formulation (docs/solvers/so3-sdp.md has the details and the measurements):
    |H beta - w|^2 = |T t + U r - u|^2 + |S r - s|^2 + rest with r = [vec R_1; ...; vec R_k], so
    for given rotations t(r) = T^-1 (u - U r) are the translations' least squares (for ``axyb``
    eqs. 20-21) and the cost is y^T M y + rest with y = [r; 1]. ``axyb``: from the reduced system
-   of eqs. 10-12 (`eliminate_translations`, a QR of [R1_t | R1_r | q1]); ``axxb``: from the normal
+   of eqs. 10-12 (`eliminate_translations`, a QR of [R1_t | R1_r | q1]), or from the normal
+   equations when eq. 8 is rank deficient, which it is for translations all zero (its rotation
+   rows are homogeneous) although the SO(3) problem is not; ``axxb``: from the normal
    equations (`RotationCost.from_normal_equations`), since its H may be rank deficient (a camera
    rotating about its own centre: docs/solvers/kron-lstsq.md) while the SO(3) problem is not.
 2. QCQP / relaxation (`handeye.so3_relaxation`, shared for any number k of rotations):
@@ -51,7 +53,7 @@ from typing import Any
 
 import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.errors import InputError, SolverError
+from handeye.errors import DegenerateDataError, InputError, SolverError
 from handeye.linalg import frobenius_norm
 from handeye.plugins._clarabel_sdp import DualSDP
 from handeye.plugins._cvxpy_solvers import (
@@ -335,7 +337,10 @@ def solve_relaxation(cost: RotationCost, options: Options, backend: str
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     """``axyb``: eq. 8 over SO(3) x SO(3) (module docstring)."""
     scale = data.translation_scale if options.normalize else 1.0
-    cost = eliminate_translations(data.kronecker(scale))
+    try:
+        cost = eliminate_translations(data.kronecker(scale))
+    except DegenerateDataError:  # e.g. translations all zero (module docstring, item 1)
+        cost = RotationCost.from_normal_equations(*data.normal_equations(scale), rotations=2)
     (RX, RY), (tX, tY), status, diagnostics = solve_relaxation(cost, options, backend)
     return SolverOutput(
         unknowns={"X": make_pose(RX, tX * scale), "Y": make_pose(RY, tY * scale)},

@@ -33,6 +33,7 @@ from handeye.errors import DegenerateDataError, InputError
 from handeye.kronecker import PosePairs
 from handeye.noise import NoiseModel
 from handeye.problem import Problem, StationReader, pose_discrepancy
+from handeye.problems import planar as planar_mode
 from handeye.se3 import inverse
 from handeye.validation import pose_stack, same_length
 
@@ -64,7 +65,19 @@ MISMATCH_SIGMAS = 5.0
 @dataclasses.dataclass(frozen=True)
 class AXXBData(PosePairs):
     """Validated data of A_i X = X B_i: read-only float64 stacks A, B of shape (m, 4, 4), with the
-    sums over the motions taken once (`handeye.kronecker.PosePairs`)."""
+    sums over the motions taken once (`handeye.kronecker.PosePairs`).
+
+    planar: for motions that all rotate about one axis b (X's parent frame), the translation
+    ``tz_X`` = t_X . b the user gave, which the data cannot determine
+    (`handeye.problems.planar`); else None.
+    """
+
+    planar: planar_mode.Planar | None = None
+
+    def scaled(self, s: float) -> AXXBData:
+        """The same data with every translation divided by s (the planar value too)."""
+        out = super().scaled(s)
+        return out if self.planar is None else dataclasses.replace(out, planar=self.planar.scaled(s))
 
     @functools.cached_property
     def _quaternions(self) -> np.ndarray:
@@ -273,8 +286,17 @@ class AXXB(Problem):
     station_reader = StationReader(motions, pairing=True,
                                    cell_truth={"eye-in-hand": {"X": "X"}, "eye-to-hand": {"X": "Y"}})
 
+    #: a planar robot's translation of X along its rotation axis (`AXXBData.planar`)
+    optional_fields = ("tz_X",)
+
     def validate(self, **data: Any) -> AXXBData:
+        """The validated motions; ``tz_X`` (data units) for motions that all rotate about one axis
+        (`handeye.problems.planar`: required then, refused otherwise)."""
+        facts = planar_mode.take_facts(data, self.optional_fields)
         out = AXXBData.validated(self.name, data, self.min_pairs)
+        planar = planar_mode.for_axxb(out.A, out.rotation_vectors[0], out.translation_scale, facts)
+        if planar is not None:
+            return dataclasses.replace(out, planar=planar)
         moving = int(np.sum(out.angles[0] > MIN_MOTION_ANGLE))
         if moving < 2 or out.axis_spread < DEGENERATE_AXIS_SPREAD:
             raise DegenerateDataError(

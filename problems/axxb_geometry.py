@@ -107,5 +107,5 @@ def check_model(data: AXXBData, unknowns: dict[str, np.ndarray]) -> tuple[AXYBMo
     X = np.asarray(unknowns["X"], dtype=float)
     if data.stations is not None:
         A, B = data.stations
-        return AXYBModel(AXYBData(A, B)), (X, fitted_Y(A, B, X)), ("X",)
+        return AXYBModel(AXYBData(A, B, planar=data.planar)), (X, fitted_Y(A, B, X)), ("X",)
     return AXXBModel(data), (X,), ("X",)

@@ -32,6 +32,7 @@ from handeye.kronecker import (
 )
 from handeye.noise import NoiseModel
 from handeye.problem import Problem, StationReader, pose_discrepancy
+from handeye.problems import planar as planar_mode
 from handeye.se3 import (
     inverse,
     make_pose,
@@ -59,7 +60,19 @@ DEGENERATE_EXCITATION = 1e-10
 @dataclasses.dataclass(frozen=True)
 class AXYBData(PosePairs):
     """Validated data of A_i X = Y B_i: read-only float64 stacks A, B of shape (m, 4, 4), with the
-    sums over the pairs behind eq. 8 taken once (`handeye.kronecker.PosePairs`)."""
+    sums over the pairs behind eq. 8 taken once (`handeye.kronecker.PosePairs`).
+
+    planar: for a robot whose rotations share one axis, the translation along it that the user
+    gave (``tz_X`` = t_X . b, b the axis in the flange frame, or ``tz_Y`` = t_Y . a, a the axis
+    in the base frame; `handeye.problems.planar`), which the data cannot determine; else None.
+    """
+
+    planar: planar_mode.Planar | None = None
+
+    def scaled(self, s: float) -> AXYBData:
+        """The same data with every translation divided by s (the planar value too)."""
+        out = super().scaled(s)
+        return out if self.planar is None else dataclasses.replace(out, planar=self.planar.scaled(s))
 
     @functools.cached_property
     def rotation_excitation(self) -> float:
@@ -189,10 +202,18 @@ class AXYB(Problem):
     unknowns = ("X", "Y")
     data_fields = ("A", "B")
     min_pairs = 3
+    #: a planar robot's translation along its rotation axis (one of them; `AXYBData.planar`)
+    optional_fields = ("tz_X", "tz_Y")
     station_reader = StationReader(pairs_from_stations)
 
     def validate(self, **data: Any) -> AXYBData:
+        """The validated data; ``tz_X`` or ``tz_Y`` (data units) for a robot whose rotations share
+        one axis (`handeye.problems.planar`: required then, refused otherwise)."""
+        facts = planar_mode.take_facts(data, self.optional_fields)
         out = AXYBData.validated(self.name, data, self.min_pairs)
+        planar = planar_mode.for_axyb(out.A, out.translation_scale, facts)
+        if planar is not None:  # rotations about one axis: the translations fix their gauge
+            return dataclasses.replace(out, planar=planar)
         excitation = out.rotation_excitation
         if excitation < DEGENERATE_EXCITATION:
             raise DegenerateDataError(

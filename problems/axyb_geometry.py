@@ -57,6 +57,8 @@ class AXYBModel(PoseModel):
         self.tA = np.ascontiguousarray(data.A[:, :3, 3])
         self.tB = np.ascontiguousarray(data.B[:, :3, 3])
         self.TBx_T = np.ascontiguousarray(so3_fast.skew(self.tB).transpose(1, 0, 2)).reshape(3, 3 * m)
+        planar = getattr(data, "planar", None)  # the planar mode keeps one translation component
+        self.fixed = () if planar is None else planar.fixed(self.unknowns)
 
     def residuals(self, poses: Poses) -> np.ndarray:
         """Unwhitened residuals e: (m, 6) = [r_i; t_i], r_i the rotation vector of the discrepancy

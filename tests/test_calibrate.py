@@ -164,9 +164,11 @@ def test_consecutive_pairing_and_frame_ids_and_overwrite(tmp_path, capsys):
     robot, camera, truth = cell(tmp_path)
     out_json = tmp_path / "r.json"
     out_json.write_text("old")
-    code, out, err = run_cli(capsys, *args(robot, camera, "fanuc-wpr", "opencv-rvec", "eye-in-hand",
-                                           "--camera-unit", "mm", "--problem", "axxb", "--pairing", "consecutive",
-                                           "--frame-ids", "tool0,cam_optical", "-o", out_json))
+    argv = args(robot, camera, "fanuc-wpr", "opencv-rvec", "eye-in-hand", "--camera-unit", "mm", "--problem", "axxb",
+                "--pairing", "consecutive", "--frame-ids", "tool0,cam_optical", "-o", out_json)
+    _bad(capsys, argv, "--force")  # an existing file is kept without --force
+    assert out_json.read_text() == "old"
+    code, out, err = run_cli(capsys, *argv, "--force")
     assert code == 0, err
     r = json.loads(out_json.read_text())
     assert r["pairing"] == "consecutive" and r["residuals"]["count"] == 9 and "Y" not in r
@@ -221,7 +223,7 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys):
 
 def test_help(capsys):
     code, out, _ = run_cli(capsys, "calibrate", "--help")
-    assert code == 0 and "T_cam_target" in out and "--robot-unit" in out and "overwritten" in out
+    assert code == 0 and "T_cam_target" in out and "--robot-unit" in out and "--force" in out
 
 
 # ----------------------------------------------------------------------------- --match, --camera-poses

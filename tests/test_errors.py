@@ -239,8 +239,9 @@ def test_backend_check_reason(data, runtime_plugins):
     ({"X": np.eye(4)}, "did not return unknown 'Y'"),
     ({"X": np.eye(4), "Y": np.diag([1.0, 1.0, 1.001, 1.0])}, "not in SO"),
     ({"X": np.eye(4), "Y": np.diag([1.0, 1.0, -1.0, 1.0])}, r"det = -1"),
-    ({"X": np.eye(4), "Y": np.full((4, 4), np.nan)}, "non-finite or non-4x4"),
-    ({"X": np.eye(3), "Y": np.eye(4)}, "non-finite or non-4x4"),
+    ({"X": np.eye(4), "Y": np.full((4, 4), np.nan)}, "Y with 16 non-finite entries"),
+    ({"X": np.eye(3), "Y": np.eye(4)}, r"X of shape \(3, 3\), not a 4x4 pose"),
+    ({"X": "abc", "Y": np.eye(4)}, "X as a str that is not an array of numbers"),
 ])
 def test_solver_returning_non_se3_is_a_solver_error(data, runtime_plugins, unknowns, match):
     spec = SolverSpec("broken", ("axyb",), lambda d, o, b: SolverOutput(unknowns))

@@ -1,10 +1,14 @@
-"""Helpers shared by the subcommands: option parsing and text/JSON output."""
+"""Helpers shared by the subcommands: option parsing, text/JSON output, and the rule for output
+files: a command never writes over an existing file unless given ``--force`` (`add_force_flag`,
+`check_new_file`, `check_new_results`), checked before any work is done."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -64,3 +68,27 @@ def _plain(value: Any) -> Any:
     if hasattr(value, "value") and isinstance(value.value, str):  # enums
         return value.value
     return value
+
+
+def add_force_flag(parser: argparse.ArgumentParser) -> None:
+    """The ``--force`` flag of every subcommand that writes files."""
+    parser.add_argument("--force", action="store_true",
+                        help="overwrite output files that exist (without it they are kept and the command stops)")
+
+
+def check_new_file(flag: str, path: str | Path | None, force: bool) -> None:
+    """InputError when output file `path` (given with `flag`, e.g. ``-o``) exists and `force` is
+    False; nothing when path is None. Called before any work, so a refused run computes nothing."""
+    if path is not None and not force and Path(path).exists():
+        raise InputError(f"{flag} {str(path)!r}: the file exists; pass --force to overwrite it, or name another file")
+
+
+def check_new_results(flag: str, outdir: str | Path, files: Iterable[str], force: bool) -> None:
+    """InputError when folder `outdir` (given with `flag`) already holds one of `files` (the names
+    a run writes there, e.g. a study's CSV and summary) and `force` is False."""
+    if force:
+        return
+    existing = [name for name in files if (Path(outdir) / name).exists()]
+    if existing:
+        raise InputError(f"{flag} {str(outdir)!r} already holds {existing[0]!r} from an earlier run; pass --force "
+                         "to overwrite its results, or name another folder (or --name)")

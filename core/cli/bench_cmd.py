@@ -54,6 +54,7 @@ from ..errors import InputError, UnknownPluginError
 from ..noise import NoiseModel
 from ..registry import get_registry
 from ..se3 import inverse
+from ._common import add_force_flag, check_new_file
 
 NAME = "bench"
 DEFAULT_REPEATS = 7
@@ -193,7 +194,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="rotation noise std on A and B (axxb: robot and camera poses), rad (default 0.005)")
     parser.add_argument("--noise-trans", type=float, default=0.5, metavar="MM",
                         help="translation noise std on A and B (axxb: robot and camera poses), mm (default 0.5)")
-    parser.add_argument("--json", metavar="FILE", help="also write every timing to FILE (JSON)")
+    parser.add_argument("--json", metavar="FILE",
+                        help="also write every timing to FILE (JSON; an existing file is kept unless --force)")
+    add_force_flag(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
 
@@ -505,6 +508,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--repeats must be >= 1, got {args.repeats}")
     if not args.budget > 0:
         raise InputError(f"--budget must be > 0 seconds, got {args.budget}")
+    check_new_file("--json", args.json, args.force)
     noise = NoiseModel.on(("A", "B"), args.noise_rot, args.noise_trans)
     rows, unavailable = build_rows(args.solvers, bench.problem)
     if not rows:

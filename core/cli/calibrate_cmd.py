@@ -7,7 +7,8 @@ for T_target_cam, inverted on reading), pairs them into stations (``--match row`
 of both files is station k; ``name``: equal name columns; ``time``: each camera pose with the robot
 pose at the nearest time stamp within ``--max-dt``, no interpolation), solves, and prints the unknowns with their frames, 1-sigma uncertainties,
 residuals and a ROS 2 static_transform_publisher line; ``-o`` / ``--yaml`` write the same as
-JSON / YAML (an existing file is overwritten, and the output says "wrote FILE").
+JSON / YAML (the output says "wrote FILE"; an existing file is kept, and nothing solved, unless
+``--force`` is given).
 
 What is solved (docs/conventions.md): ``--problem axyb`` (default) finds both unknowns from the
 stations, eye-in-hand X = T_flange_cam and Y = T_base_target, eye-to-hand X = T_flange_target and
@@ -67,7 +68,15 @@ from ..registry import get_registry
 from ..se3 import inverse
 from ..solution import Status, standard_deviations
 from ..station_matching import MATCHES, default_max_dt, match_by_name, match_by_time
-from ._common import _plain, dump_json, format_pose, parse_key_values
+from . import _planar
+from ._common import (
+    _plain,
+    add_force_flag,
+    check_new_file,
+    dump_json,
+    format_pose,
+    parse_key_values,
+)
 from .solve_cmd import EQUATIONS, FRAMES, UNUSABLE, _setup_note, default_solver
 
 NAME = "calibrate"
@@ -125,8 +134,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--solver", help="solver (default: 'auto' if installed, else 'kron-lstsq'); see handeye list")
     parser.add_argument("--backend", help="backend of the solver (default: the solver's default)")
     parser.add_argument("--option", action="append", metavar="KEY=VALUE", help="solver option, repeatable")
-    parser.add_argument("-o", "--output", metavar="FILE", help="write the result as JSON (overwritten if it exists)")
-    parser.add_argument("--yaml", metavar="FILE", help="write the result as YAML (overwritten if it exists)")
+    _planar.add_flags(parser, "the robot file's length unit")
+    parser.add_argument("-o", "--output", metavar="FILE", help="write the result as JSON (an existing file is kept "
+                                                              "unless --force)")
+    parser.add_argument("--yaml", metavar="FILE", help="write the result as YAML (an existing file is kept unless --force)")
     parser.add_argument("--report", metavar="FILE",
                         help="write a quality report: .html (one self-contained page with plots) or .md (markdown, "
                              "its PNG plots next to it); written also when the answer is unusable, to see why")
@@ -137,6 +148,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--no-checks", action="store_true",
                         help="skip the plausibility checks (residuals against the cell's noise, the usual setup "
                              "mistakes, duplicated stations, too few stations; docs/calibrate.md)")
+    add_force_flag(parser)
     parser.set_defaults(run=run)
     return parser
 
@@ -311,11 +323,14 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("two of -o, --yaml, --report name the same file; give different files")
     if any(p.resolve() in inputs for p in outputs):
         raise InputError("an output file (-o / --yaml / --report) is one of the input files; it would be overwritten")
+    for flag, path in (("-o", args.output), ("--yaml", args.yaml), ("--report", args.report)):
+        check_new_file(flag, path, args.force)
     if args.pairing is not None and args.problem != "axxb":
         raise InputError("--pairing applies to --problem axxb (motions between stations); with axyb every "
                          "station is one pair: drop it")
     parent, child = _frame_ids(args.frame_ids, ROS_FRAMES[(args.problem, args.setup)][1:])
     options = parse_key_values(args.option)
+    facts = _planar.take(args, options)
 
     robot_file = _read(args.robot, args.robot_format, args.robot_unit, args.orthonormalize, "robot")
     camera_file = _read(args.camera, args.camera_format, args.camera_unit, args.orthonormalize, "camera")
@@ -336,14 +351,14 @@ def run(args: argparse.Namespace) -> int:
     if clash:
         raise InputError(f"--option {clash} clashes with the data field(s) of problem {args.problem!r}")
     solver = args.solver or default_solver(args.problem)
-    solution = solve(args.problem, solver=solver, backend=args.backend, **pose_file.data, **options)
+    solution = solve(args.problem, solver=solver, backend=args.backend, **pose_file.data, **facts, **options)
 
     problem = get_registry().problem(args.problem)
-    residuals = problem.residuals(problem.validate(**pose_file.data), solution.unknowns)
+    residuals = problem.residuals(problem.validate(**pose_file.data, **facts), solution.unknowns)
     report = None
     if not args.no_checks and solution.status not in UNUSABLE:
         report = check(Streams(robot.poses, camera.poses, robot.unit, args.setup, args.problem,
-                               pose_file.metadata.get("pairing"), robot_format=robot.format,
+                               pose_file.metadata.get("pairing"), facts=facts, robot_format=robot.format,
                                camera_format=camera_read.format, camera_unit=camera_read.unit,
                                reread_robot=_rereader(args.robot, robot, robot.unit, args.orthonormalize,
                                                       robot_rows),

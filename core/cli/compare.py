@@ -8,7 +8,8 @@ registered solver of ``--problem``; ``--paper OUTDIR`` is the paper's Sec. IV-A 
 Table I; docs/reproducing-the-paper.md); ``--accuracy OUTDIR`` the accuracy study (realistic
 noise on A and B, m = 8, 16, 50, every solver against a refinement started at the truth when
 ``refine`` is installed). ``--trials``, ``--seed``, ``--solvers``, ``--units`` and ``--truth``
-override what the study says.
+override what the study says. A folder that already holds the results of a study of the same
+name is left alone unless ``--force`` is given.
 
 ``--data FILE -o OUTDIR`` (or ``--example NAME``) compares the solvers on your own data, which have
 no truth, by held-out residuals: k-fold cross-validation (``--folds``, default 5, seeded by
@@ -31,11 +32,16 @@ from typing import Any
 from ..errors import InputError
 from ..noise import NoiseModel
 from ..registry import get_registry
+from ._common import add_force_flag, check_new_results
 
 NAME = "compare"
 #: the noise levels (sigma_N, paper reading: rad and mm on A and B) when neither levels nor a
 #: base noise are given
 DEFAULT_LEVELS = "0,0.02,0.05,0.1"
+#: what a study writes to its folder besides its figures, after the study's name
+#: (`handeye.harness.write_report`): an earlier run's files of that name are not overwritten
+#: without --force
+STUDY_FILES = (".csv", "_summary.json", "_times.md", "_errors.md")
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -90,6 +96,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help="dask scheduler address, e.g. tcp://host:8786 (default: a local cluster)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_force_flag(parser)
     parser.set_defaults(run=run)
     return parser
 
@@ -197,6 +204,8 @@ def run(args: argparse.Namespace) -> int:
     study, outdir = build_study(args)
     if args.scheduler and args.executor != "dask":
         raise InputError("--scheduler needs --executor dask")
+    flag = "--paper" if args.paper else "--accuracy" if args.accuracy else "-o"
+    check_new_results(flag, outdir, [study.name + suffix for suffix in STUDY_FILES], args.force)
     result = run_study(study, jobs=args.jobs, progress=not args.no_progress,
                        executor=args.executor, scheduler=args.scheduler)
     paths = write_report(result, outdir)

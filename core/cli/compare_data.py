@@ -18,6 +18,7 @@ from ..errors import InputError
 from ..io import PoseFile, from_poses, load_file, station_readers
 from ..registry import get_registry
 from ..se3 import inverse
+from ._common import check_new_results
 
 #: flags of the simulated studies that make no sense with --data / --example
 SIMULATION_FLAGS = ("paper", "accuracy", "study", "noise_levels", "noise_rot", "noise_trans", "noise_on",
@@ -25,6 +26,9 @@ SIMULATION_FLAGS = ("paper", "accuracy", "study", "noise_levels", "noise_rot", "
 #: length unit of a file -> factor to mm
 TO_MM = {"m": 1000.0, "cm": 10.0, "mm": 1.0}
 DEFAULT_FOLDS = 5
+#: what a cross-validation writes to its folder, after its name (`write_crossval`); an earlier
+#: run's files of that name are not overwritten without --force
+CROSSVAL_FILES = ("_heldout.md", "_summary.json", "_folds.csv", "_pairs.csv", "_heldout.png")
 
 
 def read(args: argparse.Namespace) -> tuple[Any, str]:
@@ -74,13 +78,15 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("give either --data FILE or --example NAME, not both")
     if not args.output:
         raise InputError("give an output directory with -o OUTDIR")
+    name = args.name or (args.example or Path(args.data).stem)
+    check_new_results("-o", args.output, [name + suffix for suffix in CROSSVAL_FILES], args.force)
     folds = DEFAULT_FOLDS if args.folds is None else args.folds
     specs = parse_specs(args.solvers, args.problem) if args.solvers else default_specs(args.problem)
     cv, source = read(args)
     timeout = 30.0 if args.timeout is None else (args.timeout if args.timeout > 0 else None)
     result = run_crossval(cv, specs, folds=folds, seed=0 if args.seed is None else args.seed,
                           timeout=timeout, progress=not args.no_progress)
-    paths = write_crossval(result, Path(args.output), name=args.name or (args.example or Path(args.data).stem), source=source)
+    paths = write_crossval(result, Path(args.output), name=name, source=source)
     failed = sum(r["status"] == "failed" for r in result.folds)
     print(f"held-out residuals of {len(specs)} solver(s) on {source} ({args.problem}): {folds}-fold "
           f"cross-validation over {cv.count} {cv.item}s, seed {result.seed}; {failed} failed fit(s); "

@@ -13,6 +13,9 @@ With ``--stations N`` (``axyb`` and ``axxb``) the file holds the N stations' abs
 themselves, as a cell records them (robot_poses = T_base_flange, camera_poses = T_cam_target,
 setup eye-in-hand; docs/formats.md), so the same file can be solved as AX=YB
 (``--problem axyb``) and as AX=XB (``--problem axxb``).
+
+A file holds at most 1,000,000 pairs, motions or stations (with ``--pairing all``, M stations
+make M (M - 1) / 2 motions); an existing output file is kept unless ``--force`` is given.
 """
 
 from __future__ import annotations
@@ -31,8 +34,14 @@ from ..io import (
 from ..noise import NoiseModel
 from ..registry import get_registry
 from ..se3 import inverse
+from ._common import add_force_flag, check_new_file
 
 NAME = "simulate"
+#: Most pairs, motions or stations one simulated file holds. Measured: 10^5 pairs take 7 s, 0.23 GB
+#: of memory and 56 MB as JSON (NPZ: about a third of each), so the cap costs ~1 min and ~2 GB at
+#: most; far more than any calibration uses (tens to hundreds of poses), while a mistyped count
+#: (10^9) would otherwise end in a MemoryError after minutes.
+MAX_POSES = 1_000_000
 
 
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -56,7 +65,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                              "axxb: A = the robot poses, B = the camera poses)")
     parser.add_argument("--seed", type=int, default=None, help="random seed (default: fresh)")
     parser.add_argument("-o", "--output", required=True,
-                        help=f"output file ({', '.join(supported_extensions())})")
+                        help=f"output file ({', '.join(supported_extensions())}); an existing one is kept "
+                             "unless --force")
+    add_force_flag(parser)
     parser.set_defaults(run=run)
     return parser
 
@@ -84,6 +95,8 @@ def run(args: argparse.Namespace) -> int:
                          f"({sorted(p for p, c in station_readers().items() if c.pairing)}), not {args.problem!r}")
     if args.stations is not None and args.pairs is not None:
         raise InputError("give --pairs (data made from the stations) or --stations (the absolute poses), not both")
+    _check_size(args, motions)
+    check_new_file("-o", args.output, args.force)
     noise = NoiseModel.on(stacks, args.noise_rot, args.noise_trans)
     metadata = {"units": "mm", "setup": "eye-in-hand", "source": "simulated by handeye"}
     options = {"pairing": args.pairing} if args.pairing is not None else {}
@@ -110,3 +123,20 @@ def run(args: argparse.Namespace) -> int:
                      metadata=metadata)
     print(f"wrote {count} {args.problem} {what} with truth to {path}")
     return 0
+
+
+def _check_size(args: argparse.Namespace, motions: bool) -> None:
+    """InputError when the file would hold more than `MAX_POSES` pairs, motions or stations."""
+    if args.stations is not None:
+        flag, count, what = "--stations", args.stations, "stations"
+    else:
+        flag, count, what = "--pairs", 16 if args.pairs is None else args.pairs, "pairs"
+        if motions and count > 1:
+            every = (args.pairing or DEFAULT_PAIRING) == "all"
+            count, what = (count * (count - 1) // 2 if every else count - 1), "motions"
+    if count > MAX_POSES:
+        value = args.stations if args.stations is not None else args.pairs
+        made = f" makes {count} {what}" if what == "motions" else ""
+        hint = " (or --pairing consecutive)" if what == "motions" else ""
+        raise InputError(f"{flag} {value}{made}: a simulated file holds at most {MAX_POSES} {what}; "
+                         f"give a smaller {flag}{hint}")

@@ -57,7 +57,14 @@ from ..quality_report import check_report_path, collect, write_report
 from ..registry import get_registry
 from ..se3 import inverse
 from ..solution import Status, standard_deviations
-from ._common import dump_json, format_pose, parse_key_values
+from . import _planar
+from ._common import (
+    add_force_flag,
+    check_new_file,
+    dump_json,
+    format_pose,
+    parse_key_values,
+)
 
 NAME = "solve"
 #: solvers tried, in order, when --solver is not given
@@ -99,10 +106,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--option", action="append", metavar="KEY=VALUE",
                         help="solver option, repeatable; VALUE true/false (any case) is a bool, else it is "
                              "read as JSON when it parses (1e-8, \"x\"), else as text")
+    _planar.add_flags(parser, "the data's length unit")
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.add_argument("--report", metavar="FILE",
                         help="write a quality report: .html (one self-contained page with plots) or .md (markdown, "
-                             "its PNG plots next to it); docs/calibrate.md")
+                             "its PNG plots next to it); docs/calibrate.md; an existing file is kept unless --force")
+    add_force_flag(parser)
     parser.add_argument("--no-checks", action="store_true",
                         help="files of absolute poses: skip the plausibility checks (docs/calibrate.md)")
     parser.set_defaults(run=run)
@@ -124,6 +133,7 @@ def run(args: argparse.Namespace) -> int:
         check_report_path(args.report)
         if args.file is not None and Path(args.report).resolve() == Path(args.file).resolve():
             raise InputError("--report names the data file; it would be overwritten")
+        check_new_file("--report", args.report, args.force)
     if args.example is not None:
         pose_file = example_file(args.example, args.problem, setup=args.setup, pairing=args.pairing)
         source = f"example {args.example!r}"
@@ -132,20 +142,21 @@ def run(args: argparse.Namespace) -> int:
         source = args.file
     data, truth, metadata = pose_file.data, pose_file.truth, pose_file.metadata
     options = parse_key_values(args.option)
+    facts = _planar.take(args, options)
     clash = sorted(set(options) & set(data))
     if clash:
         raise InputError(f"--option {clash} clashes with the data field(s) of problem {args.problem!r}")
     solver = args.solver or default_solver(args.problem)
 
-    solution = solve(args.problem, solver=solver, backend=args.backend, **data, **options)
+    solution = solve(args.problem, solver=solver, backend=args.backend, **data, **facts, **options)
     problem = get_registry().problem(args.problem)
-    residuals = problem.residuals(problem.validate(**data), solution.unknowns)
+    residuals = problem.residuals(problem.validate(**data, **facts), solution.unknowns)
     errors = problem.errors(solution.unknowns, truth) if truth is not None else None
     checks = None
     if pose_file.poses is not None and not args.no_checks and solution.status not in UNUSABLE:
         checks = check(Streams(pose_file.poses["robot_poses"], pose_file.poses["camera_poses"],
                                metadata.get("units") or "length units", metadata["setup"], args.problem,
-                               metadata.get("pairing")), residuals)
+                               metadata.get("pairing"), facts=facts), residuals)
         if not checks.plausible:
             solution = dataclasses.replace(solution, status=Status.UNRELIABLE)
     frames = FRAMES.get((args.problem, metadata.get("setup", "")), {})
