@@ -42,6 +42,9 @@ class SolverSpec:
         solvers whose accuracy is bounded by their tolerance (the tests read this).
     check: optional ``check(backend) -> reason or None``, called lazily for availability
         conditions that a module look-up cannot see (e.g. a function missing from a version).
+    simulate_options: options of the problem's simulator that make data this solver can solve,
+        e.g. ``{"protocol": "phases"}`` for a method that needs one robot to hold still while the
+        other moves; the shared tests simulate its cases with them.
     planar_mode: True when the solver honours the planar (4-DOF) mode: data whose robot rotates
         about one axis, with the translation that leaves undetermined given by the user (the
         validated data's ``planar``); the host refuses such data for the other solvers.
@@ -59,6 +62,7 @@ class SolverSpec:
     exact: bool = True
     check: Callable[[str], str | None] | None = None
     planar_mode: bool = False
+    simulate_options: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.default_backend not in self.backends:

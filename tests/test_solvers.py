@@ -51,19 +51,20 @@ def problem_of(case) -> handeye.Problem:
     return handeye.get_registry().problem(case.problem)
 
 
-def noise_free_case(problem: handeye.Problem, seed: int):
+def noise_free_case(problem: handeye.Problem, seed: int, simulate_options=None):
+    """Noise-free data with random unknowns; simulate_options: the solver's (SolverSpec)."""
     truth = problem.random_unknowns(np.random.default_rng(seed))
-    return problem.simulate(pairs=NOISE_FREE_PAIRS, seed=seed, **truth)
+    return problem.simulate(pairs=NOISE_FREE_PAIRS, seed=seed, **truth, **(simulate_options or {}))
 
 
-def noisy_case(problem: handeye.Problem):
+def noisy_case(problem: handeye.Problem, simulate_options=None):
     pairs, noise = NOISY.get(problem.name, (30, NoiseModel.on(problem.data_fields, 0.002, 0.2)))
-    return problem.simulate(pairs=pairs, seed=NOISY_SEED, noise=noise)
+    return problem.simulate(pairs=pairs, seed=NOISY_SEED, noise=noise, **(simulate_options or {}))
 
 
 @pytest.fixture
 def noisy(solver_case):
-    return noisy_case(problem_of(solver_case))
+    return noisy_case(problem_of(solver_case), solver_case.spec.simulate_options)
 
 
 @pytest.fixture
@@ -75,7 +76,7 @@ def noisy_solution(solver_case, solve_once, noisy):
 @pytest.mark.parametrize("seed", NOISE_FREE_SEEDS)
 def test_noise_free_recovery(solver_case, seed):
     problem = problem_of(solver_case)
-    data, truth = noise_free_case(problem, seed)
+    data, truth = noise_free_case(problem, seed, solver_case.spec.simulate_options)
     scale = problem.validate(**data).translation_scale
     sol = solver_case.solve(**data)
     if solver_case.spec.exact:
@@ -239,7 +240,7 @@ def test_bad_input_raises_right_type(solver_case, noisy):
 def test_huge_translations_raise_input_error(solver_case):
     """Translations ~1e160 overflow the sums over the pairs: every solver reports it as bad input
     (ours), never as a bare numpy/scipy ValueError, FloatingPointError or LinAlgError."""
-    data, _ = problem_of(solver_case).simulate(pairs=10, seed=1)
+    data, _ = problem_of(solver_case).simulate(pairs=10, seed=1, **solver_case.spec.simulate_options)
     huge = {k: np.array(v) for k, v in data.items()}
     for T in huge.values():
         T[:, :3, 3] *= 1e160
