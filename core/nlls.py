@@ -296,6 +296,9 @@ def levenberg_marquardt(model: PoseModel, poses: Poses, W: Whitening | None, los
     while True:
         P = fixed_basis(poses, fixed)
         g, H, Hw, F = local_model(model, poses, e, W, mode, loss, c, scale, P)
+        if weight_change <= WEIGHT_TOL and _at_rounding(e, scale):
+            converged = True  # exact data fitted to working precision: no step can be judged any more
+            break
         if mode != "profile":
             value = F
         step_gn = _newton_step(H, g)
@@ -379,6 +382,17 @@ def levenberg_marquardt(model: PoseModel, poses: Poses, W: Whitening | None, los
     if mode != "profile":
         value = F
     return LMResult(poses, W, value, iterations, converged, Hw, W.residual(e), e, mode, e0, P)
+
+
+#: residuals below this (rad, and times the data's length scale) are rounding: the data are
+#: exact and fitted (measured: exact data leave ~1e-16 rad and ~1e-13 of the scale)
+ROUNDING = 1e-12
+
+
+def _at_rounding(e: np.ndarray, scale: float) -> bool:
+    """Whether every residual is at the rounding level of exact data (ROUNDING)."""
+    return bool(np.max(np.abs(e[:, :3]), initial=0.0) <= ROUNDING
+                and np.max(np.abs(e[:, 3:]), initial=0.0) <= ROUNDING * scale)
 
 
 def _newton_step(H: np.ndarray, g: np.ndarray) -> np.ndarray:

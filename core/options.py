@@ -49,8 +49,9 @@ def parse_options(cls: type[T], values: Mapping[str, Any], solver: str) -> T:
 
 
 def check_choice(name: str, value: Any, allowed: Collection[Any]) -> None:
-    """Raise InputError unless `value` is one of `allowed`."""
-    if value not in allowed:
+    """Raise InputError unless `value` is one of `allowed` (compared as a plain value: an array
+    or other container is refused, not compared element-wise)."""
+    if not isinstance(value, (str, int, float, bool, type(None))) or value not in allowed:
         listing = ", ".join(repr(a) for a in allowed)
         raise InputError(f"option {name}={shown(value)} is not one of {listing}")
 

@@ -5,11 +5,12 @@ translations or gross pairs, a closed form can solve its problem and still retur
 tens of degrees off, with status ``optimal``. `handeye.solve` therefore checks every answer, any
 solver's (third parties' too), against the data it was computed from:
 
-1. **Residuals against the noise the data show.** The rotation angle of a motion is the same
-   for the robot and the camera (A = X B X^-1 conjugates), so the differences of those angles
-   measure the rotation noise without knowing X (`angle_noise`). The median residual rotation of
-   a correct answer is about CHI3_MEDIAN times that noise (per pair); an answer whose median
-   residual rotation exceeds `ROTATION_RESIDUAL_FACTOR` times it is broken.
+1. **Residuals against the noise the data show.** The rotation angle and the screw pitch of a
+   motion are the same for the robot and the camera (A = X B X^-1 conjugates), so their
+   differences measure the noise without knowing X (`angle_noise`, `pitch_noise`). The median
+   residual rotation of a correct answer is about CHI3_MEDIAN times the angle noise, plus what a
+   fit trades for the translation noise (`expected_from_invariants`); an answer whose median
+   residual rotation exceeds `ROTATION_RESIDUAL_FACTOR` times that is broken.
 2. **Distance from the best fit.** From the answer, a local maximum-likelihood fit of the same
    data (`handeye.nlls`, the engine of ``refine``; Cauchy loss when some pairs are far off the
    others) gives the best answer near it and its covariance. The answer's distance from it in
@@ -105,6 +106,33 @@ def angle_noise(angle_A: np.ndarray, angle_B: np.ndarray) -> float | None:
     return 1.4826 * float(np.median(np.abs(angle_A[use] - angle_B[use])))
 
 
+def pitch_noise(phi_A: np.ndarray, t_A: np.ndarray, phi_B: np.ndarray, t_B: np.ndarray) -> float | None:
+    """Robust standard deviation (data units) of the differences of the screw pitches n . t
+    (translation along the rotation axis, invariant like the angle under A = X B X^-1, and under
+    inverting a pose) of paired motions, over those that rotate by more than MIN_ANGLE on both
+    sides; None with fewer than MIN_MOTIONS such motions. Motions given by rotation vectors phi
+    and translations t, (n, 3) each."""
+    angle_A, angle_B = np.linalg.norm(phi_A, axis=1), np.linalg.norm(phi_B, axis=1)
+    use = (angle_A > MIN_ANGLE) & (angle_B > MIN_ANGLE)
+    if use.sum() < MIN_MOTIONS:
+        return None
+    pitch_A = np.einsum("ij,ij->i", phi_A[use], t_A[use]) / angle_A[use]
+    pitch_B = np.einsum("ij,ij->i", phi_B[use], t_B[use]) / angle_B[use]
+    return 1.4826 * float(np.median(np.abs(pitch_A - pitch_B)))
+
+
+def expected_from_invariants(angle_sigma: float | None, pitch_sigma: float | None, lever: float,
+                             stations_per_pair: float) -> float | None:
+    """Check 1's expected median rotation residual: `chi3_expected` of the angle noise, and of
+    the rotation a fit trades for translation noise (the pitch noise over the data's lever arm:
+    with exact rotations and noisy translations a good answer still leaves rotation residuals,
+    which the angles alone cannot show). None when the angles give nothing."""
+    if angle_sigma is None:
+        return None
+    coupled = (pitch_sigma or 0.0) / lever if lever > 0 else 0.0
+    return chi3_expected(math.hypot(angle_sigma, coupled), stations_per_pair)
+
+
 def main_axis(rotation_vectors: np.ndarray) -> np.ndarray | None:
     """The unit axis the rotations (rotation vectors, (n, 3)) turn mostly about: the principal
     eigenvector of sum phi phi^T (sign free), when its eigenvalue is at least 1 / AXIS_SHARE times
@@ -130,17 +158,18 @@ def assess(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], diagnost
     failures: list[str] = []
     warnings: list[str] = []
     figures: dict[str, Any] = {}
-    _rotation_residual(problem, data, unknowns, failures, figures)
-    _rotation_blocks(diagnostics, failures, figures)
     spec = problem.check_model(data, unknowns)
     if spec is not None:
         _local_fit(problem, data, spec, diagnostics, failures, warnings, figures)
+    _rotation_residual(problem, data, unknowns, failures, figures)
+    _rotation_blocks(diagnostics, failures, figures)
+    failures.sort(key=lambda f: not f.startswith("the answer leaves"))  # check 1 first: it says the most
     return Assessment(not failures, tuple(failures), tuple(warnings), figures)
 
 
 def _rotation_residual(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], failures: list[str],
                        figures: dict[str, Any]) -> None:
-    """Check 1."""
+    """Check 1 (`expected_from_invariants`)."""
     expected = problem.expected_rotation_residual(data)
     if expected is None:
         return

@@ -84,6 +84,9 @@ def float_array(value: Any, name: str, expected: str) -> np.ndarray:
                 if expected == POSE_STACK else "remove or fill the masked entries")
         raise InputError(f"{name} is a masked array with {masked_count(value)}, and masks are not used: "
                          f"{what} and pass a plain array")
+    if isinstance(value, np.ndarray) and value.dtype.kind in "US":
+        raise InputError(f"{name} is an array of text ({value.dtype}); expected {expected}: convert the "
+                         "numbers when reading them (e.g. np.loadtxt, or handeye's pose file readers)")
     if isinstance(value, (str, bytes, Mapping)) or not (
             isinstance(value, (Sequence, np.ndarray, numbers.Number, np.generic)) or hasattr(value, "__array__")):
         raise InputError(f"{name} must be {expected}; could not convert it to floats (got a value of type "
@@ -130,7 +133,8 @@ def pose_stacks(stacks: Mapping[str, Any], min_pairs: int) -> dict[str, np.ndarr
     or raise their one-line errors naming the stack and the poses.
     """
     try:
-        checked_one_by_one = any(_is_complex(v) or is_masked(v) or v is None for v in stacks.values())
+        checked_one_by_one = any(_is_complex(v) or is_masked(v) or v is None
+                                 or (isinstance(v, np.ndarray) and v.dtype.kind in "US") for v in stacks.values())
         arrays = [] if checked_one_by_one else [np.asarray(v, dtype=float) for v in stacks.values()]
     except (TypeError, ValueError, OverflowError):
         arrays = []  # pose_stack says what is wrong

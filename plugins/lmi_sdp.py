@@ -169,7 +169,7 @@ class Options:
         check_choice("orthogonalize", self.orthogonalize, tuple(ORTHOGONALIZERS))
         check_choice("translations", self.translations, TRANSLATIONS)
         if self.cvxpy_solver is not None and not isinstance(self.cvxpy_solver, str):
-            raise InputError(f"option cvxpy_solver={self.cvxpy_solver!r} must be a cvxpy solver name (str)")
+            raise InputError(f"option cvxpy_solver={shown(self.cvxpy_solver)} must be a cvxpy solver name (str)")
         check_starts(0 if self.multistart is None else self.multistart, self.seed)
         if self.ipopt_options is not None and not isinstance(self.ipopt_options, Mapping):
             raise InputError(f"option ipopt_options={shown(self.ipopt_options)} must be a dict of IPOPT options")

@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.errors import DegenerateDataError, InputError, SolverError
+from handeye.errors import DegenerateDataError, InputError, SolverError, shown
 from handeye.linalg import frobenius_norm
 from handeye.plugins._clarabel_sdp import DualSDP
 from handeye.plugins._cvxpy_solvers import (
@@ -117,7 +117,7 @@ class Options:
 
     def __post_init__(self) -> None:
         if self.cvxpy_solver is not None and not isinstance(self.cvxpy_solver, str):
-            raise InputError(f"option cvxpy_solver={self.cvxpy_solver!r} must be a cvxpy solver name (str)")
+            raise InputError(f"option cvxpy_solver={shown(self.cvxpy_solver)} must be a cvxpy solver name (str)")
 
 
 # --------------------------------------------------------------------------------------------

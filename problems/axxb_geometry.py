@@ -80,12 +80,14 @@ class AXXBModel(AXYBModel):
 # --------------------------------------------------------------------------- the host's self-check
 
 def expected_rotation_residual(data: AXXBData) -> float | None:
-    """`Problem.expected_rotation_residual` for A_i X = X B_i: from the angle differences of the
-    motions themselves; a motion's residual carries two stations' noise, as its angle difference."""
-    from handeye.self_check import angle_noise, chi3_expected
+    """`Problem.expected_rotation_residual` for A_i X = X B_i: from the angle and pitch differences
+    of the motions themselves; a motion's residual carries two stations' noise, as its angle
+    difference."""
+    from handeye.self_check import angle_noise, expected_from_invariants, pitch_noise
 
-    sigma = angle_noise(*data.angles)
-    return None if sigma is None else chi3_expected(sigma, 2.0)
+    phi_A, phi_B = data.rotation_vectors
+    pitch = pitch_noise(phi_A, data.A[:, :3, 3], phi_B, data.B[:, :3, 3])
+    return expected_from_invariants(angle_noise(*data.angles), pitch, data.translation_scale, 2.0)
 
 
 def rotation_axes(data: AXXBData) -> dict[str, np.ndarray]:

@@ -149,28 +149,32 @@ class AXYBModel(PoseModel):
 
 # --------------------------------------------------------------------------- the host's self-check
 
-def consecutive_motions(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Rotation vectors and angles of the robot's consecutive motions A_k^-1 A_k+1 (in the flange
-    frame) and A_k+1 A_k^-1 (in the base frame), and the angles of the camera's B_k^-1 B_k+1:
-    (phi_right (m-1, 3), phi_left (m-1, 3), angle_A (m-1,), angle_B (m-1,))."""
+def consecutive_motions(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                               np.ndarray, np.ndarray]:
+    """The consecutive motions of the stations: rotation vectors of the robot's A_k^-1 A_k+1 (in
+    the flange frame) and A_k+1 A_k^-1 (in the base frame), translations of A_k^-1 A_k+1, and
+    rotation vectors and translations of the camera's B_k^-1 B_k+1: (phi_right, phi_left, t_right,
+    phi_cam, t_cam), each (m-1, 3), and the angles of phi_right (m-1,)."""
     RA, RB = A[:, :3, :3], B[:, :3, :3]
-    right = np.swapaxes(RA[:-1], 1, 2) @ RA[1:]
-    left = RA[1:] @ np.swapaxes(RA[:-1], 1, 2)
-    cam = np.swapaxes(RB[:-1], 1, 2) @ RB[1:]
+    RAt, RBt = np.swapaxes(RA[:-1], 1, 2), np.swapaxes(RB[:-1], 1, 2)
+    right, left, cam = RAt @ RA[1:], RA[1:] @ RAt, RBt @ RB[1:]
+    t_right = np.einsum("nij,nj->ni", RAt, A[1:, :3, 3] - A[:-1, :3, 3])
+    t_cam = np.einsum("nij,nj->ni", RBt, B[1:, :3, 3] - B[:-1, :3, 3])
     phi_right, phi_left, phi_cam = (so3_fast.log(R) for R in (right, left, cam))
-    return phi_right, phi_left, np.linalg.norm(phi_right, axis=1), np.linalg.norm(phi_cam, axis=1)
+    return phi_right, phi_left, t_right, phi_cam, t_cam, np.linalg.norm(phi_right, axis=1)
 
 
 def expected_rotation_residual(data: AXYBData) -> float | None:
-    """`Problem.expected_rotation_residual` for A_i X = Y B_i: from the angle differences of
-    consecutive motions; a station's residual carries one station's noise."""
-    from handeye.self_check import angle_noise, chi3_expected
+    """`Problem.expected_rotation_residual` for A_i X = Y B_i: from the angle and pitch
+    differences of consecutive motions (A_k^-1 A_k+1 X = X B_k^-1 B_k+1); a station's residual
+    carries one station's noise."""
+    from handeye.self_check import angle_noise, expected_from_invariants, pitch_noise
 
     if data.m < 4:
         return None
-    _, _, angle_A, angle_B = consecutive_motions(data.A, data.B)
-    sigma = angle_noise(angle_A, angle_B)
-    return None if sigma is None else chi3_expected(sigma, 1.0)
+    phi_A, _, t_A, phi_B, t_B, angle_A = consecutive_motions(data.A, data.B)
+    sigma = angle_noise(angle_A, np.linalg.norm(phi_B, axis=1))
+    return expected_from_invariants(sigma, pitch_noise(phi_A, t_A, phi_B, t_B), data.translation_scale, 1.0)
 
 
 def rotation_axes(data: AXYBData) -> dict[str, np.ndarray]:
@@ -180,7 +184,7 @@ def rotation_axes(data: AXYBData) -> dict[str, np.ndarray]:
 
     if data.m < 2:
         return {}
-    phi_right, phi_left, _, _ = consecutive_motions(data.A, data.B)
+    phi_right, phi_left, *_ = consecutive_motions(data.A, data.B)
     axes = {"X": main_axis(phi_right), "Y": main_axis(phi_left)}
     return {k: v for k, v in axes.items() if v is not None}
 

@@ -450,3 +450,11 @@ def test_no_warning_or_ipopt_text_reaches_the_terminal(capfd):
                        "ipopt rejected", "tol")
     out, err = capfd.readouterr()
     assert out == "" and err == "", (out, err)
+
+
+def test_arrays_of_text_are_refused_not_parsed():
+    """np.array of strings would convert to floats silently; the reader should have done that."""
+    data, _ = simulated("axyb", pairs=6)
+    with pytest.raises(handeye.InputError, match="A is an array of text") as info:
+        handeye.solve("axyb", A=data["A"].astype(str), B=data["B"])
+    assert "\n" not in str(info.value)
