@@ -182,13 +182,13 @@ def advice(r: Mapping[str, Any]) -> list[tuple[str, str]]:
                      ("check those stations' images (board detection, blur, reflections) and robot poses; "
                      "re-record them or remove them")))
     data = r.get("data") or {}
-    data_warnings = [w.lower() for w in data.get("warnings", [])]
-    if any("axes" in w or "excitation" in w for w in data_warnings):
-        out.append(("the robot poses rotate about too few axes (weak rotation excitation / axis spread)",
+    precision = [w for w in r["warnings"] if w.startswith("the data determine")]
+    if any("main rotation axis" in w for w in precision):
+        out.append(("the robot rotates mostly about one axis, so the data determine part of the answer poorly",
                     "add poses that rotate about other axes (tilt the flange about x and y, not only z)"))
-    if any("at most" in w or "larger rotations" in w for w in data_warnings):
-        out.append(("the robot motions rotate very little",
-                    "add poses with larger rotations between stations (20-40 deg)"))
+    elif precision:
+        out.append(("the data determine part of the answer poorly at their noise (see the 1-sigma)",
+                    "add stations with larger rotations (20-40 deg) about different axes, or reduce the noise"))
     if data.get("likely_mismatched"):
         out.append(((f"{item}s {', '.join(str(i) for i in data['likely_mismatched'])} rotate by a different angle "
                     "for the robot than for the camera"),

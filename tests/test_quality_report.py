@@ -113,3 +113,19 @@ def test_report_never_imported_by_a_solve():
             "assert 'matplotlib' not in sys.modules and 'handeye.quality_report' not in sys.modules")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False)
     assert done.returncode == 0, done.stderr
+
+
+def test_advice_reads_the_precision_warnings():
+    """The self-check's precision warnings become the report's advice (which axis to add)."""
+    from handeye.quality_report import advice
+
+    base = {"status": "optimal", "problem": "axyb", "item": "station", "unit": "mm", "warnings": [], "std": {},
+            "residuals": {"rotation_deg": [0.1] * 12},
+            "outliers": [], "stations": 12}
+    one_axis = {**base, "warnings": ["the data determine the translation of X only to 9 in their length unit (1-sigma, "
+                                     "along (+0.00, +0.00, +1.00), the robot's main rotation axis in ...)"]}
+    found = [row[0] for row in advice(one_axis)]
+    assert any("mostly about one axis" in f for f in found)
+    noisy = {**base, "warnings": ["the data determine the rotation of X only to 0.5 deg (1-sigma, about ...)"]}
+    assert any("poorly at their noise" in row[0] for row in advice(noisy))
+    assert not any("poorly" in row[0] for row in advice(base))
