@@ -1,4 +1,4 @@
-"""`kron-lstsq`: closed-form least squares on a Kronecker system. Problems ``axyb`` and ``axxb``.
+"""`kron-lstsq`: closed-form least squares on a Kronecker system. Problems ``axyb``, ``axxb``, ``axbycz``.
 
 ``axyb`` (eq. 8): beta = argmin |H beta - w| (the optimum of the paper's eq. 14, without an SDP
 solver), R_X and R_Y projected onto SO(3) by SVD (det +1), then t_X, t_Y re-solved by least
@@ -13,6 +13,14 @@ camera rotating about its own centre). Instead: minimise |H beta - w|^2 subject 
 (`handeye.trust_region`); then R_X = the SVD projection of r or of -r, whichever costs less (the
 sign is free where the translations carry no scale), and t_X re-solved given R_X
 (`solve_translation`).
+
+``axbycz`` (A_i X B_i = Y C_i Z, docs/solvers/kron-lstsq.md): the lifted Kronecker system of
+`handeye.problems.axbycz_kronecker` (X linear, Y and Z through their products), whose rotation
+rows are homogeneous like those of AX = XB: minimise |H beta - w|^2 subject to |r|^2 = 12 (r the
+lifted rotation unknowns; the translation-side unknowns minimised out), exactly as a trust-region
+subproblem; R_X from r, R_Y and R_Z from the nearest rank-one factors of the lifted products, SVD
+projection, then the translations by least squares given the rotations (Wu et al. 2016, eq. 38).
+Needs at least 10 triples with both robots moving (``simulate_options`` protocol "free").
 
 With ``normalize=True`` (default) translations are divided by the data's RMS translation before
 the system is built, which balances the rotation and translation rows and makes the answer
@@ -31,6 +39,7 @@ translations by least squares given the rotations with the same component fixed.
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
@@ -84,6 +93,37 @@ def run_axxb(data: AXXBData, options: Options, backend: str) -> SolverOutput:
             # least squares is singular (all motions about one point)
             "relative_lambda_min": float(d[0] / d[-1]) if d[-1] > 0 else 0.0,
             "translation_scale": scale,
+        },
+    )
+
+
+def run_axbycz(data: Any, options: Options, backend: str) -> SolverOutput:
+    """``axbycz``: least squares of the lifted system on |r|^2 = 12 (module docstring)."""
+    from handeye.problems import axbycz_kronecker as lifted
+    from handeye.self_check import rotation_block_figures
+
+    lifted.check_triples(data, "kron-lstsq")
+    gap = lifted.check_rotations(data, "kron-lstsq")
+    scale = data.translation_scale if options.normalize else 1.0
+    cost = lifted.lifted_cost(data, scale)
+    trs = lifted.sphere_least_squares(cost)
+    estimate = lifted.extract_rotations(trs.x, cost)
+    RX, RY, RZ = estimate.rotations
+    tX, tY, tZ = lifted.solve_translations(data, RX, RY, RZ)
+    return SolverOutput(
+        unknowns={"X": make_pose(RX, tX), "Y": make_pose(RY, tY), "Z": make_pose(RZ, tZ)},
+        status=Status.OPTIMAL,
+        diagnostics={
+            "cost": trs.value + cost.c,  # |H beta - w|^2 at r, tau at its optimum (normalised units)
+            "multiplier": trs.multiplier,
+            "hard_case": trs.hard_case,
+            "sign_flipped": estimate.flipped,
+            "rank_one_ratio": estimate.rank_one_ratio,
+            "rotation_gap": gap,
+            "translation_rank": cost.translation_rank,
+            "translation_scale": scale,
+            "rotation_blocks": {name: rotation_block_figures(M) for name, M in zip("XYZ", estimate.blocks)},
+            "warnings": lifted.weak_rotations(gap, "kron-lstsq"),
         },
     )
 
@@ -150,7 +190,22 @@ SPEC_AXXB = dataclasses.replace(
 )
 
 
+#: ``axbycz``: the lifted system (problems/axbycz_kronecker.py), the same options.
+SPEC_AXBYCZ = dataclasses.replace(
+    SPEC,
+    problems=("axbycz",),
+    run=run_axbycz,
+    summary="least squares on the lifted Kronecker system of AXB=YCZ with |r|^2 = 12 (exact "
+            "trust-region solution), rank-one extraction of R_Y, R_Z, SVD projection; >= 10 triples",
+    citation="lifting as Wu et al., IEEE T-RO 32(2):413-428, 2016 (rotation matrices instead of "
+             "quaternions); the scale constraint: docs/solvers/kron-lstsq.md",
+    planar_mode=False,
+    simulate_options={"protocol": "free"},
+)
+
+
 @hookimpl
 def register_solvers(register):
     register(SPEC)
     register(SPEC_AXXB)
+    register(SPEC_AXBYCZ)

@@ -73,6 +73,13 @@ the same cost with the scale constraint |vec R_X|^2 = 3 that AX = XB needs (its 
 homogeneous), as a tight SDP over a 10 x 10 Z; same backends and options, plus ``polish``
 (docs/solvers/lmi-sdp.md, section AX = XB).
 
+Problem ``axbycz`` (A_i X B_i = Y C_i Z): a third spec, `SPEC_AXBYCZ`, runs
+`handeye.plugins.lmi_sdp_axbycz` on the lifted Kronecker system of
+`handeye.problems.axbycz_kronecker`: the scale of the lifted rotations fixed by |r|^2 = 12 as a
+tight SDP (default, from 10 triples) or eq. 14 as it is (``scale="translations"``, from 15
+triples); its options and spec live there (`AXBYCZOptions`: defaults normalize=True,
+translations="resolve").
+
 Statuses: solver optimal -> optimal; optimal_inaccurate (Clarabel's AlmostSolved) ->
 optimal_inaccurate; anything else (infeasible, unbounded, iteration limit, solver error) raises
 `SolverError` naming the status.
@@ -191,8 +198,9 @@ class AXXBOptions(Options):
 class ScaledLMI:
     """Eq. 14 in gamma = D^-1 beta, congruence diag(1/c, I) (module docstring, Numerics):
 
-    [[u' - rest', (R gamma - q)^T], [R gamma - q, I]] >= 0 with R = R1 D / c: (24, 24),
-    q = q1 / c: (24,), rest' = rest / c^2, u = c^2 u'; d: (24,) the diagonal of D.
+    [[u' - rest', (R gamma - q)^T], [R gamma - q, I]] >= 0 with R = R1 D / c: (n, n),
+    q = q1 / c: (n,), rest' = rest / c^2, u = c^2 u'; d: (n,) the diagonal of D (n = 24 for
+    ``axyb``, 132 for the lifted system of ``axbycz``).
     """
 
     R: np.ndarray
@@ -213,7 +221,7 @@ class ScaledLMI:
 
 @dataclasses.dataclass(frozen=True)
 class SDPResult:
-    gamma: np.ndarray  # (24,), scaled beta
+    gamma: np.ndarray  # (n,), scaled beta
     u: float  # scaled u
     status: Status
     solver_status: str
@@ -252,36 +260,39 @@ class CvxpyLMI:
     compiled: bool = False  # cvxpy compiles the problem on its first solve
 
 
-_CVXPY_PROBLEMS: dict[str, CvxpyLMI] = {}
+_CVXPY_PROBLEMS: dict[Any, CvxpyLMI] = {}  # solver name (n = 24) or (name, n)
 _CVXPY_BUILD_LOCK = threading.Lock()
 #: How many cvxpy problems were built in this process (one per cvxpy solver used).
 cvxpy_builds = 0
 
 
-def cvxpy_problem(solver: str) -> CvxpyLMI:
-    """Eq. 14 as a DPP cvxpy problem for cvxpy solver `solver`, built once and cached."""
+def cvxpy_problem(solver: str, n: int = 24) -> CvxpyLMI:
+    """Eq. 14 as a DPP cvxpy problem for cvxpy solver `solver` and n unknowns (24: ``axyb``;
+    132: the lifted system of ``axbycz``), built once and cached (key: the solver's name for 24,
+    (name, n) otherwise)."""
     global cvxpy_builds
+    key: Any = solver if n == 24 else (solver, n)
     with _CVXPY_BUILD_LOCK:
-        cached = _CVXPY_PROBLEMS.get(solver)
+        cached = _CVXPY_PROBLEMS.get(key)
         if cached is not None:
             return cached
         import cvxpy as cp
 
-        R = cp.Parameter((24, 24), name="R")
-        q = cp.Parameter(24, name="q")
+        R = cp.Parameter((n, n), name="R")
+        q = cp.Parameter(n, name="q")
         rest = cp.Parameter(nonneg=True, name="rest")
-        gamma = cp.Variable(24, name="gamma")
+        gamma = cp.Variable(n, name="gamma")
         u = cp.Variable(name="u")
         e = R @ gamma - q  # R1 beta - q1, scaled
         lmi = cp.bmat([
-            [cp.reshape(u - rest, (1, 1), order="F"), cp.reshape(e, (1, 24), order="F")],
-            [cp.reshape(e, (24, 1), order="F"), np.eye(24)],
+            [cp.reshape(u - rest, (1, 1), order="F"), cp.reshape(e, (1, n), order="F")],
+            [cp.reshape(e, (n, 1), order="F"), np.eye(n)],
         ])
         problem = cp.Problem(cp.Minimize(u), [lmi >> 0])
         if not problem.is_dpp():  # pragma: no cover - a cvxpy change would break the cache
             raise SolverError("lmi-sdp: the cvxpy formulation of the semidefinite program is not DPP")
         cached = CvxpyLMI(problem, R, q, rest, gamma, u, threading.Lock())
-        _CVXPY_PROBLEMS[solver] = cached
+        _CVXPY_PROBLEMS[key] = cached
         cvxpy_builds += 1
         return cached
 
@@ -289,7 +300,7 @@ def cvxpy_problem(solver: str) -> CvxpyLMI:
 def _solve_cvxpy(lmi: ScaledLMI, solver: str) -> SDPResult:
     import cvxpy as cp
 
-    cached = cvxpy_problem(solver)
+    cached = cvxpy_problem(solver, len(lmi.q))
     with cached.lock, warnings.catch_warnings():
         # "solution may be inaccurate" is the status optimal_inaccurate, reported as such
         warnings.simplefilter("ignore", UserWarning)
@@ -320,7 +331,7 @@ def _solve_picos(lmi: ScaledLMI) -> SDPResult:
     import picos
 
     P = picos.Problem()
-    gamma = picos.RealVariable("gamma", 24)
+    gamma = picos.RealVariable("gamma", len(lmi.q))
     u = picos.RealVariable("u")
     e = picos.Constant("R", lmi.R) * gamma - picos.Constant("q", lmi.q)
     P.add_constraint(picos.block([[u - lmi.rest, e.T], [e, "I"]]) >> 0)
@@ -343,7 +354,7 @@ def _solve_picos(lmi: ScaledLMI) -> SDPResult:
 
 
 def solve_lmi(system: KroneckerSystem, backend: str, options: Options) -> tuple[np.ndarray, float, SDPResult]:
-    """Solve eq. 14 for `system` on SDP backend "cvxpy" or "picos": (beta (24,), u, raw result)."""
+    """Solve eq. 14 for `system` on SDP backend "cvxpy" or "picos": (beta (n,), u, raw result)."""
     if backend == "cvxpy":
         solver = resolve_cvxpy_solver(options.cvxpy_solver)
         lmi = ScaledLMI.of(system, CVXPY_MAX_C.get(solver, np.inf))
@@ -501,3 +512,6 @@ SPEC_AXXB = dataclasses.replace(
 def register_solvers(register):
     register(SPEC)
     register(SPEC_AXXB)
+    from handeye.plugins.lmi_sdp_axbycz import SPEC_AXBYCZ  # it imports this module
+
+    register(SPEC_AXBYCZ)

@@ -1,4 +1,5 @@
-"""`refine`: geometric maximum-likelihood refinement on SE(3)^k, for A_i X = Y B_i and A_i X = X B_i.
+"""`refine`: geometric maximum-likelihood refinement on SE(3)^k, for A_i X = Y B_i, A_i X = X B_i and
+A_i X B_i = Y C_i Z.
 
 Beyond the paper. The Kronecker cost of eq. 8 mixes rotation entries and
 translations in one algebraic residual whose relative weight depends on the length unit; this
@@ -7,6 +8,7 @@ solver instead minimises a weighted sum of squared *geometric* residuals, one 6-
 
     axyb:  r_i = log(R_Ai R_X R_Bi^T R_Y^T),  t_i = R_Ai t_X + t_Ai - R_Y t_Bi - t_Y
     axxb:  r_i = log(R_Ai R_X R_Bi^T R_X^T),  t_i = R_Ai t_X + t_Ai - R_X t_Bi - t_X
+    axbycz: r_i = log(R_Ai R_X R_Bi R_Z^T R_Ci^T R_Y^T),  t_i = t(A_i X B_i) - t(Y C_i Z)
 
 With Gaussian noise of standard deviation sigma_rot (rad, per axis) and sigma_trans (data
 units, per axis), F = 1/2 sum_i rho(|e_i|^2), e_i = W^(1/2) [r_i; t_i], is the negative
@@ -18,8 +20,17 @@ given poses) and the registration. The machinery is shared and lives below it:
   likelihood over the two variances, IRLS with median-based scales, "initial"), convergence
   rules, covariance with its variance factor, diagnostics; `handeye.whitening` and
   `handeye.robust`: weights and losses; `handeye.so3_fast`: the SO(3) helpers;
-- `handeye.problems.axyb_geometry`, `handeye.problems.axxb_geometry`: each problem's residuals
-  and analytic Jacobians (and, for A X = Y B at large m, closed-form normal equations).
+- `handeye.problems.axyb_geometry`, `handeye.problems.axxb_geometry`,
+  `handeye.problems.axbycz_geometry`: each problem's residuals and analytic Jacobians (and, for
+  A X = Y B at large m, closed-form normal equations).
+
+A_i X B_i = Y C_i Z has no certifiable start; its starts (STARTS["axbycz"]) each serve the data
+protocol they were made for: `wang` (any protocol; a grid of rotation starts, then Gauss-Newton),
+`fu-dq` (two steps; a phase with robot 2 still), `kron-lstsq` (lifted linear system; >= 10
+triples), `wu` (closed form; both robots moving; 3x slower than kron-lstsq at m = 16). A default
+start that refuses the data (`InputError`, `DegenerateDataError`: wrong protocol, too few
+triples) or fails gives way to the next, with a warning; when none is registered, or none solves the data, refine asks for the start
+poses (init_X, init_Y, init_Z).
 
 Weights: stated (``sigma_rot`` and ``sigma_trans``, or a 6x6 / (m, 6, 6) ``covariance`` of
 [r_i; t_i]) or, by default, estimated: with least squares by the profile likelihood (one smooth
@@ -44,6 +55,8 @@ import numpy as np
 from handeye import SolverOutput, SolverSpec, Status, hookimpl, nlls
 from handeye.errors import BackendUnavailableError, InputError, SolverError
 from handeye.options import check_choice, check_positive
+from handeye.problems.axbycz import AXBYCZData
+from handeye.problems.axbycz_geometry import AXBYCZModel
 from handeye.problems.axxb import AXXBData
 from handeye.problems.axxb_geometry import AXXBModel
 from handeye.problems.axyb import AXYBData
@@ -54,11 +67,20 @@ from handeye.validation import pose_stack
 from handeye.whitening import covariance_factor, stated
 
 #: the problems refine serves: validated data type -> (problem name, model of `handeye.nlls`)
-MODELS: dict[type, tuple[str, type[nlls.PoseModel]]] = {AXYBData: ("axyb", AXYBModel), AXXBData: ("axxb", AXXBModel)}
+MODELS: dict[type, tuple[str, type[nlls.PoseModel]]] = {AXYBData: ("axyb", AXYBModel), AXXBData: ("axxb", AXXBModel),
+                                                        AXBYCZData: ("axbycz", AXBYCZModel)}
 #: start solvers per problem, in order of preference: the first one registered and available is
 #: the default start, the later ones are the fallbacks when a start fails (and `auto`'s second
-#: start). The first is the certifiable one (so3-sdp), the later ones closed forms.
-STARTS: dict[str, tuple[str, ...]] = {"axyb": ("so3-sdp", "kron-lstsq"), "axxb": ("so3-sdp", "kron-lstsq", "park")}
+#: start). axyb, axxb: the first is the certifiable one (so3-sdp), the later ones closed forms.
+#: axbycz (no certifiable method): wang first, the one start that takes every data protocol,
+#: then the closed forms of one protocol each (module docstring).
+STARTS: dict[str, tuple[str, ...]] = {"axyb": ("so3-sdp", "kron-lstsq"), "axxb": ("so3-sdp", "kron-lstsq", "park"),
+                                      "axbycz": ("wang", "fu-dq", "kron-lstsq", "wu")}
+#: errors of a default start after which the next start is tried: the start's numerical failure
+#: or unavailability; for axbycz also its refusal of the data (each start serves one protocol)
+FALLBACK_ERRORS: dict[str, tuple[type[Exception], ...]] = {
+    "axyb": (SolverError, BackendUnavailableError), "axxb": (SolverError, BackendUnavailableError),
+    "axbycz": (SolverError, BackendUnavailableError, InputError)}
 #: solvers that cannot serve as `init` because they call `refine` themselves.
 RECURSIVE = ("refine", "auto")
 
@@ -171,8 +193,22 @@ class AXXBOptions(_Options):
     init_X: Any = None
 
 
+@dataclasses.dataclass(frozen=True)
+class AXBYCZOptions(_Options):
+    """Options of `refine` for A_i X B_i = Y C_i Z: those of `Options` with three start poses,
+    init_X, init_Y, init_Z (all or none; or init={"X": 4x4, "Y": 4x4, "Z": 4x4}); the default
+    start is the first registered and available of STARTS["axbycz"] that solves the data (wang,
+    fu-dq, kron-lstsq, wu)."""
+
+    UNKNOWNS: ClassVar[tuple[str, ...]] = ("X", "Y", "Z")
+    INIT_FIELDS: ClassVar[tuple[str, ...]] = ("init_X", "init_Y", "init_Z")
+    init_X: Any = None
+    init_Y: Any = None
+    init_Z: Any = None
+
+
 #: problem -> its options class (auto builds refine's options with it)
-OPTIONS: dict[str, type[_Options]] = {"axyb": Options, "axxb": AXXBOptions}
+OPTIONS: dict[str, type[_Options]] = {"axyb": Options, "axxb": AXXBOptions, "axbycz": AXBYCZOptions}
 
 
 def _pose_options(values: list[Any], names: list[str]) -> list[np.ndarray]:
@@ -245,20 +281,33 @@ def start(data: Any, requested: str | None) -> tuple[str, tuple[np.ndarray, ...]
     """The starting poses: (solver name, poses, its status, its diagnostics, warnings).
 
     `requested` None means the default start (`default_init`); when that solve fails
-    (SolverError, or its backend turns out unavailable) the next start (`fallback_init`) is
-    used, and so on, each time with a warning. A start the user asked for by name is never replaced: its
-    failure raises.
+    (FALLBACK_ERRORS[problem]: SolverError, or its backend turns out unavailable; for axbycz
+    also its refusal of the data) the next start (`fallback_init`) is used, and so on, each time
+    with a warning. A start the user asked for by name is never replaced: its failure raises.
+    Without any start registered and available, or (axbycz) when every start refused the data,
+    the error asks for the start poses.
     """
     problem, planar = problem_of(data), is_planar(data)
+    poses_hint = f"give the start poses ({', '.join(OPTIONS[problem].INIT_FIELDS)}) or init=<a registered solver>"
+    if requested is None and not planar and not any(_available(n, problem) for n in STARTS[problem]):
+        raise BackendUnavailableError(
+            f"refine has no start for problem {problem!r}: none of its start solvers ({', '.join(STARTS[problem])}) "
+            f"is registered and available here; {poses_hint}")
     name, warnings = requested or (default_init(problem, planar=True) if planar else default_init(problem)), []
+    failures: list[tuple[str, Exception]] = []
     while True:
         try:
             return (name, *run_init(name, data), warnings)
-        except (SolverError, BackendUnavailableError) as exc:
+        except FALLBACK_ERRORS.get(problem, (SolverError, BackendUnavailableError)) as exc:
+            failures.append((name, exc))
             fallback = (None if requested is not None else
                         fallback_init(problem, name, planar=True) if planar else fallback_init(problem, name))
             if fallback is None:
-                raise
+                if problem != "axbycz" or requested is not None:
+                    raise
+                first = failures[0][1]
+                reasons = "; ".join(f"{n}: {' '.join(str(e).split())}" for n, e in failures)
+                raise type(first)(f"no start solver of refine solves these data ({reasons}); {poses_hint}") from None
             warnings.append(f"the start solver {name!r} failed ({exc}); started from {fallback!r}")
             name = fallback
 
@@ -352,6 +401,16 @@ SPECS = (
         unit_invariant=True,
         exact=True,
         planar_mode=True,
+    ),
+    SolverSpec(
+        name="refine",
+        problems=("axbycz",),
+        run=run,
+        options=AXBYCZOptions,
+        summary="maximum-likelihood refinement of A_i X B_i = Y C_i Z on SE(3)^3 (Levenberg-Marquardt, robust losses)",
+        citation=CITATION,
+        unit_invariant=True,
+        exact=True,
     ),
 )
 #: the A_i X = Y B_i spec (kept under its old name)

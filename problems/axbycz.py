@@ -15,6 +15,28 @@ and both sides are T_base1_marker (docs/conventions.md, with the single-robot ce
 Residuals per triple: the rotation angle and translation distance between A_i X B_i and
 Y C_i Z (`handeye.problem.pose_discrepancy`), as eqs. 32-33 are for A X = Y B.
 
+What the data determine (docs/conventions.md, "Problem axbycz"). Each data stack ties two
+unknowns together: the same data are also solved by (X', Y', Z') with, for a pose G,
+
+    A (robot 1):  X' = G X,      Y' = G' Y    G commuting with robot 1's motions A_j^-1 A_i
+    B (camera):   X' = X G,      Z' = Z G'    G commuting with the camera's motions B_j B_i^-1
+    C (robot 2):  Z' = G^-1 Z,   Y' = Y G'    G commuting with robot 2's motions C_j^-1 C_i
+
+(G' = A_0 G A_0^-1, B_0^-1 G B_0, C_0 G C_0^-1). Motions that rotate about at least two
+different axes commute with the identity only; a stack that does not move leaves a whole pose
+free (C the same in every triple: only the product Y C Z is determined, not Y and Z; A the same:
+only Y^-1 A X), and one that rotates about one axis (or not at all, translating only) leaves at
+least the translations along it free. `AXBYCZ.validate` refuses such data
+(`DegenerateDataError`, naming the stack and what to record). With every stack rotating about
+two axes or more, the 18-parameter Jacobian at the truth had full rank in every simulated data
+set, free motion from m = 3 triples (18 equations for 18 unknowns), phases from m = 5 (tested);
+the check does not exclude a coupled degeneracy of special data, which the engine's singular
+normal matrix would then report. The phase protocol meets this with at least 3 poses of each
+robot while the other holds still (m >= 5): robot 2 still, (A_j^-1 A_i) X = X (B_j B_i^-1)
+gives X (AX=XB); robot 1 still, (C_j^-1 C_i) Z = Z (B_j^-1 B_i) gives Z; then any triple gives
+Y. `AXBYCZData.still_groups` finds those phases (`handeye.problems.axbycz_geometry` uses their conjugate motions, whose
+rotation angles must agree, for the host's self-check), `diagnose` reports the figures.
+
 The simulator (`AXBYCZ.simulate`) puts two arms of the paper's kind (`handeye.kinematics`)
 facing each other, noise (`handeye.noise.NoiseModel`) on A, B and C, and either free motion
 (both arms move at every triple) or the phase protocol of the two-step methods (the first half
@@ -30,15 +52,36 @@ from typing import Any
 
 import numpy as np
 from handeye import hookimpl
-from handeye.errors import InputError
+from handeye.errors import DegenerateDataError, InputError
 from handeye.kinematics import random_flange_poses
 from handeye.kronecker import MIN_TRANSLATION, overflow_error, underflow_error
 from handeye.noise import NoiseModel
 from handeye.problem import Problem, pose_discrepancy
 from handeye.se3 import inverse, make_pose, project_to_so3, so3_exp
+from handeye.validation import pose_stack
 
 FIELDS = ("A", "B", "C")
 PROTOCOLS = ("free", "phases")
+#: a relative rotation below this (rad) does not count as a rotation (its axis is undefined)
+MIN_MOTION_ANGLE = 1e-6
+#: axis spread (rad, `AXBYCZData.rotation_spread`) below which a stack's rotations count as one axis
+DEGENERATE_AXIS_SPREAD = 1e-6
+#: a robot "holds still" between two triples whose poses differ by at most this rotation (rad)
+#: and this share of the data's RMS translation: simulated noise of 0.002 rad / 0.2 mm moves a
+#: still pose by ~0.005 rad / 0.5 mm, a robot that moves at all moves far more (the phase
+#: detection of solver fu-dq uses the same defaults)
+STILL_ROTATION = 0.05
+STILL_TRANSLATION = 0.01
+#: the stacks in the order they are checked: (what they are, the unknowns they separate, what to record)
+STACKS = {
+    "A": ("robot 1's flange poses (A)", "X and Y", "only Y^-1 A X is determined",
+          "record robot 1 at poses rotated about at least two different axes"),
+    "C": ("robot 2's flange poses (C)", "Y and Z", "only Y C Z is determined",
+          "record robot 2 at poses rotated about at least two different axes"),
+    "B": ("the marker's poses in the camera (B)", "X and Z", "only X B Z^-1 is determined",
+          ("record poses where the marker turns in the camera about at least two different axes "
+           "(the robots must not move in lockstep)")),
+}
 
 #: The simulated cell's truth: the camera 100 mm off robot 1's flange, looking along it; robot 2's
 #: base 1.2 m from robot 1's, facing it; the marker 80 mm off robot 2's flange.
@@ -88,6 +131,70 @@ class AXBYCZData:
         scale = float(np.sqrt(np.mean(np.sum(t * t, axis=1))))
         return scale if scale > 0 else 1.0
 
+    @functools.cached_property
+    def rotation_spread(self) -> dict[str, tuple[int, float]]:
+        """Per stack ("A", "B", "C"): how many poses are rotated from the first (by more than
+        MIN_MOTION_ANGLE) and the spread of those rotations' axes (rad, in [0, pi/2]): with the
+        unit axes n_k of R_0^T R_k and lambda_1 >= lambda_2 the two largest eigenvalues of
+        sum n_k n_k^T, 2 atan(sqrt(lambda_2 / lambda_1)), 0 when every rotation is about one axis
+        (conjugating by R_0 or inverting does not change it, so it holds for the motions in
+        either frame)."""
+        from handeye import so3_fast
+
+        out = {}
+        for name in FIELDS:
+            R = getattr(self, name)[:, :3, :3]
+            phi = so3_fast.log(R[0].T @ R)
+            angle = np.linalg.norm(phi, axis=1)
+            moving = angle > MIN_MOTION_ANGLE
+            spread = 0.0
+            if moving.sum() >= 2:
+                n = phi[moving] / angle[moving, None]
+                lam = np.linalg.eigvalsh(n.T @ n)
+                spread = float(2.0 * np.arctan(np.sqrt(max(lam[1], 0.0) / lam[2])))
+            out[name] = (int(moving.sum()), spread)
+        return out
+
+    def still_groups(self, stack: str) -> list[np.ndarray]:
+        """The groups (sorted indices, 2 or more each) of triples between which the robot of
+        `stack` ("A": robot 1, "C": robot 2) holds still: poses within STILL_ROTATION and
+        STILL_TRANSLATION x `translation_scale` (per axis) of another of the group."""
+        return self._still_groups[stack]
+
+    @functools.cached_property
+    def _still_groups(self) -> dict[str, list[np.ndarray]]:
+        """`still_groups` of A and C in O(m log m): each pose is compared with the first pose of
+        its cell in 8 grids of cells 2 tol wide, shifted by 0 or tol along each axis (two poses
+        within tol per axis share a cell in one of them), and the close pairs are joined
+        (connected components)."""
+        m, tol = self.m, STILL_TRANSLATION * self.translation_scale
+        trace_min = 1.0 + 2.0 * np.cos(STILL_ROTATION)  # tr(R_i^T R_j) >= this: angle <= STILL_ROTATION
+        out = {}
+        for name in ("A", "C"):
+            T = getattr(self, name)
+            t, R = T[:, :3, 3], T[:, :3, :3].reshape(m, 9)
+            label = np.arange(m)
+            edges = []
+            for shift in np.array(np.meshgrid([0, 1], [0, 1], [0, 1])).reshape(3, 8).T:
+                cell = np.floor((t + shift * tol) / (2.0 * tol)).astype(np.int64)
+                key = cell @ np.array([73856093, 19349663, 83492791], dtype=np.int64)  # a hash: a collision only hides a pair
+                _, first, inverse_ = np.unique(key, return_index=True, return_inverse=True)
+                rep = first[inverse_.ravel()]  # the first pose of each pose's cell
+                close = ((np.abs(t - t[rep]) <= tol).all(axis=1)
+                         & (np.einsum("ij,ij->i", R, R[rep]) >= trace_min) & (rep != label))
+                edges.append((rep[close], np.flatnonzero(close)))
+            i, j = np.concatenate([e[0] for e in edges]), np.concatenate([e[1] for e in edges])
+            while len(i):  # connected components: propagate the smallest index along the edges
+                low = np.minimum(label[i], label[j])
+                if np.array_equal(low, label[i]) and np.array_equal(low, label[j]):
+                    break
+                np.minimum.at(label, i, low)
+                np.minimum.at(label, j, low)
+                label = label[label]  # follow the links (pointer jumping)
+            counts = np.bincount(label, minlength=m)
+            out[name] = [np.flatnonzero(label == g) for g in np.flatnonzero(counts >= 2)]
+        return out
+
     def scaled(self, s: float) -> AXBYCZData:
         """The same data with every translation divided by s."""
         stacks = []
@@ -109,12 +216,63 @@ class AXBYCZ(Problem):
     min_pairs = 3
 
     def validate(self, **data: Any) -> AXBYCZData:
-        return AXBYCZData.validated(self.name, data, self.min_pairs)
+        """The validated data; `DegenerateDataError` when a stack's rotations are about fewer than
+        two axes, so that the data cannot separate the two unknowns it ties (module docstring)."""
+        out = AXBYCZData.validated(self.name, data, self.min_pairs)
+        for name, (what, pair, product, advice) in STACKS.items():
+            moving, spread = out.rotation_spread[name]
+            if moving >= 2 and spread >= DEGENERATE_AXIS_SPREAD:
+                continue
+            T = getattr(out, name)
+            if np.abs(T - T[0]).max() <= 1e-12 * max(out.translation_scale, 1.0):
+                how = f"are the same pose in all {out.m} triples, so {product}"
+                what_not = f"the rotations and translations of {pair} separately"
+            elif moving == 0:
+                how, what_not = "do not rotate (they only translate)", f"the translations of {pair} separately"
+            else:
+                how = (f"rotate about one axis only ({moving} of {out.m} poses rotated from the first, "
+                       f"axis spread {np.rad2deg(spread):.2g} deg)")
+                what_not = f"the translations of {pair} along that axis separately"
+            raise DegenerateDataError(f"{what} {how}: these triples do not determine {what_not}. "
+                                      f"{advice[0].upper()}{advice[1:]}")
+        return out
+
+    def diagnose(self, data: AXBYCZData) -> dict[str, Any]:
+        """Figures: which unknowns each stack's motions separate, per stack the poses rotated from
+        the first and their axis spread (deg), and the triples where robot 1 / robot 2 hold still (the phases; how well the data determine the
+        unknowns at their noise is the host's self-check, not a threshold here)."""
+        still = {name: [g.tolist() for g in data.still_groups(name)] for name in ("A", "C")}
+        return {
+            "pairs": data.m,
+            "separates": {name: pair for name, (_, pair, _, _) in STACKS.items()},  # what each stack's motions excite
+            "rotated_poses": {k: v[0] for k, v in data.rotation_spread.items()},
+            "axis_spread_deg": {k: float(np.rad2deg(v[1])) for k, v in data.rotation_spread.items()},
+            "robot1_still_triples": still["A"],
+            "robot2_still_triples": still["C"],
+            "protocol": ("phases" if still["A"] and still["C"] else
+                         "robot 2 still in part" if still["C"] else "robot 1 still in part" if still["A"] else "free"),
+            "warnings": [],
+        }
 
     def residuals(self, data: AXBYCZData, unknowns: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Per triple: rotation angle of (A_i X B_i)(Y C_i Z)^-1, |t(A_i X B_i) - t(Y C_i Z)|."""
         X, Y, Z = (np.asarray(unknowns[n], dtype=float) for n in self.unknowns)
         return pose_discrepancy(data.A @ X @ data.B, Y @ data.C @ Z)
+
+    def check_model(self, data: AXBYCZData, unknowns: Mapping[str, np.ndarray]) -> tuple[Any, tuple[np.ndarray, ...], tuple[str, ...]]:
+        from handeye.problems import axbycz_geometry
+
+        return axbycz_geometry.check_model(data, unknowns)
+
+    def expected_rotation_residual(self, data: AXBYCZData) -> float | None:
+        from handeye.problems import axbycz_geometry
+
+        return axbycz_geometry.expected_rotation_residual(data)
+
+    def rotation_axes(self, data: AXBYCZData) -> dict[str, np.ndarray]:
+        from handeye.problems import axbycz_geometry
+
+        return axbycz_geometry.rotation_axes(data)
 
     def simulate(self, *, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
                  X: np.ndarray | None = None, Y: np.ndarray | None = None, Z: np.ndarray | None = None,
@@ -133,8 +291,8 @@ class AXBYCZ(Problem):
         if protocol not in PROTOCOLS:
             raise InputError(f"protocol={protocol!r} is not one of {', '.join(PROTOCOLS)}")
         rng = np.random.default_rng(seed)
-        X, Y, Z = (default if given is None else np.asarray(given, dtype=float)
-                   for given, default in ((X, DEFAULT_X), (Y, DEFAULT_Y), (Z, DEFAULT_Z)))
+        X, Y, Z = (default if given is None else pose_stack(np.asarray(given)[None], name)[0]
+                   for name, given, default in (("X", X, DEFAULT_X), ("Y", Y, DEFAULT_Y), ("Z", Z, DEFAULT_Z)))
         A = random_flange_poses(pairs, rng)
         C = random_flange_poses(pairs, rng)
         if protocol == "phases":

@@ -1,4 +1,4 @@
-"""Tests of the default solver `auto` (plugins/auto.py), for axyb and axxb."""
+"""Tests of the default solver `auto` (plugins/auto.py), for axyb, axxb and axbycz."""
 
 from __future__ import annotations
 
@@ -344,3 +344,24 @@ def test_auto_axxb_outlier_motion_and_outlier_station():
     assert any("station no. 6 (index 5) is far off" in w for w in sol.warnings), sol.warnings
     assert _angle_deg(sol.X[:3, :3], clean.X[:3, :3]) < 0.05 and np.abs(sol.X[:3, 3] - clean.X[:3, 3]).max() < 0.5
     assert AXXB.errors(sol.unknowns, truth)["X"]["rotation"] < AXXB_NOISY_BOUNDS["rotation"]
+
+
+# --------------------------------------------------------------------------- axbycz (more in test_axbycz_problem.py)
+
+def test_auto_axbycz_second_start_is_the_first_that_solves_the_data(monkeypatch):
+    """Free motion with 8 triples: fu-dq (no phase) and kron-lstsq (< 10 triples) refuse, so wu is
+    the second start; with wang as the only start there is none."""
+    from handeye.problems.axbycz import PROBLEM as AXBYCZ
+
+    data, truth = AXBYCZ.simulate(pairs=8, seed=6, noise=NoiseModel.on(("A", "B", "C"), 0.002, 0.2))
+    sol = handeye.solve("axbycz", **data)
+    assert sol.diagnostics["pipeline"] == ["wang | wu", "refine", "best"]
+    assert [s["init"] for s in sol.diagnostics["starts"]] == ["wang", "wu"]
+    oracle = handeye.solve("axbycz", solver="refine", init=truth, **data)
+    for k in ("X", "Y", "Z"):
+        np.testing.assert_allclose(sol.unknowns[k], oracle.unknowns[k], atol=1e-6)
+    monkeypatch.setitem(refine.STARTS, "axbycz", ("wang",))
+    alone = handeye.solve("axbycz", **data)
+    assert alone.diagnostics["pipeline"] == ["wang", "refine"]
+    for k in ("X", "Y", "Z"):
+        np.testing.assert_allclose(alone.unknowns[k], sol.unknowns[k], atol=1e-6)

@@ -452,3 +452,38 @@ def test_axxb_options_and_weights():
         with pytest.raises((InputError, UnknownPluginError)):
             handeye.solve("axxb", solver="refine", **bad, **data)
     assert R.default_init("axxb") in R.STARTS["axxb"]
+
+
+# --------------------------------------------------------------------------- axbycz (more in test_axbycz_problem.py)
+
+def test_axbycz_is_served_with_three_start_poses():
+    from handeye.problems.axbycz import PROBLEM as AXBYCZ
+
+    data, truth = AXBYCZ.simulate(pairs=8, seed=4, noise=NoiseModel.on(("A", "B", "C"), 0.002, 0.2))
+    d = AXBYCZ.validate(**data)
+    assert R.problem_of(d) == "axbycz" and R.OPTIONS["axbycz"].UNKNOWNS == ("X", "Y", "Z")
+    assert R.default_init("axbycz") == "wang"
+    a = handeye.solve("axbycz", solver="refine", init=truth, **data)
+    b = handeye.solve("axbycz", solver="refine", init_X=truth["X"], init_Y=truth["Y"], init_Z=truth["Z"], **data)
+    for k in ("X", "Y", "Z"):
+        np.testing.assert_array_equal(a.unknowns[k], b.unknowns[k])
+    assert a.diagnostics["weight_mode"] == "profile" and np.shape(a.diagnostics["covariance_XYZ"]) == (18, 18)
+    five = {k: v[:5] for k, v in data.items()}  # 15 translation equations for 15 parameters: unbounded profile
+    assert handeye.solve("axbycz", solver="refine", init=truth, **five).diagnostics["weight_mode"] == "initial"
+
+
+def test_axbycz_a_start_that_refuses_the_data_gives_way_to_the_next(monkeypatch):
+    """Each axbycz start serves one data protocol: wu (both robots moving) refuses exact phase
+    data, and the next start takes over, with a warning; a start asked for by name is not replaced."""
+    from handeye.errors import DegenerateDataError
+    from handeye.problems.axbycz import PROBLEM as AXBYCZ
+
+    data, truth = AXBYCZ.simulate(pairs=30, seed=5, protocol="phases")
+    monkeypatch.setitem(R.STARTS, "axbycz", ("wu", "fu-dq"))
+    sol = handeye.solve("axbycz", solver="refine", **data)
+    assert sol.diagnostics["init"] == "fu-dq"
+    assert any(w.startswith("the start solver 'wu' failed (wu: the first 10 triples") and w.endswith("started from 'fu-dq'")
+               for w in sol.warnings)
+    assert max(e["rotation"] for e in AXBYCZ.errors(sol.unknowns, truth).values()) < 1e-9
+    with pytest.raises(DegenerateDataError, match="wu: the first 10 triples"):
+        handeye.solve("axbycz", solver="refine", init="wu", **data)

@@ -1,7 +1,7 @@
 """``handeye bench``: median solve time of every registered solver/backend of a problem beside
 OpenCV, measured in the same run.
 
-Generic over the registry: every solver of ``--problem`` (``axyb``, the default, or ``axxb``) on
+Generic over the registry: every solver of ``--problem`` (``axyb``, the default, ``axxb`` or ``axbycz``) on
 every available backend (third-party plugins included) is timed through `handeye.solve` on
 simulated noisy data at each pair count m. Per m and per row: one warm-up solve, then
 ``--repeats`` timed solves taken round-robin over the rows (so that load changes on a shared
@@ -22,6 +22,11 @@ five methods (TSAI, PARK, HORAUD, ANDREFF, DANIILIDIS); it forms the same pairs 
 n (n - 1) / 2 >= m of them (21, 105, 1035 motions at m = 16, 100, 1000). The ratio column divides
 by cv2 direct TSAI (OpenCV's default method) at the same m, and handeye's own classic methods are
 listed beside OpenCV's implementation of the same method.
+
+``axbycz``: two facing arms (`handeye.problems.axbycz`), Gaussian noise on A, B and C. No OpenCV
+function solves A X B = Y C Z, so there are no reference rows; the ratio column divides by the
+closed form ``wu`` at the same m. A solver whose `SolverSpec.simulate_options` ask for another
+data protocol (``fu-dq``: one robot still at a time) is timed on data of that protocol (same seed).
 
 Two times per solve: "call" is the wall time of the `handeye.solve` call (what a user waits for);
 "run" is `Solution.seconds`, the solver's own ``run`` only (without validation and checks).
@@ -128,6 +133,8 @@ class Setting:
     opencv_methods: tuple[str, ...]
     cv2_methods: tuple[str, ...]
     targets: tuple[Target, ...] = ()
+    #: how the data are described in the printout (None: the axyb wording)
+    data_note: str | None = None
 
 
 SETTINGS = {
@@ -148,6 +155,10 @@ SETTINGS = {
     "axxb": Setting(
         "axxb", "16,100,1000", "cv2 direct TSAI", "cv2 TSAI", ("tsai", "park", "horaud", "andreff", "daniilidis"),
         ("TSAI", "PARK", "HORAUD", "ANDREFF", "DANIILIDIS")),
+    "axbycz": Setting(
+        "axbycz", "8,16,100,1000", "wu/numpy", "wu", (), (),
+        data_note="two facing arms (PROBLEM.simulate, free motion; solvers that need the phase protocol get "
+                  "phase data of the same seed), noise on A, B and C"),
 }
 #: the targets of the default problem (``axyb``)
 TARGETS = SETTINGS["axyb"].targets
@@ -191,9 +202,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"(default {DEFAULT_BUDGET:g})")
     parser.add_argument("--seed", type=int, default=0, help="simulation seed (default 0)")
     parser.add_argument("--noise-rot", type=float, default=0.005, metavar="RAD",
-                        help="rotation noise std on A and B (axxb: robot and camera poses), rad (default 0.005)")
+                        help="rotation noise std on A and B (axxb: robot and camera poses; axbycz: A, B and C), rad "
+                             "(default 0.005)")
     parser.add_argument("--noise-trans", type=float, default=0.5, metavar="MM",
-                        help="translation noise std on A and B (axxb: robot and camera poses), mm (default 0.5)")
+                        help="translation noise std on A and B (axxb: robot and camera poses; axbycz: A, B and C), mm "
+                             "(default 0.5)")
     parser.add_argument("--json", metavar="FILE",
                         help="also write every timing to FILE (JSON; an existing file is kept unless --force)")
     add_force_flag(parser)
@@ -230,7 +243,7 @@ def build_rows(selection: str | None, problem: str = "axyb") -> tuple[list[Row],
         rows += [Row(f"opencv [method={m}]", "opencv", "opencv", (("method", m),)) for m in bench.opencv_methods]
     elif "opencv" in names:
         unavailable.append(f"opencv/opencv: {registry.solver('opencv', bench.problem).unavailable_reason('opencv')}")
-    reason = _cv2_missing(bench.problem, bench.cv2_methods)
+    reason = _cv2_missing(bench.problem, bench.cv2_methods) if bench.cv2_methods else None
     if reason:
         unavailable.append(f"cv2 direct: {reason}")
     else:
@@ -268,7 +281,8 @@ def _cv2_missing(problem: str, methods: Sequence[str]) -> str | None:
     return f"this OpenCV ({cv2.__version__}) has no cv2.{', cv2.'.join(missing)}" if missing else None
 
 
-def bench_data(problem: str, m: int, noise: NoiseModel, seed: int) -> tuple[dict[str, np.ndarray], tuple[list[np.ndarray], ...]]:
+def bench_data(problem: str, m: int, noise: NoiseModel, seed: int,
+               simulate_options: dict[str, Any] | None = None) -> tuple[dict[str, np.ndarray], tuple[list[np.ndarray], ...]]:
     """(data for `handeye.solve`, the argument lists of the direct OpenCV call) at m pairs.
 
     ``axyb``: `PROBLEM.simulate(pairs=m)`; OpenCV gets A as world2cam and B as base2gripper
@@ -286,7 +300,7 @@ def bench_data(problem: str, m: int, noise: NoiseModel, seed: int) -> tuple[dict
         A, B = relative_motions(stations["A"], stations["B"], "all")
         robot, camera = stations["A"], inverse(stations["B"])
         return {"A": A, "B": B}, _lists(robot, camera)
-    data, _ = get_registry().problem(problem).simulate(pairs=m, seed=seed, noise=noise)
+    data, _ = get_registry().problem(problem).simulate(pairs=m, seed=seed, noise=noise, **(simulate_options or {}))
     data = {k: np.asarray(v) for k, v in data.items()}
     return data, _lists(data["A"], data["B"])
 
@@ -330,8 +344,10 @@ def measure(rows: Sequence[Row], pairs: Sequence[int], repeats: int, budget: flo
     cells: dict[tuple[str, int], Cell] = {}
     over_budget: dict[str, float] = {}  # row label -> the m at which one solve exceeded the budget
     bar = _progress(len(rows) * len(pairs) * (1 + repeats), enabled=progress)
+    registry = get_registry()
     for m in pairs:
         data, cv2_args = bench_data(problem, m, noise, seed)
+        by_protocol: dict[str, dict[str, np.ndarray]] = {}  # data of the rows whose solver asks for other simulator options
         timers = {}
         for row in rows:
             cell = cells[(row.label, m)] = Cell()
@@ -339,7 +355,14 @@ def measure(rows: Sequence[Row], pairs: Sequence[int], repeats: int, budget: flo
                 cell.note = f"skipped (>{budget:g} s)"
                 bar.update(1 + repeats)
                 continue
-            timer = make_timer(row, data, problem, cv2_args)
+            row_data = data
+            wanted = dict(registry.solver(row.solver, problem).simulate_options) if row.solver else {}
+            if wanted:
+                key = json.dumps(wanted, sort_keys=True)
+                if key not in by_protocol:
+                    by_protocol[key] = bench_data(problem, m, noise, seed, wanted)[0]
+                row_data = by_protocol[key]
+            timer = make_timer(row, row_data, problem, cv2_args)
             gc.collect()
             try:
                 cell.warmup, warmup_run = timer()
@@ -509,7 +532,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.budget > 0:
         raise InputError(f"--budget must be > 0 seconds, got {args.budget}")
     check_new_file("--json", args.json, args.force)
-    noise = NoiseModel.on(("A", "B"), args.noise_rot, args.noise_trans)
+    noise = NoiseModel.on(tuple(problem.data_fields), args.noise_rot, args.noise_trans)
     rows, unavailable = build_rows(args.solvers, bench.problem)
     if not rows:
         raise InputError("nothing to time: no available solver matches --solvers")
@@ -518,7 +541,9 @@ def run(args: argparse.Namespace) -> int:
 
     machine = machine_note()
     print(f"handeye bench ({bench.problem}): {machine}")
-    if bench.problem == "axxb":
+    if bench.data_note is not None:
+        print(f"data: {bench.data_note}: {args.noise_rot:g} rad, {args.noise_trans:g} mm (seed {args.seed})")
+    elif bench.problem == "axxb":
         print(f"data: simulate_stations(seed={args.seed}), noise on the robot and camera poses: "
               f"{args.noise_rot:g} rad, {args.noise_trans:g} mm; solvers: the motions of all pairs "
               "of the fewest stations giving at least m; cv2 direct: those stations (it forms the same pairs)")

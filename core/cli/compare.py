@@ -20,6 +20,13 @@ no truth, by held-out residuals: k-fold cross-validation (``--folds``, default 5
 the noise on the robot poses (A) and the camera poses (B) of the stations (``--pairs``: how many),
 then forms the motions (``--pairing all``, the default, or ``consecutive``); OpenCV's five methods
 are five contenders.
+
+``--problem axbycz`` (A_i X B_i = Y C_i Z, two robots) compares every axbycz solver with noise on
+A, B and C; the built-in studies run each sweep twice, on free motion (both robots move at every
+triple) and on the phase protocol (one robot holds still at a time: sweeps named ``...-phases``),
+since the two-step solvers need the latter; ``--protocol free`` or ``phases`` runs one of them
+(and sets the simulator's protocol of ``--study`` / grid studies). A solver given data of the
+wrong protocol is recorded as failed, with its reason.
 """
 
 from __future__ import annotations
@@ -61,9 +68,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--setup", choices=("eye-in-hand", "eye-to-hand"), default=None,
                         help="--data/--example: setup of a file of absolute poses (overrides the file's)")
     parser.add_argument("-o", "--output", metavar="OUTDIR", help="output directory (not with --paper/--accuracy)")
-    parser.add_argument("--problem", default="axyb", help="problem: axyb (default) or axxb")
+    parser.add_argument("--problem", default="axyb", help="problem: axyb (default), axxb or axbycz")
     parser.add_argument("--pairing", choices=("consecutive", "all"),
                         help="axxb: motions between all pairs of stations i < j (default, as OpenCV) or consecutive ones")
+    parser.add_argument("--protocol", choices=("free", "phases"),
+                        help="axbycz: both robots moving at every triple, or one robot still at a time "
+                             "(default: the built-in studies run both)")
     parser.add_argument("--solvers", metavar="LIST",
                         help="comma-separated: name, name/backend, name/* (every backend) or all "
                              "(default: every registered solver, every lmi-sdp backend; with --paper: "
@@ -129,6 +139,7 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
     if not (args.paper or args.accuracy) and not args.output:
         raise InputError("give an output directory with -o OUTDIR (or use --paper/--accuracy OUTDIR)")
     specs = parse_specs(args.solvers, args.problem) if args.solvers else ()
+    _protocols(args)  # --protocol for a problem without protocols: the error here
     if args.paper and args.problem != "axyb":
         raise InputError(f"--paper is the paper's study of problem 'axyb', not {args.problem!r}; use "
                          "--accuracy or -o OUTDIR for it")
@@ -141,17 +152,18 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
             print(f"note: the paper's method(s) {', '.join(missing)} are not registered here; "
                   "the study runs without them", file=sys.stderr)
     elif args.accuracy:
-        study = accuracy_study(problem=args.problem, specs=specs)
+        study = accuracy_study(problem=args.problem, specs=specs, protocols=_protocols(args))
         outdir = args.accuracy
     elif args.study:
         study = load_study(args.study)
         outdir = args.output
     elif not grid_flags:
-        study = sweep_study(args.problem, name=args.name or "study")
+        study = sweep_study(args.problem, name=args.name or "study", protocols=_protocols(args))
         outdir = args.output
     else:
         if args.noise_rot is None and args.noise_trans is None:
-            noise = paper_noise(1.0, stacks=_stacks(args, default=("A", "B")))
+            fields = tuple(get_registry().problem(args.problem).data_fields)
+            noise = paper_noise(1.0, stacks=_stacks(args, default=fields))
             levels = parse_floats(args.noise_levels or DEFAULT_LEVELS, "--noise-levels")
         else:
             noise = NoiseModel.on(_stacks(args, default=("B",)), args.noise_rot or 0.0, args.noise_trans or 0.0)
@@ -175,7 +187,19 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
         if problem != "axxb":
             raise InputError(f"--pairing applies to problem 'axxb' (its motions), not {problem!r}")
         changes["simulation"] = {**study.simulation, "pairing": args.pairing}
+    if args.protocol is not None and (args.study or grid_flags):
+        changes["simulation"] = {**changes.get("simulation", study.simulation), "protocol": args.protocol}
     return (study.replace(**changes) if changes else study), Path(outdir)
+
+
+def _protocols(args: argparse.Namespace) -> tuple[str, ...] | None:
+    """The data protocols a built-in study runs (None: all of the problem's); --protocol applies
+    to problems with protocols only (axbycz)."""
+    if args.protocol is None:
+        return None
+    if args.problem not in ("axbycz",):
+        raise InputError(f"--protocol applies to problem 'axbycz' (its two robots), not {args.problem!r}")
+    return (args.protocol,)
 
 
 def _stacks(args: argparse.Namespace, default: tuple[str, ...]) -> tuple[str, ...]:

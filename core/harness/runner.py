@@ -95,7 +95,8 @@ def simulate(study: Study, cell: Cell, trial: int) -> tuple[dict[str, np.ndarray
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(1,)))
         poses = random_poses(len(problem.unknowns), rng, RANDOM_TRUTH_MM)
         truth_kwargs = dict(zip(problem.unknowns, poses))
-    data, truth = problem.simulate(pairs=cell.pairs, seed=seed, noise=cell.noise, **study.simulation, **truth_kwargs)
+    options = {**study.simulation, **cell.simulation}  # the sweep's own options over the study's
+    data, truth = problem.simulate(pairs=cell.pairs, seed=seed, noise=cell.noise, **options, **truth_kwargs)
     return data, truth, seed
 
 

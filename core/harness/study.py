@@ -14,7 +14,9 @@ options to it, e.g. the pairing of ``axxb``'s motions), the contenders from the 
 Studies come from Python, from CLI flags (`parse_specs`, `parse_floats`) or from a TOML file
 (`load_study`, format in docs/harness.md). `paper_study` is the paper's Sec. IV-A (Fig. 3, Fig. 4,
 Table I), `sweep_study` the default noise and pair-count sweeps of ``handeye compare`` and
-`accuracy_study` the accuracy study of any problem with its ground-truth "oracle" hook.
+`accuracy_study` the accuracy study of any problem with its ground-truth "oracle" hook. A problem
+whose solvers need different data protocols (``axbycz``: free motion, or phases with one robot
+still) gets its built-in sweeps once per protocol (`PROTOCOLS`, `Sweep.simulation`).
 """
 
 from __future__ import annotations
@@ -85,14 +87,21 @@ class Sweep:
 
     name: used in file names and the ``sweep`` column. levels: multipliers of the base noise
     (>= 0). pairs: numbers of pairs m (>= 1). noise: this sweep's base model (None: the study's).
+    simulation: simulator options of this sweep, over the study's (`Study.simulation`), e.g.
+    ``{"protocol": "phases"}`` for ``axbycz`` data where one robot holds still at a time.
     """
 
     name: str
     levels: tuple[float, ...] = (1.0,)
     pairs: tuple[int, ...] = (16,)
     noise: NoiseModel | None = None
+    simulation: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.simulation, Mapping):
+            raise InputError(f"sweep {self.name!r}: simulation must be a table/dict of simulator options, "
+                             f"got {self.simulation!r}")
+        object.__setattr__(self, "simulation", dict(self.simulation))
         levels = tuple(float(v) for v in self.levels)
         pairs = tuple(int(v) for v in self.pairs)
         if not self.name or not all(c.isalnum() or c in "-_." for c in self.name):
@@ -107,7 +116,8 @@ class Sweep:
 
 @dataclasses.dataclass(frozen=True)
 class Cell:
-    """One (sweep, level, pairs) point with its indices (sweep, pairs and trial seed the data)."""
+    """One (sweep, level, pairs) point with its indices (sweep, pairs and trial seed the data) and
+    the sweep's own simulator options (`Sweep.simulation`)."""
 
     sweep: str
     sweep_index: int
@@ -116,6 +126,7 @@ class Cell:
     pairs: int
     pairs_index: int
     noise: NoiseModel
+    simulation: Mapping[str, Any] = dataclasses.field(default_factory=dict, compare=False, hash=False)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -185,7 +196,7 @@ class Study:
             base = sweep.noise if sweep.noise is not None else self.noise
             for li, level in enumerate(sweep.levels):
                 for pi, m in enumerate(sweep.pairs):
-                    yield Cell(sweep.name, si, level, li, m, pi, scale_noise(base, level))
+                    yield Cell(sweep.name, si, level, li, m, pi, scale_noise(base, level), sweep.simulation)
 
     def resolved_specs(self) -> tuple[Spec, ...]:
         """`specs` (or `default_specs(problem)` when empty) with default backends filled in;
@@ -212,7 +223,8 @@ class Study:
             "center": self.center, "timeout": self.timeout, "simulation": dict(self.simulation),
             "noise": _noise_dict(self.noise),
             "sweeps": [{"name": s.name, "levels": list(s.levels), "pairs": list(s.pairs),
-                        **({"noise": _noise_dict(s.noise)} if s.noise is not None else {})}
+                        **({"noise": _noise_dict(s.noise)} if s.noise is not None else {}),
+                        **({"simulation": dict(s.simulation)} if s.simulation else {})}
                        for s in self.sweeps],
             "solvers": [s.to_dict() for s in self.specs],
         }
@@ -338,24 +350,55 @@ PAPER_TIMEOUT = 10.0
 #: realistic noise of the accuracy study, camera (B) ten times noisier than the robot (A); rad and
 #: mm. For ``axxb`` the same on the absolute poses the motions are made of ("A": robot, "B": camera).
 ACCURACY_NOISE = NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)})
+#: the accuracy study's noise of problems whose data are not the robot (A) and camera (B) poses:
+#: ``axbycz``'s C is robot 2's flange pose, as precise as robot 1's
+ACCURACY_NOISE_OF: dict[str, NoiseModel] = {
+    "axbycz": NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5), "C": (0.0002, 0.05)}),
+}
 #: pair counts of the accuracy study
 ACCURACY_PAIRS = (8, 16, 50)
+#: simulator options of further sweeps of the built-in studies, per problem: ``axbycz``'s phase
+#: protocol (one robot still at a time), which the two-step solvers need; the first sweeps use
+#: the simulator's defaults (free motion)
+PROTOCOLS: dict[str, tuple[str, ...]] = {"axbycz": ("free", "phases")}
+
+
+def protocol_sweeps(problem: str, sweeps: Sequence[Sweep], protocols: Sequence[str] | None = None) -> tuple[Sweep, ...]:
+    """`sweeps` once per data protocol of `problem` (`PROTOCOLS`; `protocols` to choose): for a
+    problem without protocols the sweeps themselves, else each sweep per protocol, named
+    ``<sweep>-<protocol>`` and simulated with ``{"protocol": ...}`` (the first protocol keeps the
+    plain name)."""
+    known = PROTOCOLS.get(problem)
+    if not known:
+        if protocols:
+            raise InputError(f"problem {problem!r} has no data protocols; --protocol applies to {sorted(PROTOCOLS)}")
+        return tuple(sweeps)
+    chosen = tuple(protocols) if protocols else known
+    unknown = [p for p in chosen if p not in known]
+    if unknown:
+        raise InputError(f"protocol {unknown[0]!r} is not one of {', '.join(known)} (problem {problem!r})")
+    return tuple(dataclasses.replace(s, name=s.name if p == known[0] else f"{s.name}-{p}", simulation={"protocol": p})
+                 for p in chosen for s in sweeps)
 
 
 def accuracy_study(*, problem: str = "axyb", trials: int = 20, seed: int = 0, specs: Sequence[Spec] = (),
-                   oracle: bool | None = None, units: str = "mm") -> Study:
-    """The accuracy study of `problem`: noise on A and B (`ACCURACY_NOISE`) and ten times that,
-    m = 8, 16, 50 (`ACCURACY_PAIRS`), random unknowns per trial, every registered solver
-    (`default_specs`). With `oracle` (default: when ``refine`` solves `problem`) an extra spec
-    ``oracle`` runs ``refine`` started at the ground truth (`Spec.init_from_truth`: init =
+                   oracle: bool | None = None, units: str = "mm", pairs: Sequence[int] = ACCURACY_PAIRS,
+                   protocols: Sequence[str] | None = None) -> Study:
+    """The accuracy study of `problem`: noise on A and B (`ACCURACY_NOISE`; ``axbycz``: also on
+    C, `ACCURACY_NOISE_OF`) and ten times that, m = 8, 16, 50 (`ACCURACY_PAIRS`), random unknowns
+    per trial, every registered solver (`default_specs`); for a problem with data protocols
+    (`PROTOCOLS`: ``axbycz``'s free motion and phases) the sweep once per protocol. With `oracle`
+    (default: when ``refine`` solves `problem`) an extra spec ``oracle`` runs ``refine`` started
+    at the ground truth (`Spec.init_from_truth`: init = the problem's unknowns, e.g.
     ``{"X": ..., "Y": ...}`` for ``axyb``, ``{"X": ...}`` for ``axxb``)."""
     specs = tuple(specs) or default_specs(problem)
     if oracle is None:
         oracle = "refine" in get_registry().solver_names(problem)
     if oracle:
         specs += (Spec("refine", label="oracle", init_from_truth=True),)
+    sweeps = protocol_sweeps(problem, (Sweep("accuracy", (1.0, 10.0), tuple(pairs)),), protocols)
     return Study(name="accuracy" if problem == "axyb" else f"accuracy-{problem}", problem=problem, specs=specs,
-                 noise=ACCURACY_NOISE, sweeps=(Sweep("accuracy", (1.0, 10.0), ACCURACY_PAIRS),),
+                 noise=ACCURACY_NOISE_OF.get(problem, ACCURACY_NOISE), sweeps=sweeps,
                  trials=trials, seed=seed, truth="random", units=units)
 
 
@@ -367,13 +410,18 @@ SWEEP_LEVEL = 0.05
 
 
 def sweep_study(problem: str = "axyb", *, name: str = "study", specs: Sequence[Spec] = (),
-                noise: NoiseModel | None = None) -> Study:
+                noise: NoiseModel | None = None, protocols: Sequence[str] | None = None) -> Study:
     """``handeye compare``'s default study of `problem`: a noise sweep (`SWEEP_LEVELS` at m = 16)
-    and a pair-count sweep (m = `SWEEP_PAIRS` at level `SWEEP_LEVEL`), noise on both data stacks
-    (default the paper's reading, `paper_noise`: sigma_N rad and sigma_N mm on A and B; for
-    ``axxb`` on the robot and camera poses), every registered solver of `problem` by default."""
-    return Study(name=name, problem=problem, specs=tuple(specs), noise=noise or paper_noise(1.0),
-                 sweeps=(Sweep("noise", SWEEP_LEVELS, (PAPER_PAIRS,)), Sweep("pairs", (SWEEP_LEVEL,), SWEEP_PAIRS)),
+    and a pair-count sweep (m = `SWEEP_PAIRS` at level `SWEEP_LEVEL`), noise on every data stack
+    (default the paper's reading, `paper_noise`: sigma_N rad and sigma_N mm on A and B, for
+    ``axxb`` on the robot and camera poses, for ``axbycz`` on A, B and C), every registered
+    solver of `problem` by default; both sweeps once per data protocol of the problem
+    (`protocol_sweeps`: ``axbycz``'s free motion and phases)."""
+    fields = tuple(get_registry().problem(problem).data_fields)
+    sweeps = protocol_sweeps(problem, (Sweep("noise", SWEEP_LEVELS, (PAPER_PAIRS,)),
+                                       Sweep("pairs", (SWEEP_LEVEL,), SWEEP_PAIRS)), protocols)
+    return Study(name=name, problem=problem, specs=tuple(specs), noise=noise or paper_noise(1.0, stacks=fields),
+                 sweeps=sweeps,
                  level_label=("sigma_N  (rotations: sigma_N rad, translations: sigma_N mm)" if noise is None
                               else "noise level (multiplier of the base noise)"))
 
@@ -436,7 +484,7 @@ def parse_ints(text: str, what: str) -> tuple[int, ...]:
 
 _STUDY_KEYS = {"name", "problem", "trials", "seed", "truth", "units", "warmup", "level_label", "center", "timeout", "noise", "levels",
                "pairs", "sweep", "solver", "simulation"}
-_SWEEP_KEYS = {"name", "levels", "pairs", "noise"}
+_SWEEP_KEYS = {"name", "levels", "pairs", "noise", "simulation"}
 _SOLVER_KEYS = {"name", "backend", "options", "label", "init_from_truth", "truth_option"}
 
 
@@ -469,7 +517,7 @@ def study_from_dict(doc: Mapping[str, Any], source: str = "study") -> Study:
         _check_keys(table, _SWEEP_KEYS, where)
         noise = _noise_from(table["noise"], where + " noise") if "noise" in table else None
         sweeps.append(Sweep(table.get("name", f"sweep{i + 1}"), tuple(table.get("levels", (1.0,))),
-                            tuple(table.get("pairs", (16,))), noise))
+                            tuple(table.get("pairs", (16,))), noise, table.get("simulation", {})))
     if sweeps:
         kwargs["sweeps"] = tuple(sweeps)
     specs = []
