@@ -144,6 +144,49 @@ class TranslationSums:
         return np.einsum("aj,jab->b", R, self.C)
 
 
+def validated_stacks(problem: str, data: Mapping[str, Any], fields: tuple[str, ...], min_pairs: int) -> list[np.ndarray]:
+    """The stacks `fields` of `problem` from its raw data: no other key and all present, every pose
+    checked (`handeye.validation.pose_stacks`: shapes, SE(3), the same length >= min_pairs), and
+    translations whose sums of squares neither overflow nor underflow (`MIN_TRANSLATION`; every
+    solver needs them: the linear systems, the unit normalisation, the weights of the least
+    squares). Raises InputError / DegenerateDataError naming what is wrong."""
+    from .validation import pose_stacks
+
+    unexpected = set(data) - set(fields)
+    if unexpected:
+        raise InputError(f"problem {problem!r} takes data {list(fields)}, not {sorted(unexpected)}")
+    missing = [f for f in fields if f not in data]
+    if missing:
+        raise InputError(f"problem {problem!r} needs data {list(fields)}; missing {missing}")
+    stacks = list(pose_stacks({f: data[f] for f in fields}, min_pairs).values())
+    with np.errstate(over="ignore", invalid="ignore"):
+        if not np.isfinite(translation_rms(*stacks)):
+            raise overflow_error("the sums of squared translations")
+    largest = max(float(np.max(np.abs(T[:, :3, 3]))) for T in stacks)
+    if 0.0 < largest < MIN_TRANSLATION:
+        raise underflow_error(largest)
+    return stacks
+
+
+def translation_rms(*stacks: np.ndarray) -> float:
+    """RMS norm of every translation of the pose stacks (1 when all are zero): the data's length
+    unit, for normalisation."""
+    t = np.concatenate([T[:, :3, 3] for T in stacks])
+    scale = float(np.sqrt(np.mean(np.sum(t * t, axis=1))))
+    return scale if scale > 0 else 1.0
+
+
+def scaled_stacks(stacks: tuple[np.ndarray, ...], s: float) -> list[np.ndarray]:
+    """Read-only copies of the pose stacks with every translation divided by s."""
+    out = []
+    for T in stacks:
+        T = T.copy()
+        T[:, :3, 3] /= s
+        T.setflags(write=False)
+        out.append(T)
+    return out
+
+
 @dataclasses.dataclass(frozen=True)
 class PosePairs:
     """Validated data of a two-stack problem: read-only float64 stacks A, B of shape (m, 4, 4),
@@ -158,29 +201,9 @@ class PosePairs:
 
     @classmethod
     def validated(cls, problem: str, data: Mapping[str, Any], min_pairs: int):
-        """The data object of `problem` from its raw fields {"A", "B"}: no other key and both
-        present, every pose checked (`handeye.validation.pose_stacks`: shapes, SE(3), the same
-        length >= min_pairs), and sums of squared translations that do not overflow nor
-        underflow (`MIN_TRANSLATION`; every solver needs them: the linear systems, the unit
-        normalisation, the weights of the least squares). Raises InputError /
-        DegenerateDataError naming what is wrong; the problem adds its own degeneracy checks."""
-        from .validation import pose_stacks
-
-        fields = ("A", "B")
-        unexpected = set(data) - set(fields)
-        if unexpected:
-            raise InputError(f"problem {problem!r} takes data {list(fields)}, not {sorted(unexpected)}")
-        missing = [f for f in fields if f not in data]
-        if missing:
-            raise InputError(f"problem {problem!r} needs data {list(fields)}; missing {missing}")
-        out = cls(*pose_stacks({f: data[f] for f in fields}, min_pairs).values())
-        with np.errstate(over="ignore", invalid="ignore"):
-            if not np.isfinite(out.translation_scale):
-                raise overflow_error("the sums of squared translations")
-        largest = max(float(np.max(np.abs(out.A[:, :3, 3]))), float(np.max(np.abs(out.B[:, :3, 3]))))
-        if 0.0 < largest < MIN_TRANSLATION:
-            raise underflow_error(largest)
-        return out
+        """The data object of `problem` from its raw fields {"A", "B"} (`validated_stacks`); the
+        problem adds its own degeneracy checks."""
+        return cls(*validated_stacks(problem, data, ("A", "B"), min_pairs))
 
     @property
     def m(self) -> int:
@@ -189,18 +212,11 @@ class PosePairs:
     @functools.cached_property
     def translation_scale(self) -> float:
         """RMS norm of all translations of A and B: the data's length unit, for normalisation."""
-        t = np.concatenate([self.A[:, :3, 3], self.B[:, :3, 3]])
-        scale = float(np.sqrt(np.mean(np.sum(t * t, axis=1))))
-        return scale if scale > 0 else 1.0
+        return translation_rms(self.A, self.B)
 
     def scaled(self, s: float):
         """The same data (same class) with every translation divided by s."""
-        A, B = self.A.copy(), self.B.copy()
-        A[:, :3, 3] /= s
-        B[:, :3, 3] /= s
-        A.setflags(write=False)
-        B.setflags(write=False)
-        return type(self)(A, B)
+        return type(self)(*scaled_stacks((self.A, self.B), s))
 
     @functools.cached_property
     def rotation_sum(self) -> np.ndarray:

@@ -54,7 +54,7 @@ import numpy as np
 from handeye import hookimpl
 from handeye.errors import DegenerateDataError, InputError
 from handeye.kinematics import random_flange_poses
-from handeye.kronecker import MIN_TRANSLATION, overflow_error, underflow_error
+from handeye.kronecker import scaled_stacks, translation_rms, validated_stacks
 from handeye.noise import NoiseModel
 from handeye.problem import Problem, pose_discrepancy
 from handeye.se3 import inverse, make_pose, project_to_so3, so3_exp
@@ -100,25 +100,9 @@ class AXBYCZData:
 
     @classmethod
     def validated(cls, problem: str, data: Mapping[str, Any], min_pairs: int) -> AXBYCZData:
-        """The data object from the raw fields {"A", "B", "C"}: no other key and all present, every
-        pose checked (`handeye.validation.pose_stacks`: shapes, SE(3), the same length >=
-        min_pairs), sums of squared translations that neither overflow nor underflow."""
-        from handeye.validation import pose_stacks
-
-        unexpected = set(data) - set(FIELDS)
-        if unexpected:
-            raise InputError(f"problem {problem!r} takes data {list(FIELDS)}, not {sorted(unexpected)}")
-        missing = [f for f in FIELDS if f not in data]
-        if missing:
-            raise InputError(f"problem {problem!r} needs data {list(FIELDS)}; missing {missing}")
-        out = cls(*pose_stacks({f: data[f] for f in FIELDS}, min_pairs).values())
-        with np.errstate(over="ignore", invalid="ignore"):
-            if not np.isfinite(out.translation_scale):
-                raise overflow_error("the sums of squared translations")
-        largest = max(float(np.max(np.abs(T[:, :3, 3]))) for T in (out.A, out.B, out.C))
-        if 0.0 < largest < MIN_TRANSLATION:
-            raise underflow_error(largest)
-        return out
+        """The data object from the raw fields {"A", "B", "C"} (`handeye.kronecker.validated_stacks`);
+        `AXBYCZ.validate` adds the degeneracy checks."""
+        return cls(*validated_stacks(problem, data, FIELDS, min_pairs))
 
     @property
     def m(self) -> int:
@@ -127,9 +111,7 @@ class AXBYCZData:
     @functools.cached_property
     def translation_scale(self) -> float:
         """RMS norm of all translations of A, B and C: the data's length unit, for normalisation."""
-        t = np.concatenate([self.A[:, :3, 3], self.B[:, :3, 3], self.C[:, :3, 3]])
-        scale = float(np.sqrt(np.mean(np.sum(t * t, axis=1))))
-        return scale if scale > 0 else 1.0
+        return translation_rms(self.A, self.B, self.C)
 
     @functools.cached_property
     def rotation_spread(self) -> dict[str, tuple[int, float]]:
@@ -197,13 +179,7 @@ class AXBYCZData:
 
     def scaled(self, s: float) -> AXBYCZData:
         """The same data with every translation divided by s."""
-        stacks = []
-        for T in (self.A, self.B, self.C):
-            T = T.copy()
-            T[:, :3, 3] /= s
-            T.setflags(write=False)
-            stacks.append(T)
-        return type(self)(*stacks)
+        return type(self)(*scaled_stacks((self.A, self.B, self.C), s))
 
 
 class AXBYCZ(Problem):
