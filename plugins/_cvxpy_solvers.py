@@ -8,8 +8,9 @@ are. cvxpy is imported only when a function here is called, never at import time
 from __future__ import annotations
 
 import functools
+import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from handeye.errors import InputError
@@ -78,3 +79,29 @@ def compile_seconds(cached: Any, start: float) -> float:
     cached.compiled = True
     solve_time = getattr(cached.problem.solver_stats, "solve_time", None) or 0.0
     return max(time.perf_counter() - start - solve_time, 0.0)
+
+
+class ProblemCache:
+    """cvxpy problems built once per key and then shared by every solve (and thread).
+
+    cvxpy compiles a problem on its first solve (20-50 ms; later solves only re-apply the
+    Parameters, DPP) and keeps one compiled program per problem, so an SDP plugin keeps one
+    problem per cvxpy solver and per whatever else changes the problem's shape. `build(*key)`
+    makes the problem of a key; `problems` maps key -> problem and `builds` counts the builds in
+    this process (tests clear or replace entries of `problems`).
+    """
+
+    def __init__(self, build: Callable[..., Any]) -> None:
+        self._build = build
+        self._lock = threading.Lock()
+        self.problems: dict[tuple[Any, ...], Any] = {}
+        self.builds = 0
+
+    def get(self, *key: Any) -> Any:
+        """The problem of `key`, built on the first request."""
+        with self._lock:
+            cached = self.problems.get(key)
+            if cached is None:
+                cached = self.problems[key] = self._build(*key)
+                self.builds += 1
+            return cached

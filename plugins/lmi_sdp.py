@@ -102,6 +102,7 @@ from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import DegenerateDataError, InputError, SolverError, shown
 from handeye.options import check_choice
 from handeye.plugins._cvxpy_solvers import (  # noqa: F401 (sdp_cvxpy_solvers re-exported)
+    ProblemCache,
     check_backend_options,
     compile_seconds,
     resolve_cvxpy_solver,
@@ -260,41 +261,33 @@ class CvxpyLMI:
     compiled: bool = False  # cvxpy compiles the problem on its first solve
 
 
-_CVXPY_PROBLEMS: dict[Any, CvxpyLMI] = {}  # solver name (n = 24) or (name, n)
-_CVXPY_BUILD_LOCK = threading.Lock()
-#: How many cvxpy problems were built in this process (one per cvxpy solver used).
-cvxpy_builds = 0
-
-
 def cvxpy_problem(solver: str, n: int = 24) -> CvxpyLMI:
     """Eq. 14 as a DPP cvxpy problem for cvxpy solver `solver` and n unknowns (24: ``axyb``;
-    132: the lifted system of ``axbycz``), built once and cached (key: the solver's name for 24,
-    (name, n) otherwise)."""
-    global cvxpy_builds
-    key: Any = solver if n == 24 else (solver, n)
-    with _CVXPY_BUILD_LOCK:
-        cached = _CVXPY_PROBLEMS.get(key)
-        if cached is not None:
-            return cached
-        import cvxpy as cp
+    132: the lifted system of ``axbycz``), built once and cached (`CVXPY_CACHE`, key (solver, n))."""
+    return CVXPY_CACHE.get(solver, n)
 
-        R = cp.Parameter((n, n), name="R")
-        q = cp.Parameter(n, name="q")
-        rest = cp.Parameter(nonneg=True, name="rest")
-        gamma = cp.Variable(n, name="gamma")
-        u = cp.Variable(name="u")
-        e = R @ gamma - q  # R1 beta - q1, scaled
-        lmi = cp.bmat([
-            [cp.reshape(u - rest, (1, 1), order="F"), cp.reshape(e, (1, n), order="F")],
-            [cp.reshape(e, (n, 1), order="F"), np.eye(n)],
-        ])
-        problem = cp.Problem(cp.Minimize(u), [lmi >> 0])
-        if not problem.is_dpp():  # pragma: no cover - a cvxpy change would break the cache
-            raise SolverError("lmi-sdp: the cvxpy formulation of the semidefinite program is not DPP")
-        cached = CvxpyLMI(problem, R, q, rest, gamma, u, threading.Lock())
-        _CVXPY_PROBLEMS[key] = cached
-        cvxpy_builds += 1
-        return cached
+
+def _build_cvxpy_problem(solver: str, n: int) -> CvxpyLMI:
+    import cvxpy as cp
+
+    R = cp.Parameter((n, n), name="R")
+    q = cp.Parameter(n, name="q")
+    rest = cp.Parameter(nonneg=True, name="rest")
+    gamma = cp.Variable(n, name="gamma")
+    u = cp.Variable(name="u")
+    e = R @ gamma - q  # R1 beta - q1, scaled
+    lmi = cp.bmat([
+        [cp.reshape(u - rest, (1, 1), order="F"), cp.reshape(e, (1, n), order="F")],
+        [cp.reshape(e, (n, 1), order="F"), np.eye(n)],
+    ])
+    problem = cp.Problem(cp.Minimize(u), [lmi >> 0])
+    if not problem.is_dpp():  # pragma: no cover - a cvxpy change would break the cache
+        raise SolverError("lmi-sdp: the cvxpy formulation of the semidefinite program is not DPP")
+    return CvxpyLMI(problem, R, q, rest, gamma, u, threading.Lock())
+
+
+#: One problem per (cvxpy solver, number of unknowns) in this process.
+CVXPY_CACHE = ProblemCache(_build_cvxpy_problem)
 
 
 def _solve_cvxpy(lmi: ScaledLMI, solver: str) -> SDPResult:

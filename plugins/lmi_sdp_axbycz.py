@@ -64,6 +64,7 @@ from handeye.errors import DegenerateDataError, SolverError
 from handeye.kronecker import reduce_normal_equations
 from handeye.options import check_choice
 from handeye.plugins._cvxpy_solvers import (
+    ProblemCache,
     check_backend_options,
     compile_seconds,
     resolve_cvxpy_solver,
@@ -139,33 +140,27 @@ class CvxpySDP:
     compiled: bool = False
 
 
-_CVXPY_PROBLEMS: dict[str, CvxpySDP] = {}
-_CVXPY_BUILD_LOCK = threading.Lock()
-#: How many cvxpy problems were built in this process (one per cvxpy solver used).
-cvxpy_builds = 0
-
-
 def cvxpy_problem(solver: str) -> CvxpySDP:
-    """The SDP of point 2 as a DPP cvxpy problem for cvxpy `solver`, built once and cached."""
-    global cvxpy_builds
-    with _CVXPY_BUILD_LOCK:
-        cached = _CVXPY_PROBLEMS.get(solver)
-        if cached is not None:
-            return cached
-        import cvxpy as cp
+    """The SDP of point 2 as a DPP cvxpy problem for cvxpy `solver`, built once (`CVXPY_CACHE`)."""
+    return CVXPY_CACHE.get(solver)
 
-        d, p = cp.Parameter(N_R, name="d"), cp.Parameter(N_R, name="p")
-        w, rho = cp.Variable(N_R, name="w"), cp.Variable(N_R, name="rho")
-        one = np.ones((1, 1))
-        blocks = [cp.bmat([[cp.reshape(w[k], (1, 1), order="F"), cp.reshape(rho[k], (1, 1), order="F")],
-                           [cp.reshape(rho[k], (1, 1), order="F"), one]]) >> 0 for k in range(N_R)]
-        problem = cp.Problem(cp.Minimize(d @ w - 2 * p @ rho), [cp.sum(w) == lifted.SPHERE, *blocks])
-        if not problem.is_dpp():  # pragma: no cover - a cvxpy change would break the cache
-            raise SolverError("lmi-sdp: the cvxpy formulation of the AXB=YCZ SDP is not DPP")
-        cached = CvxpySDP(problem, d, p, w, rho, threading.Lock())
-        _CVXPY_PROBLEMS[solver] = cached
-        cvxpy_builds += 1
-        return cached
+
+def _build_cvxpy_problem(solver: str) -> CvxpySDP:
+    import cvxpy as cp
+
+    d, p = cp.Parameter(N_R, name="d"), cp.Parameter(N_R, name="p")
+    w, rho = cp.Variable(N_R, name="w"), cp.Variable(N_R, name="rho")
+    one = np.ones((1, 1))
+    blocks = [cp.bmat([[cp.reshape(w[k], (1, 1), order="F"), cp.reshape(rho[k], (1, 1), order="F")],
+                       [cp.reshape(rho[k], (1, 1), order="F"), one]]) >> 0 for k in range(N_R)]
+    problem = cp.Problem(cp.Minimize(d @ w - 2 * p @ rho), [cp.sum(w) == lifted.SPHERE, *blocks])
+    if not problem.is_dpp():  # pragma: no cover - a cvxpy change would break the cache
+        raise SolverError("lmi-sdp: the cvxpy formulation of the AXB=YCZ SDP is not DPP")
+    return CvxpySDP(problem, d, p, w, rho, threading.Lock())
+
+
+#: One problem per cvxpy solver in this process.
+CVXPY_CACHE = ProblemCache(_build_cvxpy_problem)
 
 
 def _solve_cvxpy(d: np.ndarray, p: np.ndarray, solver: str) -> SDPResult:
@@ -213,8 +208,6 @@ def _solve_picos(d: np.ndarray, p: np.ndarray) -> SDPResult:
     unknown = status == picos.modeling.solution.SS_UNKNOWN
     result_status = None if unknown else _status(status, {picos.modeling.solution.SS_OPTIMAL}, set(),
                                                  "picos/cvxopt", WHAT)
-    if w.value is None or rho.value is None:
-        raise SolverError(f"lmi-sdp: picos/cvxopt reported {status!r} but gave no solution")
     raw = solution.info.get("cvxopt_sol", {}) if isinstance(solution.info, Mapping) else {}
     iterations = raw.get("iterations")
     return SDPResult(np.array(w.value, dtype=float).ravel(), np.array(rho.value, dtype=float).ravel(),

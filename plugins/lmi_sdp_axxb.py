@@ -58,6 +58,7 @@ from handeye import SolverOutput, Status
 from handeye.errors import SolverError
 from handeye.linalg import frobenius_norm
 from handeye.plugins._cvxpy_solvers import (
+    ProblemCache,
     check_backend_options,
     compile_seconds,
     resolve_cvxpy_solver,
@@ -117,30 +118,25 @@ class CvxpySDP:
     compiled: bool = False
 
 
-_CVXPY_PROBLEMS: dict[str, CvxpySDP] = {}
-_CVXPY_BUILD_LOCK = threading.Lock()
-#: How many cvxpy problems were built in this process (one per cvxpy solver used).
-cvxpy_builds = 0
-
-
 def cvxpy_problem(solver: str) -> CvxpySDP:
-    """The SDP of the module docstring as a DPP cvxpy problem for cvxpy `solver`, built once."""
-    global cvxpy_builds
-    with _CVXPY_BUILD_LOCK:
-        cached = _CVXPY_PROBLEMS.get(solver)
-        if cached is not None:
-            return cached
-        import cvxpy as cp
+    """The SDP of the module docstring as a DPP cvxpy problem for cvxpy `solver`, built once
+    (`CVXPY_CACHE`)."""
+    return CVXPY_CACHE.get(solver)
 
-        M = cp.Parameter((10, 10), symmetric=True, name="M")
-        Z = cp.Variable((10, 10), PSD=True, name="Z")
-        problem = cp.Problem(cp.Minimize(cp.trace(M @ Z)), [cp.trace(Z[:9, :9]) == 3, Z[9, 9] == 1])
-        if not problem.is_dpp():  # pragma: no cover - a cvxpy change would break the cache
-            raise SolverError("lmi-sdp: the cvxpy formulation of the AX=XB SDP is not DPP")
-        cached = CvxpySDP(problem, M, Z, threading.Lock())
-        _CVXPY_PROBLEMS[solver] = cached
-        cvxpy_builds += 1
-        return cached
+
+def _build_cvxpy_problem(solver: str) -> CvxpySDP:
+    import cvxpy as cp
+
+    M = cp.Parameter((10, 10), symmetric=True, name="M")
+    Z = cp.Variable((10, 10), PSD=True, name="Z")
+    problem = cp.Problem(cp.Minimize(cp.trace(M @ Z)), [cp.trace(Z[:9, :9]) == 3, Z[9, 9] == 1])
+    if not problem.is_dpp():  # pragma: no cover - a cvxpy change would break the cache
+        raise SolverError("lmi-sdp: the cvxpy formulation of the AX=XB SDP is not DPP")
+    return CvxpySDP(problem, M, Z, threading.Lock())
+
+
+#: One problem per cvxpy solver in this process.
+CVXPY_CACHE = ProblemCache(_build_cvxpy_problem)
 
 
 def _solve_cvxpy(M: np.ndarray, solver: str) -> SDPResult:

@@ -57,6 +57,7 @@ from handeye.errors import DegenerateDataError, InputError, SolverError, shown
 from handeye.linalg import frobenius_norm
 from handeye.plugins._clarabel_sdp import DualSDP
 from handeye.plugins._cvxpy_solvers import (
+    ProblemCache,
     check_backend_options,
     compile_seconds,
     resolve_cvxpy_solver,
@@ -168,13 +169,6 @@ class _CvxpyProblem:
     compiled: bool = False  # cvxpy compiles the problem on its first solve
 
 
-_CVXPY_PROBLEMS: dict[tuple[bool, str, int], _CvxpyProblem] = {}
-_CVXPY_BUILD_LOCK = threading.Lock()
-#: How many times a cvxpy problem was built (once per constraint set, cvxpy solver and number of
-#: rotations per process).
-cvxpy_builds = 0
-
-
 def cvxpy_problem(redundant: bool, solver: str, rotations: int = 2) -> _CvxpyProblem:
     """The relaxation for `rotations` rotations (2: ``axyb``, 1: ``axxb``) as a cvxpy problem
     with M a Parameter (DPP), built once per cvxpy `solver` and cached (cvxpy keeps one compiled
@@ -186,26 +180,25 @@ def cvxpy_problem(redundant: bool, solver: str, rotations: int = 2) -> _CvxpyPro
     the dual variable of the PSD constraint (Clarabel and SCS are primal-dual: both come out of
     one solve).
     """
-    global cvxpy_builds
-    key = (redundant, solver, rotations)
-    with _CVXPY_BUILD_LOCK:
-        cached = _CVXPY_PROBLEMS.get(key)
-        if cached is not None:
-            return cached
-        import cvxpy as cp
+    return CVXPY_CACHE.get(redundant, solver, rotations)
 
-        A, b = constraint_matrices(rotations, redundant)
-        dim = dimension(rotations)
-        nu = cp.Variable(len(A))
-        M = cp.Parameter((dim, dim), symmetric=True)
-        A_cols = A.reshape(len(A), dim * dim).T  # (dim^2, K); A_j symmetric: any vec order
-        slack = M - cp.reshape(A_cols @ nu, (dim, dim), order="F") >> 0
-        problem = cp.Problem(cp.Maximize(b @ nu), [slack])
-        assert problem.is_dpp()
-        cached = _CvxpyProblem(problem, M, nu, slack, threading.Lock())
-        _CVXPY_PROBLEMS[key] = cached
-        cvxpy_builds += 1
-        return cached
+
+def _build_cvxpy_problem(redundant: bool, solver: str, rotations: int) -> _CvxpyProblem:
+    import cvxpy as cp
+
+    A, b = constraint_matrices(rotations, redundant)
+    dim = dimension(rotations)
+    nu = cp.Variable(len(A))
+    M = cp.Parameter((dim, dim), symmetric=True)
+    A_cols = A.reshape(len(A), dim * dim).T  # (dim^2, K); A_j symmetric: any vec order
+    slack = M - cp.reshape(A_cols @ nu, (dim, dim), order="F") >> 0
+    problem = cp.Problem(cp.Maximize(b @ nu), [slack])
+    assert problem.is_dpp()
+    return _CvxpyProblem(problem, M, nu, slack, threading.Lock())
+
+
+#: One problem per (constraint set, cvxpy solver, number of rotations) in this process.
+CVXPY_CACHE = ProblemCache(_build_cvxpy_problem)
 
 
 def _solve_with_settings(problem: Any, solver: str) -> None:

@@ -192,15 +192,15 @@ def test_cvxpy_problems_compiled_once_per_process(monkeypatch):
     solve (compile_seconds > 0), then reused with new parameters only."""
     from handeye.plugins import lmi_sdp_axxb, so3_sdp
 
-    monkeypatch.setattr(lmi_sdp_axxb, "_CVXPY_PROBLEMS", {})
-    monkeypatch.setattr(so3_sdp, "_CVXPY_PROBLEMS", {})
+    monkeypatch.setattr(lmi_sdp_axxb.CVXPY_CACHE, "problems", {})
+    monkeypatch.setattr(so3_sdp.CVXPY_CACHE, "problems", {})
     a, _ = PROBLEM.simulate(pairs=5, seed=8, noise=NOISE)
     b, _ = PROBLEM.simulate(pairs=40, seed=9, noise=NOISE)
     for solver, module, key in (("lmi-sdp", lmi_sdp_axxb, ("CLARABEL",)), ("so3-sdp", so3_sdp, (True, "CLARABEL", 1))):
         assert solve(a, solver, "cvxpy").diagnostics["compile_seconds"] > 0
-        cached, builds = module.cvxpy_problem(*key), module.cvxpy_builds
+        cached, builds = module.cvxpy_problem(*key), module.CVXPY_CACHE.builds
         assert solve(b, solver, "cvxpy").diagnostics["compile_seconds"] == 0.0
-        assert module.cvxpy_problem(*key) is cached and module.cvxpy_builds == builds
+        assert module.cvxpy_problem(*key) is cached and module.CVXPY_CACHE.builds == builds
     assert so3_sdp.cvxpy_problem(True, "CLARABEL", 1) is not so3_sdp.cvxpy_problem(True, "CLARABEL", 2)
 
 

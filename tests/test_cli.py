@@ -320,16 +320,16 @@ def test_first_sdp_solve_reports_its_compilation(capsys, monkeypatch, solver):
     from handeye.plugins import lmi_sdp, so3_sdp
 
     cvxpy = ("--solver", solver, "--backend", "cvxpy")
-    monkeypatch.setattr(so3_sdp, "_CVXPY_PROBLEMS", {})  # as in a fresh process
-    monkeypatch.setattr(lmi_sdp, "_CVXPY_PROBLEMS", {})
+    monkeypatch.setattr(so3_sdp.CVXPY_CACHE, "problems", {})  # as in a fresh process
+    monkeypatch.setattr(lmi_sdp.CVXPY_CACHE, "problems", {})
     code, out, _ = run_cli(capsys, "solve", "--example", *cvxpy, "--json")
     assert code == 0 and json.loads(out)["diagnostics"]["compile_seconds"] > 0
     code, out, _ = run_cli(capsys, "solve", "--example", *cvxpy)
     assert code == 0 and "first SDP solve in this process" not in out
     code, out, _ = run_cli(capsys, "solve", "--example", *cvxpy, "--json")
     assert json.loads(out)["diagnostics"]["compile_seconds"] == 0.0
-    monkeypatch.setattr(so3_sdp, "_CVXPY_PROBLEMS", {})
-    monkeypatch.setattr(lmi_sdp, "_CVXPY_PROBLEMS", {})
+    monkeypatch.setattr(so3_sdp.CVXPY_CACHE, "problems", {})
+    monkeypatch.setattr(lmi_sdp.CVXPY_CACHE, "problems", {})
     code, out, _ = run_cli(capsys, "solve", "--example", *cvxpy)
     assert "first SDP solve in this process" in out
 

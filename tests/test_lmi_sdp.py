@@ -132,12 +132,12 @@ def test_cvxpy_problem_compiled_once_and_reused(noisy):
     _solve(raw)
     cached = lmi_sdp.cvxpy_problem("CLARABEL")
     assert cached.problem.is_dpp()
-    builds = lmi_sdp.cvxpy_builds
+    builds = lmi_sdp.CVXPY_CACHE.builds
     program = cached.problem._cache.param_prog  # cvxpy's compiled parameter -> data map
     assert program is not None
     other, _ = PROBLEM.simulate(pairs=40, seed=6, noise=NOISE)
     _solve(other)
-    assert lmi_sdp.cvxpy_problem("CLARABEL") is cached and lmi_sdp.cvxpy_builds == builds
+    assert lmi_sdp.cvxpy_problem("CLARABEL") is cached and lmi_sdp.CVXPY_CACHE.builds == builds
     assert cached.problem._cache.param_prog is program  # no re-canonicalisation
 
 
@@ -204,7 +204,7 @@ def test_status_mapping(noisy, monkeypatch, status, expected):
         data.kronecker_system, 1.0).d})()
     u = type("V", (), {"value": 1.0})()
     fake = dataclasses.replace(real, problem=_FakeProblem(status), gamma=gamma, u=u, lock=threading.Lock())
-    monkeypatch.setitem(lmi_sdp._CVXPY_PROBLEMS, "CLARABEL", fake)
+    monkeypatch.setitem(lmi_sdp.CVXPY_CACHE.problems, ("CLARABEL", 24), fake)
     if expected is None:
         with pytest.raises(SolverError, match=status):
             _solve(raw)

@@ -147,10 +147,10 @@ def test_weak_relaxation_rank_one_reflection_is_caught_by_the_gap(backend):
 def test_compiled_problem_reused():
     data, _ = simulate(4, seed=5)
     handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", **data)
-    builds = so3_sdp.cvxpy_builds
+    builds = so3_sdp.CVXPY_CACHE.builds
     problem = so3_sdp.cvxpy_problem(True, "CLARABEL")
     handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", **simulate(9, seed=6)[0])
-    assert so3_sdp.cvxpy_builds == builds
+    assert so3_sdp.CVXPY_CACHE.builds == builds
     assert so3_sdp.cvxpy_problem(True, "CLARABEL") is problem
     # backend clarabel: its constant data built once per (constraint set, rotations)
     handeye.solve("axyb", solver="so3-sdp", **data)
