@@ -27,18 +27,15 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from handeye import SolverOutput, Status
-from handeye.errors import InputError, SolverError
+from handeye import SolverOutput
+from handeye.errors import InputError
 from handeye.plugins.lmi_sdp_casadi import (
-    _CALL_LOCK,
     IPOPT_DEFAULTS,
-    NOT_CONVERGED,
-    SUCCESS,
-    TIE_RTOL,
     _captured_stdout,
     _constraint_violation,
     _option_key,
     check_starts,
+    run_starts,
 )
 from handeye.problems import axbycz_kronecker as lifted
 from handeye.problems.axbycz import AXBYCZData
@@ -137,62 +134,19 @@ def solve_casadi_axbycz(data: AXBYCZData, *, normalize: bool, multistart: int = 
         b = _beta(v)
         return float(b @ N @ b - 2 * g @ b + ww)
 
-    solver = nlp_solver(ipopt_options)
-    runs = []
-    for v0 in starts:
-        try:
-            with _CALL_LOCK:
-                result = solver(x0=v0, p=params, lbg=0.0, ubg=0.0)
-                stats = solver.stats()
-        except RuntimeError as exc:
-            runs.append({"status": f"exception: {str(exc).strip().splitlines()[-1]}", "iterations": 0,
-                         "v": np.full(36, np.nan), "finite": False})
-            continue
-        v = np.asarray(result["x"], dtype=float).ravel()
-        runs.append({"status": str(stats["return_status"]), "iterations": int(stats.get("iter_count", 0)),
-                     "v": v, "finite": bool(np.all(np.isfinite(v)))})
-    candidates = [i for i, run in enumerate(runs) if run["finite"] and run["status"] in SUCCESS]
-    if not candidates:
-        candidates = [i for i, run in enumerate(runs) if run["finite"] and run["status"] in NOT_CONVERGED]
-    if not candidates:
-        raise SolverError("lmi-sdp/casadi: IPOPT gave no usable iterate from any of the "
-                          f"{len(runs)} start(s); return statuses {[run['status'] for run in runs]} "
-                          "(check ipopt_options, or the data: see diagnose)")
-    costs = [value(run["v"]) if run["finite"] else float("nan") for run in runs]
-    lowest = min(costs[i] for i in candidates)
-    best = min(i for i in candidates if costs[i] <= lowest + TIE_RTOL * abs(lowest))
-    chosen = runs[best]
-    status = SUCCESS.get(chosen["status"], Status.NOT_CONVERGED)
-    v_raw = chosen["v"]
+    v_raw, status, diagnostics = run_starts(nlp_solver(ipopt_options), starts, params, value)
     Rs = [project_to_so3(v_raw[k:k + 9].reshape(3, 3, order="F")) for k in (0, 9, 18)]
     v = np.concatenate([R.ravel(order="F") for R in Rs] + [v_raw[27:]])
     t = v[27:] * unit
-    notes = []
-    if status is Status.NOT_CONVERGED:
-        notes.append(f"lmi-sdp/casadi: IPOPT did not converge ({chosen['status']}); the answer "
-                     "is its last iterate projected onto SO(3)")
-    elif status is Status.OPTIMAL_INACCURATE:
-        notes.append("lmi-sdp/casadi: IPOPT stopped at its acceptable (looser) tolerance")
     return SolverOutput(
         unknowns={"X": make_pose(Rs[0], t[:3]), "Y": make_pose(Rs[1], t[3:6]), "Z": make_pose(Rs[2], t[6:])},
         status=status,
         diagnostics={
-            "backend_solver": "ipopt",
-            "ipopt_status": chosen["status"],
-            "solver_status": chosen["status"],
-            "success": chosen["status"] == "Solve_Succeeded",
-            "iterations": chosen["iterations"],
-            "iterations_total": sum(run["iterations"] for run in runs),
+            **diagnostics,
             "cost": value(v),
-            "start_cost": value(starts[0]),
-            "starts_tried": len(runs),
-            "best_start": best,
-            "start_statuses": [run["status"] for run in runs],
-            "start_costs": costs,
             "constraint_violation": _constraint_violation(v_raw[:27]),
             "orthonormality_error": float(max(orthonormality_error(R) for R in Rs)),
             "translation_scale": scale,
             "normalized": bool(normalize),
-            "warnings": notes,
         },
     )

@@ -263,6 +263,65 @@ def solve_casadi_axxb(data: AXXBData, *, normalize: bool, multistart: int = 0, s
     return SolverOutput(unknowns={"X": make_pose(RX, tX * scale)}, status=status, diagnostics=diagnostics)
 
 
+def run_starts(solver: Any, starts: list[np.ndarray], params: np.ndarray,
+               value: Any) -> tuple[np.ndarray, Status, dict[str, Any]]:
+    """Run the IPOPT `solver` (with parameters `params`) from every start and choose: the lowest
+    `value` among the runs that succeeded (or, if none did, among those that stopped without
+    converging), ties (within TIE_RTOL) going to the earliest start, so the first start is
+    reported whenever a random start only reproduces its optimum. Returns the chosen iterate
+    (not yet projected), its status and the diagnostics of the runs, with the warnings the status
+    needs. A crash inside CasADi / IPOPT fails that start only; SolverError when no start gave
+    a usable iterate."""
+    runs = []
+    for x0 in starts:
+        try:
+            with _CALL_LOCK:
+                result = solver(x0=x0, p=params, lbg=0.0, ubg=0.0)
+                stats = solver.stats()
+        except RuntimeError as exc:
+            detail = str(exc).strip().splitlines()[-1]
+            runs.append({"status": f"exception: {detail}", "iterations": 0, "x": np.full(len(x0), np.nan),
+                         "finite": False})
+            continue
+        x = np.asarray(result["x"], dtype=float).ravel()
+        runs.append({"status": str(stats["return_status"]), "iterations": int(stats.get("iter_count", 0)),
+                     "x": x, "finite": bool(np.all(np.isfinite(x)))})
+    candidates = [i for i, run in enumerate(runs) if run["finite"] and run["status"] in SUCCESS]
+    if not candidates:
+        candidates = [i for i, run in enumerate(runs) if run["finite"] and run["status"] in NOT_CONVERGED]
+    if not candidates:
+        raise SolverError(
+            "lmi-sdp/casadi: IPOPT gave no usable iterate from any of the "
+            f"{len(runs)} start(s); return statuses {[run['status'] for run in runs]} "
+            "(check ipopt_options, or the data: see diagnose)"
+        )
+    costs = [value(run["x"]) if run["finite"] else float("nan") for run in runs]
+    lowest = min(costs[i] for i in candidates)
+    best = min(i for i in candidates if costs[i] <= lowest + TIE_RTOL * abs(lowest))
+    chosen = runs[best]
+    status = SUCCESS.get(chosen["status"], Status.NOT_CONVERGED)
+    warnings = []
+    if status is Status.NOT_CONVERGED:
+        warnings.append(f"lmi-sdp/casadi: IPOPT did not converge ({chosen['status']}); the answer "
+                        "is its last iterate projected onto SO(3)")
+    elif status is Status.OPTIMAL_INACCURATE:
+        warnings.append("lmi-sdp/casadi: IPOPT stopped at its acceptable (looser) tolerance")
+    return chosen["x"], status, {
+        "backend_solver": "ipopt",
+        "ipopt_status": chosen["status"],
+        "solver_status": chosen["status"],
+        "success": chosen["status"] == "Solve_Succeeded",
+        "iterations": chosen["iterations"],
+        "iterations_total": sum(run["iterations"] for run in runs),
+        "start_cost": value(starts[0]),
+        "starts_tried": len(runs),
+        "best_start": best,
+        "start_statuses": [run["status"] for run in runs],
+        "start_costs": costs,
+        "warnings": warnings,
+    }
+
+
 def solve_rotations(cost: RotationCost, start: list[np.ndarray], *, multistart: int = 0,
                     seed: int | None = None, ipopt_options: Mapping[str, Any] | None = None
                     ) -> tuple[list[np.ndarray], tuple[np.ndarray, ...], Status, dict[str, Any]]:
@@ -282,65 +341,9 @@ def solve_rotations(cost: RotationCost, start: list[np.ndarray], *, multistart: 
         starts += [rotations_vector(*R[k * j:k * j + k]) for j in range(int(multistart))]
 
     solver = nlp_solver(ipopt_options, rotations=k)
-    runs = []
-    for r0 in starts:
-        try:
-            with _CALL_LOCK:
-                result = solver(x0=r0, p=p, lbg=0.0, ubg=0.0)
-                stats = solver.stats()
-        except RuntimeError as exc:  # a crash inside CasADi / IPOPT: a hard failure of this start
-            detail = str(exc).strip().splitlines()[-1]
-            runs.append({"status": f"exception: {detail}", "iterations": 0, "r": np.full(9 * k, np.nan),
-                         "finite": False})
-            continue
-        r = np.asarray(result["x"], dtype=float).ravel()
-        runs.append({"status": str(stats["return_status"]), "iterations": int(stats.get("iter_count", 0)),
-                     "r": r, "finite": bool(np.all(np.isfinite(r)))})
-
-    def usable(run: dict, allowed) -> bool:
-        return run["status"] in allowed and run["finite"]
-
-    candidates = [i for i, run in enumerate(runs) if usable(run, SUCCESS)]
-    if not candidates:
-        candidates = [i for i, run in enumerate(runs) if usable(run, NOT_CONVERGED)]
-    if not candidates:
-        raise SolverError(
-            "lmi-sdp/casadi: IPOPT gave no usable iterate from any of the "
-            f"{len(runs)} start(s); return statuses {[run['status'] for run in runs]} "
-            "(check ipopt_options, or the data: see diagnose)"
-        )
-    costs = [cost.value(run["r"]) if run["finite"] else float("nan") for run in runs]
-    # lowest cost wins; starts that reach the same minimum (equal to TIE_RTOL) keep the earliest,
-    # so the kron-lstsq start is reported whenever a random start only reproduces its optimum
-    lowest = min(costs[i] for i in candidates)
-    best = min(i for i in candidates if costs[i] <= lowest + TIE_RTOL * abs(lowest))
-    chosen = runs[best]
-    status = SUCCESS.get(chosen["status"], Status.NOT_CONVERGED)
-
-    r_raw = chosen["r"]
+    r_raw, status, diagnostics = run_starts(solver, starts, p, cost.value)
     Rs = [project_to_so3(M) for M in rotation_blocks(r_raw)]
     r = rotations_vector(*Rs)
-    warnings = []
-    if status is Status.NOT_CONVERGED:
-        warnings.append(f"lmi-sdp/casadi: IPOPT did not converge ({chosen['status']}); the answer "
-                        "is its last iterate projected onto SO(3)")
-    elif status is Status.OPTIMAL_INACCURATE:
-        warnings.append("lmi-sdp/casadi: IPOPT stopped at its acceptable (looser) tolerance")
-    diagnostics = {
-        "backend_solver": "ipopt",
-        "ipopt_status": chosen["status"],
-        "solver_status": chosen["status"],
-        "success": chosen["status"] == "Solve_Succeeded",
-        "iterations": chosen["iterations"],
-        "iterations_total": sum(run["iterations"] for run in runs),
-        "cost": cost.value(r),
-        "start_cost": cost.value(starts[0]),
-        "starts_tried": len(runs),
-        "best_start": best,
-        "start_statuses": [run["status"] for run in runs],
-        "start_costs": costs,
-        "constraint_violation": _constraint_violation(r_raw),
-        "orthonormality_error": float(max(orthonormality_error(R) for R in Rs)),
-        "warnings": warnings,
-    }
+    diagnostics.update(cost=cost.value(r), constraint_violation=_constraint_violation(r_raw),
+                       orthonormality_error=float(max(orthonormality_error(R) for R in Rs)))
     return Rs, cost.translations(r), status, diagnostics
