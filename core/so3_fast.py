@@ -57,6 +57,15 @@ def log(R: np.ndarray) -> np.ndarray:
     return phi
 
 
+def consecutive_logs(T: np.ndarray, moving: bool = True) -> np.ndarray:
+    """Rotation vectors (m-1, 3) of the consecutive motions of a pose stack T: (m, 4, 4): in the
+    moving frame, R_k^T R_k+1 (a robot's flange, for flange poses), or (moving=False) in the fixed
+    frame, R_k+1 R_k^T (its base)."""
+    R = T[:, :3, :3]
+    Rt = np.swapaxes(R[:-1], 1, 2)
+    return log(Rt @ R[1:] if moving else R[1:] @ Rt)
+
+
 def exp(w: np.ndarray) -> np.ndarray:
     """Rotation exp([w]_x) of one rotation vector w: (3,) -> (3, 3): Rodrigues' I + a [w]_x +
     b [w]_x^2 with a = sin(theta) / theta, b = (1 - cos theta) / theta^2 (series below 1e-6

@@ -42,7 +42,7 @@ import dataclasses
 from typing import Any
 
 import numpy as np
-from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye import SolverOutput, SolverSpec, Status, hookimpl, so3_fast
 from handeye.kronecker import reduce_normal_equations
 from handeye.problems import planar as planar_mode
 from handeye.problems.axxb import AXXBData, solve_translation
@@ -138,11 +138,11 @@ def _run_planar(data: AXYBData | AXXBData, options: Options) -> SolverOutput:
         blocks = [(0, planar.axis, *data.rotation_vectors)]  # (start of the block in beta, robot axis, motions)
         index = 9  # t_X in beta = [vec R_X; t_X]
     else:
-        moving, fixed = planar_mode.station_motions(data.A), planar_mode.station_motions(data.A, moving=False)
+        moving, fixed = so3_fast.consecutive_logs(data.A), so3_fast.consecutive_logs(data.A, moving=False)
         axis_X = planar.axis if planar.unknown == "X" else planar_mode.main_axis(moving)[0]
         axis_Y = planar.axis if planar.unknown == "Y" else planar_mode.main_axis(fixed)[0]
-        blocks = [(0, axis_X, moving, planar_mode.station_motions(data.B)),
-                  (9, axis_Y, fixed, planar_mode.station_motions(data.B, moving=False))]
+        blocks = [(0, axis_X, moving, so3_fast.consecutive_logs(data.B)),
+                  (9, axis_Y, fixed, so3_fast.consecutive_logs(data.B, moving=False))]
         index = 18 if planar.unknown == "X" else 21  # beta = [vec R_X; vec R_Y; t_X; t_Y]
     for start, b, robot, camera in blocks:
         c = planar_mode.camera_axis(robot, camera, b)

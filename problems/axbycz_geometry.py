@@ -162,14 +162,6 @@ def expected_rotation_residual(data: AXBYCZData) -> float | None:
     return expected_from_invariants(math.hypot(*sigmas), math.hypot(*pitches), data.translation_scale, 1.0)
 
 
-def consecutive_rotations(T: np.ndarray, side: str) -> np.ndarray:
-    """Rotation vectors of consecutive motions of a pose stack T: (m, 4, 4): T_k^-1 T_k+1 (side
-    "right": in the moving frame) or T_k+1 T_k^-1 ("left": in the fixed frame): (m - 1, 3)."""
-    R = T[:, :3, :3]
-    Rt = np.swapaxes(R[:-1], 1, 2)
-    return so3_fast.log(Rt @ R[1:] if side == "right" else R[1:] @ Rt)
-
-
 def rotation_axes(data: AXBYCZData) -> dict[str, np.ndarray]:
     """The main rotation axis of robot 1 in X's frame (its flange: A_k^-1 A_k+1) and in Y's (its
     base: A_k+1 A_k^-1), and of robot 2 in Z's frame (its flange: C_k^-1 C_k+1)."""
@@ -177,7 +169,7 @@ def rotation_axes(data: AXBYCZData) -> dict[str, np.ndarray]:
 
     if data.m < 2:
         return {}
-    axes = {"X": main_axis(consecutive_rotations(data.A, "right")),
-            "Y": main_axis(consecutive_rotations(data.A, "left")),
-            "Z": main_axis(consecutive_rotations(data.C, "right"))}
+    axes = {"X": main_axis(so3_fast.consecutive_logs(data.A)),
+            "Y": main_axis(so3_fast.consecutive_logs(data.A, moving=False)),
+            "Z": main_axis(so3_fast.consecutive_logs(data.C))}
     return {k: v for k, v in axes.items() if v is not None}

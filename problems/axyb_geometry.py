@@ -155,13 +155,12 @@ def consecutive_motions(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.nd
     the flange frame) and A_k+1 A_k^-1 (in the base frame), translations of A_k^-1 A_k+1, and
     rotation vectors and translations of the camera's B_k^-1 B_k+1: (phi_right, phi_left, t_right,
     phi_cam, t_cam), each (m-1, 3), and the angles of phi_right (m-1,)."""
-    RA, RB = A[:, :3, :3], B[:, :3, :3]
-    RAt, RBt = np.swapaxes(RA[:-1], 1, 2), np.swapaxes(RB[:-1], 1, 2)
-    right, left, cam = RAt @ RA[1:], RA[1:] @ RAt, RBt @ RB[1:]
+    RAt, RBt = np.swapaxes(A[:-1, :3, :3], 1, 2), np.swapaxes(B[:-1, :3, :3], 1, 2)
     t_right = np.einsum("nij,nj->ni", RAt, A[1:, :3, 3] - A[:-1, :3, 3])
     t_cam = np.einsum("nij,nj->ni", RBt, B[1:, :3, 3] - B[:-1, :3, 3])
-    phi_right, phi_left, phi_cam = (so3_fast.log(R) for R in (right, left, cam))
-    return phi_right, phi_left, t_right, phi_cam, t_cam, np.linalg.norm(phi_right, axis=1)
+    phi_right = so3_fast.consecutive_logs(A)
+    return (phi_right, so3_fast.consecutive_logs(A, moving=False), t_right, so3_fast.consecutive_logs(B), t_cam,
+            np.linalg.norm(phi_right, axis=1))
 
 
 def expected_rotation_residual(data: AXYBData) -> float | None:

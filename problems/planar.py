@@ -153,15 +153,6 @@ def _spread(S: np.ndarray) -> float:
     return float(2.0 * np.arctan(np.sqrt(max(w[1], 0.0) / w[2])))
 
 
-def station_motions(T: np.ndarray, moving: bool = True) -> np.ndarray:
-    """Rotation vectors (m-1, 3) of the consecutive motions of absolute poses T: (m, 4, 4): in
-    the moving frame, R_k^T R_k+1 (the flange's, for robot poses), or (moving=False) in the fixed
-    frame, R_k+1 R_k^T (the base's)."""
-    R = T[:, :3, :3]
-    Rt = np.swapaxes(R[:-1], 1, 2)
-    return so3_fast.log(Rt @ R[1:] if moving else R[1:] @ Rt)
-
-
 def take_facts(data: dict[str, Any], names: Sequence[str]) -> dict[str, float]:
     """Remove the facts `names` (``tz_X``, ...) from the raw fields `data` (the caller's own dict)
     and return those given (None counts as not given), checked: finite real numbers."""
@@ -182,7 +173,7 @@ def for_axyb(A: np.ndarray, scale: float, facts: Mapping[str, float]) -> Planar 
     no rotation at all: the problem's own checks refuse that). scale: the data's RMS translation.
     Raises DegenerateDataError (planar without tz, or a rotation about one fixed line) or
     InputError (tz on non-planar data, both tz_X and tz_Y)."""
-    S = _scatter(station_motions(A))
+    S = _scatter(so3_fast.consecutive_logs(A))
     if S is None:
         return None
     spread = _spread(S)
@@ -190,7 +181,7 @@ def for_axyb(A: np.ndarray, scale: float, facts: Mapping[str, float]) -> Planar 
         _refuse(facts, spread, "X and Y")
         return None
     axis_X = signed(np.linalg.eigh(S)[1][:, 2])
-    axis_Y, _ = main_axis(station_motions(A, moving=False))
+    axis_Y, _ = main_axis(so3_fast.consecutive_logs(A, moving=False))
     R = A[:, :3, :3]
     _one_line(R @ R[0].T, A[:, :3, 3], axis_Y, scale, absolute=True, what=(
         "the robot only rotates about one fixed line (the flange turns about the same axis at every pose and "
