@@ -6,11 +6,17 @@
   noise on B, millimetres, with the true X and Y.
 
 ``handeye solve --example [NAME]`` solves one of these.
+
+Image example (a folder, not a pose file): ``image_example_dir()`` is ``handeye/data/rct_circle_grid/``,
+REAL eye-in-hand images of a 10x10 circle grid with one robot pose file per image (ROS-Industrial's
+industrial_calibration ``test_set_10x10``; Apache-2.0, images converted to grayscale), for
+``handeye calibrate --images`` (docs/images.md).
 """
 
 from __future__ import annotations
 
 from importlib import resources
+from pathlib import Path
 
 import numpy as np
 
@@ -42,3 +48,15 @@ def load_example(name: str = DEFAULT_EXAMPLE) -> tuple[dict[str, np.ndarray], di
     with resources.as_file(resource) as path:
         pose_file = load_file(path, problem="axyb")
     return pose_file.data, pose_file.truth, pose_file.metadata
+
+
+#: folder of the bundled image example in handeye/data/
+IMAGE_EXAMPLE = "rct_circle_grid"
+
+
+def image_example_dir() -> Path:
+    """The folder of the bundled image example: ``images/`` (15 PNGs, 640 x 480, board
+    ``circlegrid:10x10:25.4mm``), ``poses/`` (``N.yaml``: x, y, z in metres, qx, qy, qz, qw of
+    T_base_flange, eye-in-hand), ``cal_data.yaml`` (nominal intrinsics only), ``README.md`` and
+    ``LICENSE`` (Apache-2.0). A path on disk (the package is installed as files)."""
+    return Path(str(resources.files("handeye").joinpath("data", IMAGE_EXAMPLE)))

@@ -22,6 +22,7 @@ import dataclasses
 import json
 import math
 import numbers
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -163,6 +164,43 @@ def poses_from_rows(rows: ArrayLike, format: str | PoseFormat, *, unit: str | No
                     orthonormalize=orthonormalize)
 
 
+# --- a directory of one pose file per station (handeye calibrate --robot DIR; added with handeye.vision.image_set)
+
+
+def natural_key(text: str) -> tuple:
+    """Sort key that orders digit runs as numbers: ``2.yaml`` before ``10.yaml``."""
+    return tuple((0, int(part), "") if part.isdigit() else (1, 0, part.lower())
+                 for part in re.split(r"(\d+)", str(text)) if part)
+
+
+def read_pose_dir(directory: str | Path, format: str | PoseFormat, *, unit: str | None = None,
+                  orthonormalize: bool = False) -> PoseStack:
+    """The poses of a directory holding one pose file per station (e.g. ROS-Industrial's
+    ``poses/N.yaml``: x, y, z, qx, qy, qz, qw), each read with `read_poses`, in natural order of the
+    file names (`natural_key`); names = the file stems."""
+    folder = Path(directory)
+    files = sorted((p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in EXTENSIONS),
+                   key=lambda p: natural_key(p.name))
+    if not files:
+        raise InputError(f"no pose files in the folder {str(folder)!r} (looked for {', '.join(EXTENSIONS)})")
+    stacks = [read_poses(p, format, unit=unit, orthonormalize=orthonormalize) for p in files]
+    many = next(((p.name, len(s)) for p, s in zip(files, stacks) if len(s) != 1), None)
+    if many:
+        raise InputError(f"{str(folder)!r}: a folder of poses holds one pose per file, but {many[0]} holds "
+                         f"{many[1]}; give that file instead of the folder")
+    units = sorted({s.unit for s in stacks})
+    if len(units) > 1:
+        raise InputError(f"{str(folder)!r}: the pose files state different units {units}; use one unit")
+    poses = np.concatenate([s.poses for s in stacks])
+    poses.setflags(write=False)
+    corrections = [s.max_correction for s in stacks if s.max_correction is not None]
+    return PoseStack(poses, stacks[0].unit, stacks[0].format, tuple(p.stem for p in files), None,
+                     max(corrections) if corrections else None, repr(str(folder)))
+
+
+# --- end of the pose directory reader
+
+
 def write_poses(path: str | Path, poses: ArrayLike | PoseStack, format: str | PoseFormat, *,
                 unit: str | None = None, degrees: bool | None = None) -> Path:
     """Write poses (n, 4, 4) (or a `PoseStack`, with its names and stamps) in `format`, the file
@@ -285,6 +323,8 @@ def _structure(obj: Any, src: str) -> _Table:
     """A JSON / YAML document: a list of rows, of 4x4 (3x4) matrices, or of objects (keys as
     header), or an object holding such a list under `POSES_KEY` (and optionally ``units``)."""
     unit = None
+    if isinstance(obj, dict) and POSES_KEY not in obj and obj and all(_is_number(v) for v in obj.values()):
+        obj = [obj]  # one pose as an object of numbers (ROS-Industrial's poses/N.yaml: x, y, z, qx, ...)
     if isinstance(obj, dict):
         if POSES_KEY not in obj:
             raise InputError(f"{src}: an object must hold the pose list under the key {POSES_KEY!r}; "

@@ -5,10 +5,17 @@ and the camera's board poses (``--camera``, T_cam_target: the pose of the calibr
 the camera frame, as cv2.solvePnP gives it, in any pose format; ``--camera-poses camera-in-board``
 for T_target_cam, inverted on reading), pairs them into stations (``--match row``, default: row k
 of both files is station k; ``name``: equal name columns; ``time``: each camera pose with the robot
-pose at the nearest time stamp within ``--max-dt``, no interpolation), solves, and prints the unknowns with their frames, 1-sigma uncertainties,
+pose at the nearest time stamp within ``--max-dt``, no interpolation; ``interpolate``: the robot
+stream interpolated at each camera stamp + the clock offset, estimated or given, docs/streams.md), solves, and prints the unknowns with their frames, 1-sigma uncertainties,
 residuals and a ROS 2 static_transform_publisher line; ``-o`` / ``--yaml`` write the same as
 JSON / YAML (the output says "wrote FILE"; an existing file is kept, and nothing solved, unless
 ``--force`` is given).
+
+Board images instead of a camera file: ``--images DIR --board SPEC [--intrinsics FILE]`` detects
+the board in each image, calibrates the camera from the same images without ``--intrinsics``,
+solves the board poses and pairs them with the robot poses (``--match index|name|time``); an
+image that fails is dropped with its robot pose (docs/images.md). ``--robot`` may also be a
+folder of one pose file per station (ROS-Industrial's ``poses/N.yaml``).
 
 What is solved (docs/conventions.md): ``--problem axyb`` (default) finds both unknowns from the
 stations, eye-in-hand X = T_flange_cam and Y = T_base_target, eye-to-hand X = T_flange_target and
@@ -62,13 +69,13 @@ from ..errors import InputError
 from ..io import PAIRINGS, SETUPS, from_poses
 from ..plausibility import Streams, check
 from ..pose_formats import format_names, parse_format
-from ..pose_readers import UNITS, PoseStack, read_poses
+from ..pose_readers import UNITS, PoseStack, read_pose_dir, read_poses
 from ..quality_report import check_report_path, collect, write_report
 from ..registry import get_registry
 from ..se3 import inverse
 from ..solution import Status, standard_deviations
 from ..station_matching import MATCHES, default_max_dt, match_by_name, match_by_time
-from . import _planar
+from . import _images, _planar, _streams
 from ._common import (
     _plain,
     add_force_flag,
@@ -100,22 +107,26 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     formats = ", ".join(format_names())
     parser.add_argument("--robot", required=True, metavar="FILE",
                         help="robot flange poses T_base_flange, one per station (.csv .tsv .txt .json .yaml .npz)")
-    parser.add_argument("--robot-format", required=True, metavar="FORMAT", help=f"format of --robot: {formats}")
-    parser.add_argument("--camera", required=True, metavar="FILE",
+    parser.add_argument("--robot-format", metavar="FORMAT", help=f"format of --robot (not for ROS bags): {formats}")
+    parser.add_argument("--camera", metavar="FILE",
                         help="board poses in the camera frame T_cam_target (solvePnP's rvec, tvec), one per "
                              "station, in the robot file's order (see --camera-poses, --match)")
-    parser.add_argument("--camera-format", required=True, metavar="FORMAT",
-                        help="format of --camera (opencv-rvec for solvePnP's rvec then tvec, or any of the above)")
+    parser.add_argument("--camera-format", metavar="FORMAT",
+                        help="format of --camera, not for ROS bags (opencv-rvec for solvePnP's rvec then tvec, or any of the above)")
     parser.add_argument("--camera-poses", choices=CAMERA_POSES, default="board-in-camera",
                         help="board-in-camera (default): the camera file holds T_cam_target; camera-in-board: it "
                              "holds T_target_cam (the camera's pose in the board frame), inverted on reading")
-    parser.add_argument("--match", choices=MATCHES, default="row",
+    _images.add_flags(parser)  # --images, --board, --intrinsics: board images instead of --camera
+    parser.add_argument("--match", choices=(*MATCHES, "index", _streams.INTERPOLATE), default="row",
                         help="how robot and camera poses are paired into stations: row (default): row k of both "
                              "files; name: equal name/index columns; time: each camera pose with the robot pose "
-                             "at the nearest time stamp within --max-dt (no interpolation), others dropped")
+                             "at the nearest time stamp within --max-dt (no interpolation), others dropped; "
+                             "interpolate: the robot stream interpolated at each camera stamp + the clock offset "
+                             "(--time-offset, estimated by default; docs/streams.md)")
     parser.add_argument("--max-dt", type=float, metavar="SECONDS",
                         help="--match time: largest |camera stamp - robot stamp| paired (default: half the median "
                              "interval between robot stamps, or 0.02 s with fewer than two robot stamps)")
+    _streams.add_flags(parser)
     parser.add_argument("--setup", required=True, choices=SETUPS,
                         help="eye-in-hand: camera on the flange, board fixed; eye-to-hand: camera fixed, board "
                              "on the flange")
@@ -159,7 +170,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 def _read(path: str, fmt: str, unit: str | None, orthonormalize: bool, which: str) -> PoseStack:
     """One stream, with the messages' API names replaced by this command's flags."""
     try:
-        return read_poses(path, fmt, unit=unit, orthonormalize=orthonormalize)
+        reader = read_pose_dir if Path(path).is_dir() else read_poses  # a folder: one pose file per station
+        return reader(path, fmt, unit=unit, orthonormalize=orthonormalize)
     except InputError as exc:
         text = (str(exc).replace("pass unit='mm' or unit='m' (CLI --unit)", f"pass --{which}-unit mm or m")
                 .replace("with orthonormalize=True (CLI --orthonormalize)", "with --orthonormalize")
@@ -310,7 +322,14 @@ def _summary(values: np.ndarray) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    for flag, fmt in (("--robot-format", args.robot_format), ("--camera-format", args.camera_format)):
+    _streams.check_flags(args)
+    from_images = _images.check_flags(args)  # --images instead of --camera (one of them, checked)
+    for flag, fmt, path in (("--robot-format", args.robot_format, args.robot),
+                            ("--camera-format", args.camera_format, args.camera)):
+        if path is None:  # --images
+            continue
+        if not _streams.check_format(flag, fmt, path):
+            continue
         try:
             parse_format(fmt)
         except InputError as exc:
@@ -318,7 +337,7 @@ def run(args: argparse.Namespace) -> int:
     if args.report:
         check_report_path(args.report)
     outputs = [Path(p) for p in (args.output, args.yaml, args.report) if p]
-    inputs = {Path(args.robot).resolve(), Path(args.camera).resolve()}
+    inputs = {Path(args.robot).resolve(), Path(args.images if from_images else args.camera).resolve()}
     if len({p.resolve() for p in outputs}) < len(outputs):
         raise InputError("two of -o, --yaml, --report name the same file; give different files")
     if any(p.resolve() in inputs for p in outputs):
@@ -332,11 +351,24 @@ def run(args: argparse.Namespace) -> int:
     options = parse_key_values(args.option)
     facts = _planar.take(args, options)
 
-    robot_file = _read(args.robot, args.robot_format, args.robot_unit, args.orthonormalize, "robot")
-    camera_file = _read(args.camera, args.camera_format, args.camera_unit, args.orthonormalize, "camera")
-    robot_rows, camera_rows, matching, warnings = _match(args, robot_file, camera_file)
+    images = _images.load(args, _read) if from_images else None
+    if images is None:
+        robot_file = (_streams.read(args.robot, "robot", args.robot_topic, args.robot_unit)
+                      or _read(args.robot, args.robot_format, args.robot_unit, args.orthonormalize, "robot"))
+        camera_file = (_streams.read(args.camera, "camera", args.camera_topic, args.camera_unit)
+                       or _read(args.camera, args.camera_format, args.camera_unit, args.orthonormalize, "camera"))
+    if images is not None:  # board images: the kept images' board poses are the camera stream
+        robot_file, camera_file, robot_rows, camera_rows = (images.robot_file, images.camera_file,
+                                                            images.robot_rows, images.camera_rows)
+        matching, warnings = images.matching, images.warnings
+        robot = _take(robot_file, robot_rows)
+    elif args.match == _streams.INTERPOLATE:  # robot poses interpolated, not rows of the file
+        robot, camera_rows, matching, warnings = _streams.match(args, robot_file, camera_file)
+        robot_rows = None
+    else:
+        robot_rows, camera_rows, matching, warnings = _match(args, robot_file, camera_file)
+        robot = _take(robot_file, robot_rows)
     invert = args.camera_poses == "camera-in-board"
-    robot = _take(robot_file, robot_rows)
     camera_read = _take(camera_file, camera_rows)
     if invert:
         inverted = inverse(camera_read.poses)
@@ -346,12 +378,13 @@ def run(args: argparse.Namespace) -> int:
     if args.json and "message" in matching:
         print(matching["message"], file=sys.stderr)
     pose_file = from_poses(robot.poses, camera.poses, args.problem, setup=args.setup, pairing=args.pairing,
-                           metadata={"units": robot.unit}, source=f"{args.robot} + {args.camera}")
+                           metadata={"units": robot.unit}, source=f"{args.robot} + {args.camera or args.images}")
     clash = sorted(set(options) & set(pose_file.data))
     if clash:
         raise InputError(f"--option {clash} clashes with the data field(s) of problem {args.problem!r}")
-    solver = args.solver or default_solver(args.problem)
-    solution = solve(args.problem, solver=solver, backend=args.backend, **pose_file.data, **facts, **options)
+    solver = args.solver or (images and _images.default_solver(args.problem)) or default_solver(args.problem)
+    solution = solve(args.problem, solver=solver, backend=args.backend, **pose_file.data, **facts, **options,
+                     **_images.solver_data(images, solver, args.problem))
 
     problem = get_registry().problem(args.problem)
     residuals = problem.residuals(problem.validate(**pose_file.data, **facts), solution.unknowns)
@@ -360,14 +393,16 @@ def run(args: argparse.Namespace) -> int:
         report = check(Streams(robot.poses, camera.poses, robot.unit, args.setup, args.problem,
                                pose_file.metadata.get("pairing"), facts=facts, robot_format=robot.format,
                                camera_format=camera_read.format, camera_unit=camera_read.unit,
-                               reread_robot=_rereader(args.robot, robot, robot.unit, args.orthonormalize,
-                                                      robot_rows),
+                               reread_robot=None if robot_rows is None else _rereader(
+                                   args.robot, robot, robot.unit, args.orthonormalize, robot_rows),
                                reread_camera=_rereader(args.camera, camera_read, robot.unit, args.orthonormalize,
                                                        camera_rows, invert)),
                        residuals)
         warnings += list(report.warnings)
         if not report.plausible:
             solution = dataclasses.replace(solution, status=Status.UNRELIABLE)
+    if not _streams.reliable(matching) and solution.status not in UNUSABLE:  # the clock offset is not trusted
+        solution = dataclasses.replace(solution, status=Status.UNRELIABLE)
     diagnostics = solution.diagnostics
     std_all = standard_deviations(diagnostics)
     frames = FRAMES[(args.problem, args.setup)]
@@ -409,13 +444,16 @@ def run(args: argparse.Namespace) -> int:
         "ros": {"command": ros, "unknown": published, "frame_id": parent, "child_frame_id": child,
                 "translation_unit": "m"},
     }
+    if images is not None:  # where the board poses came from, the intrinsics, the images' stations
+        result["inputs"]["camera"] = _images.inputs_entry(args, images)
+        result.update(_images.result_entries(args, images))
     unusable = solution.status in UNUSABLE or solution.status is Status.UNRELIABLE
     written = [] if unusable else _write(result, args.output, args.yaml)
     if args.report:
         data = collect(problem=args.problem, setup=args.setup, unit=unit, solution=solution, residuals=residuals,
                        frames=frames, checks=result["checks"], warnings=result["warnings"],
                        inputs={"robot file": f"{args.robot} ({robot.format}, {robot.unit})",
-                               "camera file": f"{args.camera} ({camera_read.format}, {camera_read.unit})"},
+                               "camera file": f"{args.camera or args.images} ({camera_read.format}, {camera_read.unit})"},
                        robot_poses=robot.poses, stations=len(robot), pairing=pose_file.metadata.get("pairing"),
                        command="handeye calibrate")
         written.append(str(write_report(args.report, data)[0]))
@@ -426,7 +464,8 @@ def run(args: argparse.Namespace) -> int:
     for path in written:
         print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout)
     if solution.status is Status.UNRELIABLE:
-        print(f"handeye: error: status unreliable: {report.warnings[0] if report else ''}; no result file was written "
+        why = report.warnings[0] if report and not report.plausible else next(iter(warnings), "")
+        print(f"handeye: error: status unreliable: {why}; no result file was written "
               "(--no-checks skips the checks)", file=sys.stderr)
         return 1
     if unusable:

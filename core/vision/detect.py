@@ -1,0 +1,206 @@
+"""Find a calibration board in an image: which of its points are seen, where (sub-pixel) and which
+board-frame coordinates they have.
+
+`detect(image, board)` returns a `Detection` (ids into ``board.object_points()``, pixels, board
+points) or raises `BoardNotFound` with a one-line reason. One OpenCV detector per kind:
+
+- chessboard: ``cv2.findChessboardCornersSB`` (falls back to ``findChessboardCorners`` +
+  ``cornerSubPix``). The order is OpenCV's; on a board with `Board.orientation_ambiguous` two images
+  may number it 180 deg apart, which this module reports (the flag) but does not guess away.
+- charuco: ``cv2.aruco.CharucoDetector`` (ids are ChArUco corner ids; sub-pixel by OpenCV).
+- circles / circlegrid: ``cv2.findCirclesGrid`` with a blob detector sized for the image
+  (`handeye.vision.circlegrid`, which also orders a circlegrid from its big dot).
+- aprilgrid: ``cv2.aruco.ArucoDetector`` with tag36h11 and Kalibr's 2-bit border, corners refined
+  by ``cornerSubPix`` (`handeye.vision.aprilgrid`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+from .boards import Board, parse_board
+
+#: fewest ChArUco corners a detection may have unless the caller says otherwise (a homography and
+#: a pose need 4; 6 leaves a margin against a wrong interpolation)
+CHARUCO_MIN_CORNERS = 6
+#: fewest aprilgrid corners by default (two tags)
+APRILGRID_MIN_CORNERS = 8
+
+
+class BoardNotFound(InputError):
+    """The board is not in the image (or not enough of it, or not unambiguously): the message
+    says why in one line."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Detection:
+    """Points of `board` found in one image: ids (n,) into board.object_points(), image_points
+    (n, 2) float64 sub-pixel pixels, object_points (n, 3) = board.object_points()[ids]. Read-only."""
+
+    ids: np.ndarray
+    image_points: np.ndarray
+    object_points: np.ndarray
+
+    def __post_init__(self) -> None:
+        ids = np.asarray(self.ids, dtype=np.int64).ravel()
+        image_points = np.asarray(self.image_points, dtype=np.float64).reshape(-1, 2)
+        object_points = np.asarray(self.object_points, dtype=np.float64).reshape(-1, 3)
+        if not len(ids) == len(image_points) == len(object_points):
+            raise InputError(f"Detection needs as many ids, image points and board points, got {len(ids)}, "
+                             f"{len(image_points)} and {len(object_points)}")
+        for name, value in (("ids", ids), ("image_points", image_points), ("object_points", object_points)):
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    @classmethod
+    def of(cls, board: Board, ids: np.ndarray, image_points: np.ndarray) -> Detection:
+        """The detection of `board` with these ids and pixels, sorted by id."""
+        ids = np.asarray(ids, dtype=np.int64).ravel()
+        order = np.argsort(ids, kind="stable")
+        points = np.asarray(image_points, dtype=np.float64).reshape(-1, 2)[order]
+        return cls(ids[order], points, board.object_points()[ids[order]])
+
+
+def detect(image: np.ndarray, board: Board | str, *, min_corners: int | None = None) -> Detection:
+    """The points of `board` (a Board or a spec for parse_board) in `image` (uint8, gray or BGR/BGRA).
+    `min_corners`: fewest points accepted (default: all of them for chessboard and circle boards,
+    CHARUCO_MIN_CORNERS for charuco, APRILGRID_MIN_CORNERS for aprilgrid). Raises BoardNotFound
+    when the board is absent, too little of it is seen or its orientation cannot be told."""
+    board = parse_board(board) if isinstance(board, str) else board
+    if not isinstance(board, Board):
+        raise InputError(f"board must be a handeye.vision.boards.Board or a spec text, got {type(board).__name__}")
+    gray = grayscale(image)
+    needed = _needed(board, min_corners)
+    if board.kind == "chessboard":
+        found = _chessboard(gray, board)
+    elif board.kind == "charuco":
+        found = _charuco(gray, board)
+    elif board.kind in ("circles", "circlegrid"):
+        from .circlegrid import find_circles
+
+        found = find_circles(gray, board)
+    else:
+        from .aprilgrid import find_aprilgrid
+
+        found = find_aprilgrid(gray, board)
+    if len(found) < needed:
+        raise BoardNotFound(f"only {len(found)} {_point_name(board)} found, need {needed} ({board.describe()})")
+    return found
+
+
+def grayscale(image: np.ndarray) -> np.ndarray:
+    """`image` as a 2-D uint8 array (BGR / BGRA converted, gray passed through, never modified)."""
+    if not isinstance(image, np.ndarray):
+        raise InputError(f"image must be a numpy array (e.g. from cv2.imread), got {type(image).__name__}")
+    if image.dtype != np.uint8:
+        raise InputError(f"image must be 8-bit (uint8), got {image.dtype}; convert it, e.g. with "
+                         "cv2.normalize(..., dtype=cv2.CV_8U)")
+    if image.ndim == 3 and image.shape[2] == 1:
+        image = image[..., 0]
+    if image.ndim == 2:
+        gray = image
+    elif image.ndim == 3 and image.shape[2] in (3, 4):
+        gray = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
+    else:
+        raise InputError(f"image must be gray (h, w) or colour (h, w, 3|4), got shape {image.shape}")
+    if min(gray.shape) < 16:
+        raise InputError(f"image of {gray.shape[1]}x{gray.shape[0]} pixels is too small to hold a board")
+    return np.ascontiguousarray(gray)
+
+
+def _needed(board: Board, min_corners: int | None) -> int:
+    if min_corners is None:
+        return {"charuco": CHARUCO_MIN_CORNERS, "aprilgrid": APRILGRID_MIN_CORNERS}.get(board.kind, board.point_count)
+    if isinstance(min_corners, bool) or not isinstance(min_corners, (int, np.integer)) or min_corners < 4:
+        raise InputError(f"min_corners must be a whole number >= 4 (a pose needs 4 points), got {min_corners!r}")
+    if min_corners > board.point_count:
+        raise InputError(f"min_corners {min_corners} exceeds the {board.point_count} points of the "
+                         f"{board.describe()}")
+    return int(min_corners)
+
+
+def _point_name(board: Board) -> str:
+    return {"chessboard": "chessboard corners", "charuco": "ChArUco corners", "circles": "circles",
+            "circlegrid": "circles", "aprilgrid": "AprilGrid corners"}[board.kind]
+
+
+# -- chessboard --------------------------------------------------------------------------------
+def _chessboard(gray: np.ndarray, board: Board) -> Detection:
+    size = (board.cols, board.rows)
+    flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_ACCURACY
+    found, corners = cv2.findChessboardCornersSB(gray, size, flags=flags)
+    if not found:
+        flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+        found, corners = cv2.findChessboardCorners(gray, size, flags=flags)
+        if not found:
+            raise BoardNotFound(f"no {board.cols}x{board.rows} chessboard (inner corners) in the image; check the "
+                                "board size (inner corners, not squares), focus and that the whole board is visible")
+    points = _refine_corners(gray, _canonical_order(gray, corners.reshape(-1, 2), board), board)
+    return Detection.of(board, np.arange(len(points)), points)
+
+
+def _canonical_order(gray: np.ndarray, corners: np.ndarray, board: Board) -> np.ndarray:
+    """OpenCV's corner order, made right-handed (z into the board, as OpenCV's y-down board frame)
+    and, on a board without the 180 deg ambiguity, started so that the first inner square (corners
+    0, 1, cols, cols + 1) is white: the order findChessboardCornersSB gives, enforced for the
+    classic detector too. An ambiguous board keeps OpenCV's choice of the two."""
+    grid = corners.reshape(board.rows, board.cols, 2).astype(np.float64)
+    x, y = grid[0, -1] - grid[0, 0], grid[-1, 0] - grid[0, 0]
+    if x[0] * y[1] - x[1] * y[0] < 0:  # mirrored: same rows, numbered bottom-up
+        grid = grid[::-1]
+    if not board.orientation_ambiguous:
+        other = (1, 2) if board.cols >= 3 else (2, 1)  # a neighbour of the first inner square, (col, row)
+        if _square_brightness(gray, grid, 1, 1) < _square_brightness(gray, grid, *other):
+            grid = grid[::-1, ::-1]
+    return grid.reshape(-1, 2)
+
+
+def _square_brightness(gray: np.ndarray, grid: np.ndarray, col: int, row: int) -> float:
+    """Mean grey level around the centre of inner square (col, row) (corners [row-1:row+1, col-1:col+1])."""
+    centre = grid[row - 1:row + 1, col - 1:col + 1].reshape(-1, 2).mean(axis=0)
+    patch = cv2.getRectSubPix(gray, (3, 3), (float(centre[0]), float(centre[1])))
+    return float(patch.mean())
+
+
+def _refine_corners(gray: np.ndarray, corners: np.ndarray, board: Board) -> np.ndarray:
+    """cornerSubPix on chessboard corners (n, 2) with a window of 0.4 of the smallest square seen
+    (2..11 px): on renders it halves findChessboardCornersSB's own error (docs/boards.md)."""
+    grid = corners.reshape(board.rows, board.cols, 2).astype(np.float64)
+    square = min(np.min(np.linalg.norm(np.diff(grid, axis=1), axis=2)),
+                 np.min(np.linalg.norm(np.diff(grid, axis=0), axis=2)))
+    half = int(np.clip(square * 0.4, 2, 11))
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-4)
+    refined = cv2.cornerSubPix(gray, corners.reshape(-1, 1, 2).astype(np.float32), (half, half), (-1, -1), criteria)
+    return refined.reshape(-1, 2).astype(np.float64)
+
+
+# -- charuco -----------------------------------------------------------------------------------
+def charuco_board(board: Board) -> cv2.aruco.CharucoBoard:
+    """OpenCV's CharucoBoard for `board` (lengths in board.unit; the legacy pattern if asked)."""
+    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, board.dictionary))
+    cv_board = cv2.aruco.CharucoBoard((board.cols, board.rows), float(board.spacing), float(board.marker), dictionary)
+    cv_board.setLegacyPattern(bool(board.legacy))
+    return cv_board
+
+
+def _charuco(gray: np.ndarray, board: Board) -> Detection:
+    cv_board = charuco_board(board)
+    charuco_parameters = cv2.aruco.CharucoParameters()  # minMarkers 2: a corner needs both its markers
+    detector_parameters = cv2.aruco.DetectorParameters()
+    detector_parameters.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    detector = cv2.aruco.CharucoDetector(cv_board, charuco_parameters, detector_parameters)
+    corners, ids, _, marker_ids = detector.detectBoard(gray)
+    if marker_ids is None or len(marker_ids) == 0:
+        raise BoardNotFound(f"no {board.dictionary} ArUco marker in the image, so no ChArUco board "
+                            f"({board.describe()}); check the dictionary, focus and lighting")
+    if ids is None or len(ids) == 0:
+        raise BoardNotFound(f"{len(marker_ids)} ArUco markers but no ChArUco corner found ({board.describe()}); "
+                            "check the board size and marker size, or the legacy flag")
+    return Detection.of(board, ids.ravel(), corners.reshape(-1, 2))

@@ -1,0 +1,380 @@
+"""A folder of board images and the robot's poses, turned into stations: which image goes with
+which robot pose, the board's pose in each kept image, and why the others were dropped.
+
+`images_and_poses(images, board, camera, robot=..., match=..., setup=...)`:
+
+1. lists the images (`list_images`: natural order, ``2.png`` before ``10.png``);
+2. pairs them with the robot poses (`pair_images`) *before* anything can fail, so that an image
+   dropped later takes its own robot pose with it and never shifts the others:
+   ``name``: file stem = the robot pose's name (its name/index column, its file stem for a pose
+   directory, else its 0-based row number; integers compare as numbers, ``007`` = ``7``);
+   ``index``: the k-th image with the k-th robot pose (equal counts required);
+   ``time``: a stamp in the file name or a sidecar file (`image_stamp`) with the robot pose at the
+   nearest time stamp within `max_dt` (``handeye.station_matching.match_by_time``);
+3. reads each image (grayscale) and detects the board; unreadable images and images where the
+   board is not found are dropped with their robot pose and the reason;
+4. without intrinsics, calibrates the camera from the detections (`handeye.vision.intrinsics`);
+5. solves each board pose (`handeye.vision.camera_poses`) in the robot's length unit (board
+   lengths converted) and drops images whose reprojection error is far above the others'
+   (recalibrating the intrinsics without them when they were calibrated here).
+
+A directory of one robot pose file per station (ROS-Industrial's ``poses/N.yaml`` with x, y, z,
+qx, qy, qz, qw) is read by `handeye.pose_readers.read_pose_dir` (re-exported here), names = file stems.
+
+Nothing passed in is modified; bad input raises `handeye.errors.InputError` with a one-line
+message; an `InputError` is raised only when no usable station remains.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from ..errors import InputError
+from ..pose_readers import PoseStack, natural_key, read_pose_dir  # noqa: F401 (re-exported)
+from ..station_matching import default_max_dt, match_by_time
+from .boards import UNITS, Board
+from .camera_poses import board_pose, flag_outliers
+from .intrinsics import CameraCalibration, calibrate_camera
+from .observations import BoardObservations, Camera
+
+IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
+MATCH_METHODS = ("name", "index", "time")
+#: sidecar files holding an image's time stamp, tried in this order
+SIDECAR_EXTENSIONS = (".txt", ".json", ".yaml", ".yml")
+_STAMP_KEYS = ("stamp", "time", "t", "timestamp")
+#: integer stamps with at least this many digits are nanoseconds (ROS' sec * 1e9 + nanosec)
+_NANOSECOND_DIGITS = 18
+_NUMBER = re.compile(r"\d+(?:\.\d+)?")
+
+Detector = Callable[[np.ndarray, Board], Any]
+
+
+@dataclasses.dataclass(frozen=True)
+class Dropped:
+    """An image or robot pose left out, and why. `image` / `pose` name what was dropped (None
+    when only the other one was)."""
+
+    image: str | None
+    pose: str | None
+    reason: str
+
+    def describe(self) -> str:
+        what = " with ".join(x for x in (self.image and f"image {self.image}", self.pose and f"robot pose {self.pose}")
+                             if x)
+        return f"{what}: {self.reason}"
+
+
+@dataclasses.dataclass(frozen=True)
+class Pairing:
+    """Images paired with robot poses: image_rows[k] (into the image list) with robot_rows[k]
+    (into the robot stack), in image order; what was left unpaired; the method."""
+
+    image_rows: np.ndarray
+    robot_rows: np.ndarray
+    dropped: tuple[Dropped, ...]
+    method: str
+    note: str = ""
+
+
+@dataclasses.dataclass(frozen=True)
+class ImageSet:
+    """The stations a set of images gives.
+
+    names / files: the kept images (file stems / paths), in image order.
+    T_cam_target: (m, 4, 4) board poses, translations in `unit`.
+    observations: the kept images' corners (handeye.vision.observations.BoardObservations, board
+        points in `unit`), for a reprojection-error solver.
+    errors: (m,) RMS reprojection error of each kept image at its board pose (pixels).
+    robot_rows: (m,) the robot pose (row of the robot stack) of each kept image, or None without robot.
+    pose_names: the robot poses' names, one a kept image (or None without robot).
+    dropped: every image or robot pose left out, with the reason.
+    camera: the intrinsics used; calibration: their calibration here (None when given).
+    warnings: what the caller must print.
+    """
+
+    names: tuple[str, ...]
+    files: tuple[str, ...]
+    T_cam_target: np.ndarray
+    observations: BoardObservations
+    errors: np.ndarray
+    robot_rows: np.ndarray | None
+    pose_names: tuple[str, ...] | None
+    dropped: tuple[Dropped, ...]
+    camera: Camera
+    calibration: CameraCalibration | None
+    unit: str
+    match: str | None
+    match_note: str = ""
+    warnings: tuple[str, ...] = ()
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+
+# ----------------------------------------------------------------------------- listing and reading
+
+
+def list_images(source: str | Path | Sequence[str | Path]) -> list[Path]:
+    """The image files of a directory (extensions `IMAGE_EXTENSIONS`), or the files given, in
+    natural order of their names."""
+    if isinstance(source, (str, Path)):
+        folder = Path(source)
+        if not folder.exists():
+            raise InputError(f"image folder {str(folder)!r} not found; give --images an existing folder")
+        if not folder.is_dir():
+            raise InputError(f"{str(folder)!r} is not a folder; give --images the folder holding the images")
+        files = [p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_EXTENSIONS]
+        if not files:
+            raise InputError(f"no images in {str(folder)!r} (looked for {', '.join(IMAGE_EXTENSIONS)})")
+    else:
+        files = [Path(p) for p in source]
+        if not files:
+            raise InputError("no image files given")
+    stems = [p.stem for p in files]
+    twice = sorted({s for s in stems if stems.count(s) > 1})
+    if twice:
+        raise InputError(f"images {twice[:3]} appear twice (same name, other extension); keep one file per station")
+    return sorted(files, key=lambda p: natural_key(p.name))
+
+
+def image_stamp(path: str | Path) -> float | None:
+    """The time stamp (seconds) of an image: from a sidecar file with its stem (``.txt``: one
+    number; ``.json`` / ``.yaml``: key stamp, time, t or timestamp, a number or {sec(s), nanosec /
+    nsecs}), else the last number in its file name (``frame_1700000000.25.png``; integers of
+    `_NANOSECOND_DIGITS` or more digits are nanoseconds). None when there is none."""
+    path = Path(path)
+    for ext in SIDECAR_EXTENSIONS:
+        sidecar = path.with_suffix(ext)
+        if sidecar.is_file():
+            return _sidecar_stamp(sidecar)
+    numbers = _NUMBER.findall(path.stem)
+    if not numbers:
+        return None
+    text = numbers[-1]
+    if "." not in text and len(text) >= _NANOSECOND_DIGITS:
+        return int(text) / 1e9
+    return float(text)
+
+
+def _sidecar_stamp(path: Path) -> float:
+    src = f"time stamp file {str(path)!r}"
+    text = path.read_text(encoding="utf-8-sig").strip()
+    if path.suffix == ".txt":
+        value: Any = text
+    else:
+        import yaml
+
+        try:
+            doc = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
+        except (json.JSONDecodeError, yaml.YAMLError):
+            raise InputError(f"{src}: not valid {path.suffix[1:].upper()}; write the stamp as {{stamp: SECONDS}}") from None
+        value = doc
+        if isinstance(doc, dict):
+            value = next((doc[k] for k in _STAMP_KEYS if k in doc), None)
+            if isinstance(value, dict):
+                sec = value.get("sec", value.get("secs"))
+                nsec = value.get("nanosec", value.get("nsecs", 0))
+                value = None if sec is None else float(sec) + float(nsec) * 1e-9
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{src}: expected one number of seconds (or a key stamp / time), got {str(value)[:40]!r}") from None
+
+
+# ----------------------------------------------------------------------------- pairing
+
+
+def _name_key(name: str) -> str:
+    name = str(name).strip()
+    return str(int(name)) if name.isdigit() else name
+
+
+def pose_names(robot: PoseStack) -> tuple[str, ...]:
+    """The names robot poses are matched by: the name/index column, else 0-based row numbers."""
+    return robot.names if robot.names is not None else tuple(str(i) for i in range(len(robot)))
+
+
+def pair_images(files: Sequence[Path], robot: PoseStack, match: str, *, max_dt: float | None = None) -> Pairing:
+    """Pair image files with robot poses (module docstring, step 2); unpaired ones are listed in
+    `Pairing.dropped`. Raises InputError when the method cannot apply (index with unequal counts,
+    time without stamps) or nothing pairs."""
+    if match not in MATCH_METHODS:
+        raise InputError(f"image matching must be one of {', '.join(MATCH_METHODS)}, got {match!r}")
+    names = [Path(f).stem for f in files]
+    robot_names = pose_names(robot)
+    if match == "index":
+        if len(files) != len(robot):
+            raise InputError(f"--match index pairs the k-th image with the k-th robot pose, but there are "
+                             f"{len(files)} images and {len(robot)} robot poses; give one pose per image or use "
+                             "--match name")
+        rows = np.arange(len(files))
+        return Pairing(rows, rows.copy(), (), match, f"paired {len(files)} images with the robot poses in order")
+    if match == "name":
+        where: dict[str, int] = {}
+        for i, n in enumerate(robot_names):
+            if _name_key(n) in where:
+                raise InputError(f"--match name: the robot poses name {n!r} twice; each station's name must be unique")
+            where[_name_key(n)] = i
+        image_rows = [i for i, n in enumerate(names) if _name_key(n) in where]
+        robot_rows = [where[_name_key(names[i])] for i in image_rows]
+        dropped = [Dropped(n, None, "no robot pose of that name")
+                   for n in names if _name_key(n) not in where]
+        used = set(robot_rows)
+        dropped += [Dropped(None, robot_names[i], "no image of that name") for i in range(len(robot)) if i not in used]
+        note = f"paired {len(image_rows)} of {len(files)} images with robot poses by name"
+    else:
+        if robot.stamps is None:
+            raise InputError("--match time: the robot poses have no time stamp column (a header 't', 'time' or "
+                             "'stamp'); use --match name or index")
+        stamps = [image_stamp(f) for f in files]
+        missing = [n for n, s in zip(names, stamps) if s is None]
+        if missing:
+            raise InputError(f"--match time: image {missing[0]!r} has no time stamp in its name or in a sidecar "
+                             f"file ({'/'.join(SIDECAR_EXTENSIONS)} with its name); use --match name or index")
+        limit = default_max_dt(robot.stamps) if max_dt is None else float(max_dt)
+        robot_rows, image_rows, dt = match_by_time(robot.stamps, np.asarray(stamps), limit)
+        robot_rows, image_rows = list(robot_rows), list(image_rows)
+        kept = set(image_rows)
+        dropped = [Dropped(n, None, f"no robot pose within {limit:.3g} s of its stamp {s:.6f} s")
+                   for i, (n, s) in enumerate(zip(names, stamps)) if i not in kept]
+        unused = len(robot) - len(set(robot_rows))
+        if unused and unused <= 10:
+            dropped += [Dropped(None, robot_names[i], "no image at its time")
+                        for i in range(len(robot)) if i not in set(robot_rows)]
+        worst = float(np.max(np.abs(dt))) * 1e3 if len(dt) else float("nan")
+        note = (f"paired {len(image_rows)} of {len(files)} images with robot poses by time (max |dt| {worst:.3g} ms, "
+                f"limit {limit * 1e3:.3g} ms)" + (f"; {unused} robot poses without an image" if unused > 10 else ""))
+    if not image_rows:
+        first = "; ".join(d.describe() for d in dropped[:2])
+        raise InputError(f"--match {match}: no image pairs with a robot pose ({first}); check the file names or "
+                         "use --match index")
+    return Pairing(np.asarray(image_rows, dtype=np.intp), np.asarray(robot_rows, dtype=np.intp), tuple(dropped),
+                   match, note)
+
+
+# ----------------------------------------------------------------------------- the stations
+
+
+def _default_detector() -> Detector:
+    from .detect import detect
+
+    return detect
+
+
+def _detect_all(files: Sequence[Path], board: Board, detector: Detector) -> tuple[list, list[str | None], tuple | None]:
+    """Per file: the detection or None, the reason it failed or None; and the common image size."""
+    found: list = []
+    reasons: list[str | None] = []
+    size = None
+    for path in files:
+        image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        if image is None:
+            found.append(None)
+            reasons.append("unreadable image file (not an image, or damaged)")
+            continue
+        shape = (image.shape[1], image.shape[0])
+        if size is not None and shape != size:
+            found.append(None)
+            reasons.append(f"image size {shape[0]}x{shape[1]} differs from the others' {size[0]}x{size[1]}")
+            continue
+        size = size or shape
+        try:
+            found.append(detector(image, board))
+            reasons.append(None)
+        except InputError as exc:
+            found.append(None)
+            reasons.append(f"board not found: {exc}")
+    return found, reasons, size
+
+
+def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, camera: Camera | None = None, *,
+                     setup: str, robot: PoseStack | None = None, match: str = "name", max_dt: float | None = None,
+                     unit: str | None = None, detector: Detector | None = None) -> ImageSet:
+    """The stations of a set of board images (module docstring).
+
+    images: a folder or a list of image files. board: the calibration board. camera: the
+    intrinsics, or None to calibrate them from these images. setup: ``eye-in-hand`` or
+    ``eye-to-hand`` (recorded in the observations). robot: the robot's poses to pair with, or None.
+    match / max_dt: how images pair with robot poses (`pair_images`). unit: the length unit of the
+    board poses (default: the robot's, else the board's). detector: ``(image, board) -> Detection``
+    (default `handeye.vision.detect.detect`).
+    """
+    files = list_images(images)
+    unit = unit or (robot.unit if robot is not None else board.unit)
+    if unit not in UNITS:
+        raise InputError(f"unit must be 'mm' or 'm', got {unit!r}")
+    if robot is not None:
+        pairing = pair_images(files, robot, match, max_dt=max_dt)
+        robot_names = pose_names(robot)
+    else:
+        rows = np.arange(len(files))
+        pairing = Pairing(rows, rows, (), "none")
+        robot_names = None
+    dropped = list(pairing.dropped)
+    files_used = [files[i] for i in pairing.image_rows]
+    robot_rows = list(pairing.robot_rows)
+
+    def pose_of(k: int) -> str | None:
+        return None if robot_names is None else robot_names[robot_rows[k]]
+
+    found, reasons, size = _detect_all(files_used, board, detector or _default_detector())
+    keep = [k for k, d in enumerate(found) if d is not None]
+    dropped += [Dropped(files_used[k].stem, pose_of(k), reasons[k]) for k in range(len(found)) if found[k] is None]
+    if not keep:
+        raise InputError(f"the board ({board.describe()}) was found in none of the {len(files_used)} images "
+                         f"({reasons[0]}); check --board (counts, kind) and the images")
+    if camera is not None and camera.size is not None and size is not None and tuple(camera.size) != size:
+        raise InputError(f"the intrinsics are for {camera.size[0]}x{camera.size[1]} images but the images are "
+                         f"{size[0]}x{size[1]}; give the intrinsics of this camera at this resolution")
+    warnings = []
+    if board.orientation_ambiguous:
+        warnings.append(f"the board ({board.describe()}) looks the same after a half turn (cols + rows even): "
+                        "its corner order may flip 180 deg between images, which spoils the board poses; prefer "
+                        "cols + rows odd or a ChArUco board")
+    scale = UNITS[board.unit] / UNITS[unit]
+    calibration = None
+    while True:
+        names = [files_used[k].stem for k in keep]
+        if camera is None or calibration is not None:
+            calibration = calibrate_camera([found[k] for k in keep], size, names=names)
+            camera_used = calibration.camera
+        else:
+            camera_used = camera
+        poses, errors, failed = [], [], []
+        for k in keep:
+            try:
+                pose = board_pose(found[k].object_points * scale, found[k].image_points, camera_used,
+                                  name=f"image {files_used[k].name}")
+            except InputError as exc:
+                failed.append((k, str(exc)))
+                continue
+            poses.append(pose.T_cam_target)
+            errors.append(pose.rms)
+        ok = [k for k in keep if k not in {f for f, _ in failed}]
+        outliers = [(ok[i], reason) for i, reason in flag_outliers(errors, [files_used[k].stem for k in ok])]
+        bad = failed + outliers
+        if not bad:
+            break
+        dropped += [Dropped(files_used[k].stem, pose_of(k), reason) for k, reason in bad]
+        warnings += [f"dropped image {files_used[k].name}: {reason}" for k, reason in outliers]
+        keep = [k for k in keep if k not in {b for b, _ in bad}]
+        if not keep:
+            raise InputError(f"no usable image left: {bad[0][1]}")
+    kept_names = tuple(files_used[k].stem for k in keep)
+    T = np.array(poses)
+    T.setflags(write=False)
+    observations = BoardObservations(tuple(found[k].image_points for k in keep),
+                                     tuple(found[k].object_points * scale for k in keep), camera_used, setup,
+                                     kept_names)
+    rows = None if robot is None else np.array([robot_rows[k] for k in keep], dtype=np.intp)
+    return ImageSet(kept_names, tuple(str(files_used[k]) for k in keep), T, observations, np.array(errors), rows,
+                    None if rows is None else tuple(robot_names[r] for r in rows), tuple(dropped), camera_used,
+                    calibration, unit, None if robot is None else pairing.method, pairing.note, tuple(warnings))
