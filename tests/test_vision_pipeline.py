@@ -429,3 +429,23 @@ def test_a_half_turn_symmetric_chessboard_is_warned_about(tmp_path):
     assert len(images) == 3 and any("may flip 180 deg between images" in w for w in images.warnings)
     assert not images_and_poses(folder, BOARD, CAMERA, setup="eye-in-hand",
                                 detector=StationDetector(simulated_cell(3, "eye-in-hand", seed=17))).warnings
+
+
+def test_intrinsics_that_fit_the_images_worse_than_their_own_calibration_are_warned_about(tmp_path):
+    """The images come from a lens with barrel distortion (DIST_TRUE); an intrinsics file without
+    the distortion fits them clearly worse than intrinsics calibrated from them: a warning naming
+    both RMS figures. The right intrinsics give no such warning (their RMS is within the few per
+    cent the calibration's extra parameters buy)."""
+    cell = simulated_cell(12, "eye-in-hand", seed=21, distance=(280.0, 350.0), tilt_deg=40.0)  # board fills the view
+    folder = write_station_images(tmp_path / "images", [(f"{i}.png", i) for i in range(12)])
+    robot = robot_stack(cell["A"], [str(i) for i in range(12)])
+
+    def warnings_with(camera):
+        return [w for w in images_and_poses(folder, BOARD, camera, setup="eye-in-hand", robot=robot,
+                                            detector=StationDetector(cell, noise=0.1)).warnings
+                if "given intrinsics" in w]
+
+    assert warnings_with(CAMERA) == []
+    (warning,) = warnings_with(Camera(K_TRUE, np.zeros(5), (640, 480)))
+    assert "fit the images worse than intrinsics calibrated from them (0.48 px against 0.14 px RMS" in warning
+    assert "\n" not in warning

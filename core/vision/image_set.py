@@ -47,6 +47,10 @@ from .observations import BoardObservations, Camera
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
 MATCH_METHODS = ("name", "index", "time")
+#: `_intrinsics_check`: fewest images, and how much worse (ratio and pixels) given intrinsics may fit
+INTRINSICS_CHECK_VIEWS = 6
+INTRINSICS_MISFIT = 1.25
+INTRINSICS_MISFIT_PX = 0.1
 #: sidecar files holding an image's time stamp, tried in this order
 SIDECAR_EXTENSIONS = (".txt", ".json", ".yaml", ".yml")
 _STAMP_KEYS = ("stamp", "time", "t", "timestamp")
@@ -368,6 +372,8 @@ def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, ca
         keep = [k for k in keep if k not in {b for b, _ in bad}]
         if not keep:
             raise InputError(f"no usable image left: {bad[0][1]}")
+    if calibration is None:
+        warnings += _intrinsics_check([found[k] for k in keep], np.array(errors), size)
     kept_names = tuple(files_used[k].stem for k in keep)
     T = np.array(poses)
     T.setflags(write=False)
@@ -378,3 +384,24 @@ def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, ca
     return ImageSet(kept_names, tuple(str(files_used[k]) for k in keep), T, observations, np.array(errors), rows,
                     None if rows is None else tuple(robot_names[r] for r in rows), tuple(dropped), camera_used,
                     calibration, unit, None if robot is None else pairing.method, pairing.note, tuple(warnings))
+
+
+def _intrinsics_check(detections: Sequence[Any], errors: np.ndarray, size: tuple[int, int] | None) -> list[str]:
+    """A warning when the given intrinsics fit the images clearly worse than intrinsics calibrated
+    from the same images would: pooled PnP RMS more than `INTRINSICS_MISFIT` x the calibration's
+    and `INTRINSICS_MISFIT_PX` px above it (e.g. a lens with distortion the file does not list).
+    The calibration's extra parameters alone lower its RMS by a few per cent only."""
+    if size is None or len(detections) < INTRINSICS_CHECK_VIEWS:
+        return []
+    try:
+        own = calibrate_camera(detections, size)
+    except InputError:
+        return []
+    counts = np.array([len(d.image_points) for d in detections], dtype=float)
+    given = float(np.sqrt(np.sum(errors**2 * counts) / np.sum(counts)))
+    if given > INTRINSICS_MISFIT * own.rms and given - own.rms > INTRINSICS_MISFIT_PX:
+        return [f"the given intrinsics fit the images worse than intrinsics calibrated from them "
+                f"({given:.2f} px against {own.rms:.2f} px RMS; calibrated distortion "
+                f"{' '.join(f'{v:.3g}' for v in own.camera.dist)}): check the intrinsics file (a lens "
+                "distortion it does not list?) or leave out --intrinsics to calibrate the camera from these images"]
+    return []
