@@ -68,11 +68,16 @@ class AXYBData(PosePairs):
     """
 
     planar: planar_mode.Planar | None = None
+    #: the board's image observations behind B (`handeye.vision.observations.BoardObservations`),
+    #: for solvers that fit the images themselves (`reprojection`); None for pose data
+    images: Any = None
 
     def scaled(self, s: float) -> AXYBData:
-        """The same data with every translation divided by s (the planar value too)."""
+        """The same data with every translation divided by s (the planar value and the board too)."""
         out = super().scaled(s)
-        return out if self.planar is None else dataclasses.replace(out, planar=self.planar.scaled(s))
+        if self.planar is not None:
+            out = dataclasses.replace(out, planar=self.planar.scaled(s))
+        return out if self.images is None else dataclasses.replace(out, images=self.images.scaled(s))
 
     @functools.cached_property
     def rotation_excitation(self) -> float:
@@ -202,15 +207,21 @@ class AXYB(Problem):
     unknowns = ("X", "Y")
     data_fields = ("A", "B")
     min_pairs = 3
-    #: a planar robot's translation along its rotation axis (one of them; `AXYBData.planar`)
-    optional_fields = ("tz_X", "tz_Y")
+    #: a planar robot's translation along its rotation axis (one of them; `AXYBData.planar`), and
+    #: the board's image observations behind B (`AXYBData.images`)
+    optional_fields = ("tz_X", "tz_Y", "images")
     station_reader = StationReader(pairs_from_stations)
 
     def validate(self, **data: Any) -> AXYBData:
         """The validated data; ``tz_X`` or ``tz_Y`` (data units) for a robot whose rotations share
         one axis (`handeye.problems.planar`: required then, refused otherwise)."""
-        facts = planar_mode.take_facts(data, self.optional_fields)
+        images = data.pop("images", None)
+        facts = planar_mode.take_facts(data, ("tz_X", "tz_Y"))
         out = AXYBData.validated(self.name, data, self.min_pairs)
+        if images is not None:
+            from handeye.vision.observations import checked
+
+            out = dataclasses.replace(out, images=checked(images, out.m))
         planar = planar_mode.for_axyb(out.A, out.translation_scale, facts)
         if planar is not None:  # rotations about one axis: the translations fix their gauge
             return dataclasses.replace(out, planar=planar)
@@ -252,20 +263,28 @@ class AXYB(Problem):
         """Sec. IV-A: A_i = forward kinematics of an LR Mate 200iD-like arm at random joints (mm),
         B_i = Y^-1 A_i X, then noise (`handeye.noise.NoiseModel`) on A and/or B.
 
+        images: a mapping (``setup``, ``pixel_noise``) to simulate board images instead
+        (`handeye.problems.axyb_images`): data A, B and ``images``, B the PnP poses of the corners.
+
         X, Y default to the paper's `PAPER_X`, `PAPER_Y`. The random stream is drawn in a fixed
         order (poses, then noise on A, then on B), so a seed gives the same poses at every noise
         level.
         """
+        images = options.pop("images", None)
         if options:
-            raise InputError(f"unknown simulate option(s) {sorted(options)}; known: pairs, seed, noise, X, Y")
+            raise InputError(f"unknown simulate option(s) {sorted(options)}; known: pairs, seed, noise, X, Y, images")
         if pairs < 1:
             raise InputError(f"pairs must be >= 1, got {pairs}")
         rng = np.random.default_rng(seed)
         X = PAPER_X if X is None else pose_stack(np.asarray(X)[None], "X")[0]
         Y = PAPER_Y if Y is None else pose_stack(np.asarray(Y)[None], "Y")[0]
+        noise = noise or NoiseModel()
+        if images is not None:  # stations seen in board images (problems/axyb_images.py)
+            from handeye.problems import axyb_images
+
+            return axyb_images.simulate(pairs, rng, noise, X, Y, images), {"X": np.array(X), "Y": np.array(Y)}
         A = random_flange_poses(pairs, rng)
         B = inverse(Y) @ A @ X
-        noise = noise or NoiseModel()
         pose_rng = np.random.default_rng(rng.integers(2**63))
         A_noisy = noise.apply("A", A, pose_rng)
         B_noisy = noise.apply("B", B, pose_rng)

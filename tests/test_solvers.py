@@ -47,6 +47,17 @@ EXTRA_INVARIANCE_VARIANTS: dict[tuple[str, str], tuple[dict, ...]] = {("axyb", "
 NOT_INVARIANT_CHANGE = 1e-6
 
 
+def is_pose_stack(value) -> bool:
+    """Whether a data field is a stack of poses (the others, e.g. the board's image observations
+    of `reprojection`, are passed through, and rescaled by their own `scaled`)."""
+    return not hasattr(value, "scaled")
+
+
+def fresh_arrays(data: dict) -> dict:
+    """Writable copies of the pose stacks of `data`; other fields as they are."""
+    return {k: np.array(v) if is_pose_stack(v) else v for k, v in data.items()}
+
+
 def problem_of(case) -> handeye.Problem:
     return handeye.get_registry().problem(case.problem)
 
@@ -137,14 +148,15 @@ def test_status_timing_and_names(solver_case, noisy_solution, noisy):
 
 def test_inputs_untouched_and_lists_accepted(solver_case, noisy, noisy_solution):
     data, _ = noisy
-    arrays = {k: np.array(v) for k, v in data.items()}  # fresh writable arrays
+    arrays = {k: v for k, v in fresh_arrays(data).items() if is_pose_stack(v)}  # fresh writable arrays
+    others = {k: v for k, v in data.items() if k not in arrays}
     before = {k: v.copy() for k, v in arrays.items()}
-    sol = solver_case.solve(**arrays)
+    sol = solver_case.solve(**arrays, **others)
     for k in arrays:
         np.testing.assert_array_equal(arrays[k], before[k])
         assert arrays[k].flags.writeable  # the caller's arrays keep their flags
     lists = {k: v.tolist() for k, v in arrays.items()}  # lists of 4x4 nested lists
-    from_lists = solver_case.solve(**lists)
+    from_lists = solver_case.solve(**lists, **others)
     for k in lists:
         assert lists[k] == before[k].tolist()
     for name in sol.unknowns:
@@ -165,8 +177,8 @@ def invariance_variants(case) -> list[dict]:
 def unit_change(case, data: dict, base: handeye.Solution, s: float, options: dict) -> tuple[float, float]:
     """(rotation [rad], translation / data scale): the largest difference over the unknowns
     between `base` and the answer for `data` with every translation multiplied by s (divided back)."""
-    scaled = {k: np.array(v) for k, v in data.items()}
-    for T in scaled.values():
+    scaled = {k: np.array(v) if is_pose_stack(v) else v.scaled(1.0 / s) for k, v in data.items()}
+    for T in filter(is_pose_stack, scaled.values()):
         T[:, :3, 3] *= s
     sol = case.solve(**scaled, **options)
     problem = problem_of(case)
@@ -219,7 +231,7 @@ def test_unit_invariance(solver_case, noisy, noisy_solution):
 def test_bad_input_raises_right_type(solver_case, noisy):
     data, _ = noisy
     first, second = problem_of(solver_case).data_fields[:2]
-    arrays = {k: np.array(v) for k, v in data.items()}
+    arrays = fresh_arrays(data)
     nan = dict(arrays)
     nan[first] = arrays[first].copy()
     nan[first][1, 0, 3] = np.nan
@@ -241,8 +253,8 @@ def test_huge_translations_raise_input_error(solver_case):
     """Translations ~1e160 overflow the sums over the pairs: every solver reports it as bad input
     (ours), never as a bare numpy/scipy ValueError, FloatingPointError or LinAlgError."""
     data, _ = problem_of(solver_case).simulate(pairs=10, seed=1, **solver_case.spec.simulate_options)
-    huge = {k: np.array(v) for k, v in data.items()}
-    for T in huge.values():
+    huge = fresh_arrays(data)
+    for T in filter(is_pose_stack, huge.values()):
         T[:, :3, 3] *= 1e160
     with pytest.raises(handeye.InputError, match="overflow float64.*larger unit"):
         solver_case.solve(**huge)

@@ -132,6 +132,22 @@ def default_solver(problem: str) -> str | None:
     return None
 
 
+def pose_based_instead(solution: Any, defaulted: bool) -> str | None:
+    """Why the default reprojection answer gives way to the pose-based default solver, or None:
+    when the robot's poses explain the corners far worse than each image alone does
+    (``robot_misfit`` above the solver's limit), the robot's pose errors dominate, which the
+    reprojection model (robot poses exact) does not describe; only when the user chose no solver."""
+    from handeye.plugins.reprojection import MISFIT_LIMIT
+
+    misfit = solution.diagnostics.get("robot_misfit")
+    if not defaulted or solution.solver != REPROJECTION_SOLVER or misfit is None or misfit <= MISFIT_LIMIT:
+        return None
+    return (f"the robot's poses explain the board corners only to {solution.diagnostics['rms_px']:.2g} px RMS while "
+            f"each image alone fits them to {solution.diagnostics['pnp_rms_px']:.2g} px: the robot's pose errors "
+            "dominate the pixel noise, so the answer is the pose-based one (noise on both sides), not the "
+            "reprojection fit (exact robot poses; --solver reprojection forces it)")
+
+
 def solver_data(inputs: ImageInputs | None, solver: str, problem: str) -> dict[str, Any]:
     """The image observations as the solver's ``images`` field, for the reprojection solver only."""
     if inputs is None or solver != REPROJECTION_SOLVER or problem != "axyb":

@@ -288,6 +288,11 @@ def run(args: argparse.Namespace) -> int:
     solver = args.solver or (images and _images.default_solver(args.problem)) or default_solver(args.problem)
     solution = solve(args.problem, solver=solver, backend=args.backend, **pose_file.data, **facts, **options,
                      **_images.solver_data(images, solver, args.problem))
+    instead = _images.pose_based_instead(solution, defaulted=args.solver is None)
+    if instead:
+        solver = default_solver(args.problem)
+        solution = solve(args.problem, solver=solver, **pose_file.data, **facts, **options)
+        warnings.append(instead)
 
     problem = get_registry().problem(args.problem)
     residuals = problem.residuals(problem.validate(**pose_file.data, **facts), solution.unknowns)
