@@ -15,6 +15,7 @@ are finite float arrays (no validation here).
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 
@@ -60,10 +61,34 @@ def log(R: np.ndarray) -> np.ndarray:
 def consecutive_logs(T: np.ndarray, moving: bool = True) -> np.ndarray:
     """Rotation vectors (m-1, 3) of the consecutive motions of a pose stack T: (m, 4, 4): in the
     moving frame, R_k^T R_k+1 (a robot's flange, for flange poses), or (moving=False) in the fixed
-    frame, R_k+1 R_k^T (its base)."""
+    frame, R_k+1 R_k^T (its base).
+
+    A read-only stack (validated data: the planar check, the self-check's invariants and axes and
+    kron-lstsq's planar rows all ask for the same ones, up to seven times a solve) is computed
+    once: the result (read-only) is kept for the last `_LOGS_KEPT` stacks while they live."""
+    key = (id(T), bool(moving))
+    if not T.flags.writeable:
+        kept = _LOGS.get(key)
+        if kept is not None and kept[0]() is T:
+            return kept[1]
     R = T[:, :3, :3]
     Rt = np.swapaxes(R[:-1], 1, 2)
-    return log(Rt @ R[1:] if moving else R[1:] @ Rt)
+    phi = log(Rt @ R[1:] if moving else R[1:] @ Rt)
+    if not T.flags.writeable:
+        phi.setflags(write=False)
+        _LOGS.pop(key, None)
+        _LOGS[key] = (weakref.ref(T), phi)
+        try:
+            while len(_LOGS) > _LOGS_KEPT:
+                _LOGS.pop(next(iter(_LOGS)), None)
+        except (RuntimeError, StopIteration):  # another thread trimmed it meanwhile
+            pass
+    return phi
+
+
+#: `consecutive_logs` of the last few read-only stacks: id -> (weak reference to the stack, logs)
+_LOGS: dict[tuple[int, bool], tuple[weakref.ref, np.ndarray]] = {}
+_LOGS_KEPT = 8
 
 
 def exp(w: np.ndarray) -> np.ndarray:

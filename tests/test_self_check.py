@@ -171,3 +171,25 @@ def test_the_cli_exits_1_on_an_unreliable_answer(tmp_path, capsys):
     assert code == 1 and json.loads(out)["status"] == "unreliable"
     assert err.startswith("handeye: error: status unreliable: self-check failed") and err.count("\n") == 1
     assert main(["solve", str(path)]) == 0  # auto
+
+
+def test_consecutive_logs_of_a_validated_stack_are_computed_once_and_stay_right():
+    """Read-only (validated) stacks keep their consecutive rotation vectors while they live; a
+    writable stack, or another stack, is computed afresh (a stale result would be silent)."""
+    from handeye import so3_fast
+    from handeye.se3 import random_poses
+
+    rng = np.random.default_rng(5)
+    T = random_poses(12, rng)
+    fresh = so3_fast.consecutive_logs(T)
+    T.setflags(write=False)
+    first = so3_fast.consecutive_logs(T)
+    assert so3_fast.consecutive_logs(T) is first and not first.flags.writeable
+    np.testing.assert_allclose(first, fresh, atol=1e-15)
+    np.testing.assert_allclose(so3_fast.consecutive_logs(T, moving=False),
+                               so3_fast.consecutive_logs(np.array(T), moving=False), atol=1e-15)
+    other = random_poses(12, rng)
+    other.setflags(write=False)
+    assert not np.allclose(so3_fast.consecutive_logs(other), first)
+    writable = np.array(T)
+    assert so3_fast.consecutive_logs(writable) is not so3_fast.consecutive_logs(writable)

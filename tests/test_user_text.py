@@ -145,7 +145,8 @@ def test_unknown_names_read_as_english():
 
 def test_submodules_without_importing_them_first():
     """``handeye.io`` and ``handeye.examples`` (and ``harness``, ``problems``) are imported on first
-    use (PEP 562); ``import handeye`` alone imports none of them, nor cvxpy, casadi or matplotlib."""
+    use (PEP 562); ``import handeye`` alone imports none of them, nor cvxpy, casadi or matplotlib, and
+    a closed-form solve loads no modelling layer, SDP solver, OpenCV, plotting or bag reader."""
     code = """
 import sys
 import handeye
@@ -161,8 +162,9 @@ except AttributeError as exc:
 else:
     raise AssertionError("handeye.no_such_name did not raise AttributeError")
 data, truth, metadata = handeye.examples.load_example("simulated")
-handeye.solve("axyb", A=data["A"], B=data["B"], solver="kron-lstsq")
-heavy = [m for m in ("cvxpy", "casadi", "matplotlib", "picos") if m in sys.modules]
+for closed_form in ("kron-lstsq", "shah", "li"):
+    handeye.solve("axyb", A=data["A"], B=data["B"], solver=closed_form)
+heavy = [m for m in ("cvxpy", "casadi", "matplotlib", "picos", "clarabel", "cv2", "rosbags") if m in sys.modules]
 assert not heavy, heavy
 """
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
