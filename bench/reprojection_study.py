@@ -27,9 +27,8 @@ from __future__ import annotations
 import argparse
 import time
 
-import numpy as np
-
 import handeye
+import numpy as np
 from handeye.noise import NoiseModel
 from handeye.problems import axyb_images
 from handeye.se3 import inverse

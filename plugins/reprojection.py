@@ -30,7 +30,6 @@ import time
 from typing import Any
 
 import numpy as np
-
 from handeye import hookimpl
 from handeye.errors import InputError, SolverError
 from handeye.nlls import retract
@@ -275,7 +274,7 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
         "initial_rms_px": float(np.sqrt(np.mean(np.sum(r0**2, axis=1)))),
         "rms_px": float(np.sqrt(np.mean(errors**2))),
         "rms_px_per_station": per_station,
-        "corners": int(len(errors)),
+        "corners": len(errors),
         "final_cost": fit.cost,
         "loss": options.loss,
         "loss_scale": options.loss_scale,

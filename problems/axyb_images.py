@@ -14,9 +14,9 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-
 from handeye.errors import InputError
 from handeye.noise import NoiseModel
+from handeye.options import check_choice, check_positive
 from handeye.se3 import inverse, make_pose, so3_exp
 
 #: board corners (cols x rows) and spacing (mm), camera distance range (mm), largest tilt (rad)
@@ -59,14 +59,16 @@ def simulate(pairs: int, rng: np.random.Generator, noise: NoiseModel, X: np.ndar
              options: Mapping[str, Any], unit_scale: float = 1.0) -> dict[str, Any]:
     """The data {A, B, images} of `pairs` stations (module docstring)."""
     import cv2
-
     from handeye.vision.observations import BoardObservations, Camera
 
     unknown = sorted(set(options) - set(KEYS))
     if unknown:
         raise InputError(f"unknown images option(s) {unknown}; known: {', '.join(KEYS)}")
     setup = options.get("setup", "eye-in-hand")
-    pixel_noise = float(options.get("pixel_noise", 0.3))
+    check_choice("images setup", setup, ("eye-in-hand", "eye-to-hand"))
+    pixel_noise = options.get("pixel_noise", 0.3)
+    check_positive("images pixel_noise", pixel_noise, allow_zero=True)
+    pixel_noise = float(pixel_noise)
     T_cam_target = views(pairs, rng, unit_scale)
     B_true = inverse(T_cam_target) if setup == "eye-in-hand" else T_cam_target
     A = Y @ B_true @ inverse(X)
@@ -80,7 +82,7 @@ def simulate(pairs: int, rng: np.random.Generator, noise: NoiseModel, X: np.ndar
         u = cv2.projectPoints(P, rvec, T[:3, 3], K, DIST)[0].reshape(-1, 2)
         if noisy:
             u = u + pixel_noise * pose_rng.standard_normal(u.shape)
-            ok, r, t = cv2.solvePnP(P, u, K, DIST, rvec=rvec.copy(), tvec=T[:3, 3].copy(), useExtrinsicGuess=True,
+            _, r, t = cv2.solvePnP(P, u, K, DIST, rvec=rvec.copy(), tvec=T[:3, 3].copy(), useExtrinsicGuess=True,
                                     flags=cv2.SOLVEPNP_ITERATIVE)
             T_pnp = make_pose(cv2.Rodrigues(r)[0], t.ravel())
             B[i] = inverse(T_pnp) if setup == "eye-in-hand" else T_pnp

@@ -7,10 +7,9 @@ from __future__ import annotations
 
 import dataclasses
 
+import handeye
 import numpy as np
 import pytest
-
-import handeye
 from handeye.errors import InputError
 from handeye.nlls import retract
 from handeye.noise import NoiseModel
