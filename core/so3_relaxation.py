@@ -32,8 +32,9 @@ import functools
 import numpy as np
 
 from .errors import SolverError
-from .rotation_cost import RotationCost, rotation_blocks, rotations_vector
-from .se3 import project_to_so3, skew, so3_exp
+from .rotation_cost import RotationCost, rotation_blocks, rotations_vector, signed_rotations, sphere_least_squares
+from . import so3_fast
+from .se3 import project_to_so3, skew
 
 #: Certificate thresholds (docs/solvers/so3-sdp.md: 1400 solves of ``axyb`` at m = 3, simulated
 #: with noise 1x, 10x, 100x the accuracy study's and unrelated A, B; checked on ``axxb``).
@@ -152,7 +153,7 @@ def polish(cost: RotationCost, rotations: list[np.ndarray]) -> tuple[list[np.nda
         for j, R in enumerate(Rs):
             D[9 * j:9 * j + 9, 3 * j:3 * j + 3] = (R @ _GENERATORS).transpose(0, 2, 1).reshape(3, 9).T  # vec(R [e]_x)
         delta, *_ = np.linalg.lstsq(cost.S @ D, -e, rcond=None)
-        new_Rs = [R @ so3_exp(delta[3 * j:3 * j + 3]) for j, R in enumerate(Rs)]
+        new_Rs = [R @ so3_fast.exp(delta[3 * j:3 * j + 3]) for j, R in enumerate(Rs)]
         new = cost.value(rotations_vector(*new_Rs))
         if new > current and np.max(np.abs(delta)) > POLISH_SMALL_STEP:
             break
@@ -177,12 +178,38 @@ def certificate(M: np.ndarray, y: np.ndarray, nu: np.ndarray, redundant: bool) -
     correction, *_ = np.linalg.lstsq(L, M @ y - L @ nu, rcond=None)
     nu = nu + correction
     S = M - np.einsum("k,kij->ij", nu, A)
-    lam_min = float(np.linalg.eigvalsh(S)[0])
+    lam = np.linalg.eigvalsh(S)
+    lam_min = float(lam[0])
     value = float(y @ M @ y)
     lower = float(nu @ b + trace_z(rotations) * min(0.0, lam_min))
     # y is feasible, so the global minimum is <= value: a bound above it is rounding (~1e-15 |M|)
     return {"value": value, "lower_bound": min(lower, value), "dual_slack_min_eigenvalue": lam_min,
-            "stationarity_residual": float(np.linalg.norm(S @ y))}
+            "certificate_margin": float(lam[1]), "stationarity_residual": float(np.linalg.norm(S @ y))}
+
+
+def local_minimum(cost: RotationCost) -> tuple[list[np.ndarray], int]:
+    """A local minimum of the QCQP without the SDP: the minimiser of |S r - s|^2 on the sphere
+    |r|^2 = 3k (`sphere_least_squares`, exact), its blocks projected onto SO(3) with the sign
+    that costs less (`signed_rotations`), then `polish`. Returns (rotations, polish steps).
+    Whether it is the global minimum is for `local_certificate` to say."""
+    start, _ = signed_rotations(cost, sphere_least_squares(cost).x)
+    return polish(cost, start)
+
+
+def local_certificate(M: np.ndarray, y: np.ndarray) -> dict[str, float]:
+    """`certificate` of y (a local minimum, feasible) with the multipliers of the first-order
+    conditions: the SDP is not solved. Only the non-redundant constraints (columns orthonormal,
+    h^2 = 1) are used: their 6k + 1 multipliers are unique, the least squares of M y = sum_j
+    nu_j A_j y (9k + 1 equations), where the redundant set's 20k + 1 would leave a family to
+    search (an SDP again). The bound then holds over the columns-orthonormal set, which
+    contains SO(3)^k, so a certified y is the global minimum over rotations as well; it is
+    certified less often than the SDP's answer (docs/solvers/so3-sdp.md, "Local certificate":
+    where a reflection of the answer costs less, this relaxation is not tight). Adds
+    "certificate_margin": the second smallest eigenvalue of the dual slack S (its smallest is
+    0, along y), the room the certificate has."""
+    rotations = (len(y) - 1) // 9
+    K = len(constraint_matrices(rotations, redundant=False)[1])
+    return certificate(M, y, np.zeros(K), redundant=False)
 
 
 def is_certified(eigenvalue_ratio: float, relative_gap: float) -> bool:

@@ -93,7 +93,7 @@ class SolverSpec:
     def unavailable_reason(self, backend: str) -> str | None:
         """Why `backend` cannot run here (missing module, ...), or None when it can."""
         for module in self.backends[backend]:
-            if importlib.util.find_spec(module) is None:
+            if not _installed(module):
                 return f"backend {backend!r} of solver {self.name!r} needs the Python module {module!r}; install it (pip install {_PIP_NAMES.get(module, module)})"
         if self.check is not None:
             return self.check(backend)
@@ -101,6 +101,23 @@ class SolverSpec:
 
     def option_names(self) -> list[str]:
         return [f.name for f in dataclasses.fields(self.options)]
+
+
+#: modules found installed -> the finder (importlib.util.find_spec) that found them. A module found
+#: stays installed for the process, so it is looked up once (find_spec costs ~25 us, and a solve
+#: asks several times); a replaced finder (a test simulating a missing package) is asked again.
+_INSTALLED: dict[str, Any] = {}
+
+
+def _installed(module: str) -> bool:
+    """Whether Python module `module` can be imported here (`_INSTALLED`)."""
+    finder = importlib.util.find_spec
+    if _INSTALLED.get(module) is finder:
+        return True
+    if finder(module) is None:
+        return False
+    _INSTALLED[module] = finder
+    return True
 
 
 _PIP_NAMES = {"cv2": "opencv-python-headless", "casadi": "casadi", "picos": "picos", "cvxpy": "cvxpy"}

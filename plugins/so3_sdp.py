@@ -75,6 +75,8 @@ from handeye.so3_relaxation import (
     dimension,
     extract_rotations,
     is_certified,
+    local_certificate,
+    local_minimum,
     polish,
 )
 
@@ -109,12 +111,14 @@ class Options:
     redundant: add the redundant constraints (R R^T = I, column cross products) that make the
     relaxation tight; polish: Gauss-Newton on SO(3) after extraction to remove the SDP tolerance;
     cvxpy_solver: backend cvxpy only, an installed cvxpy solver that handles PSD cones (default
-    Clarabel)."""
+    Clarabel); local_first: solve the QCQP locally and certify that answer from its first-order
+    conditions, solving the SDP only when the certificate fails (False: always the SDP)."""
 
     normalize: bool = True
     redundant: bool = True
     polish: bool = True
     cvxpy_solver: str | None = None
+    local_first: bool = True
 
     def __post_init__(self) -> None:
         if self.cvxpy_solver is not None and not isinstance(self.cvxpy_solver, str):
@@ -275,7 +279,8 @@ def _solve_picos(M: np.ndarray, redundant: bool,
 def solve_relaxation(cost: RotationCost, options: Options, backend: str
                      ) -> tuple[list[np.ndarray], tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """The pipeline of the module docstring for any number k of rotations: (rotations, the k
-    translations t(r) in the units of `cost`, status, diagnostics)."""
+    translations t(r) in the units of `cost`, status, diagnostics). With ``local_first`` the
+    local minimum is tried first and returned when its certificate holds (no SDP is solved)."""
     check_backend_options("so3-sdp", options, backend, BACKEND_ONLY_OPTIONS)
     solver = resolve_cvxpy_solver(options.cvxpy_solver) if backend == "cvxpy" else None
     k = cost.rotations
@@ -283,6 +288,12 @@ def solve_relaxation(cost: RotationCost, options: Options, backend: str
     norm = frobenius_norm(M)
     if not np.isfinite(norm) or norm == 0.0:
         raise SolverError("so3-sdp: the cost matrix built from the poses is zero or not finite")
+
+    local: dict[str, Any] = {}
+    if options.local_first:
+        Rs, local = _local(cost, norm)
+        if local["certified"]:
+            return Rs, cost.translations(rotations_vector(*Rs)), Status.OPTIMAL, local
 
     if backend == "clarabel":
         Z, nu, info = _solve_clarabel(M / norm, options.redundant, k)
@@ -296,35 +307,60 @@ def solve_relaxation(cost: RotationCost, options: Options, backend: str
     steps = 0
     if options.polish:
         Rs, steps = polish(cost, Rs)
-    r = rotations_vector(*Rs)
-    y = np.append(r, 1.0)
+    y = np.append(rotations_vector(*Rs), 1.0)
     cert = certificate(M, y, nu * norm, options.redundant)
-
-    gap = cert["value"] - cert["lower_bound"]
-    relative_gap = gap / max(cert["value"], COST_FLOOR * norm)
     # The bound is recomputed in float64 from the multipliers, so it does not depend on how
     # accurately the SDP was solved: an "optimal_inaccurate" SDP can still certify.
-    certified = is_certified(ratio, relative_gap)
     diagnostics = {
+        "certificate_path": "sdp",
         **info,
         "sdp_objective": info["sdp_objective"] * norm + cost.rest,
-        "cost": cert["value"] + cost.rest,
-        "lower_bound": cert["lower_bound"] + cost.rest,
-        "duality_gap": gap,
-        "relative_gap": relative_gap,
-        "eigenvalue_ratio": ratio,
+        **_certificate_figures(cert, ratio, cost.rest, norm),
         "eigenvalues": [float(v) for v in eig[:3]],
-        "dual_slack_min_eigenvalue": cert["dual_slack_min_eigenvalue"],
-        "stationarity_residual": cert["stationarity_residual"],
-        "certified": certified,
-        "thresholds": {"eigenvalue_ratio": RATIO_THRESHOLD, "relative_gap": GAP_THRESHOLD},
         "polish_steps": steps,
         "polish_rotation_change": float(max(rotation_angle(R0.T @ R) for R0, R in zip(start, Rs))),
         "cost_matrix_norm": norm,
         "redundant_constraints": options.redundant,
     }
-    status = Status.OPTIMAL if certified else Status.UNCERTIFIED
-    return Rs, cost.translations(r), status, diagnostics
+    if local:
+        diagnostics["local_certificate"] = {key: local[key] for key in
+                                            ("relative_gap", "dual_slack_min_eigenvalue", "cost")}
+    status = Status.OPTIMAL if diagnostics["certified"] else Status.UNCERTIFIED
+    return Rs, cost.translations(y[:-1]), status, diagnostics
+
+
+def _local(cost: RotationCost, norm: float) -> tuple[list[np.ndarray], dict[str, Any]]:
+    """The local minimum of the QCQP and its certificate from the first-order conditions
+    (`handeye.so3_relaxation.local_minimum`, `local_certificate`): (rotations, diagnostics with
+    "certified"). A local solve that fails numerically is reported as not certified."""
+    try:
+        Rs, steps = local_minimum(cost)
+    except (np.linalg.LinAlgError, InputError):  # the SDP decides
+        return [], {"certified": False, "relative_gap": float("nan"), "dual_slack_min_eigenvalue": float("nan"),
+                    "cost": float("nan")}
+    y = np.append(rotations_vector(*Rs), 1.0)
+    cert = local_certificate(cost.matrix, y)
+    # Z = y y^T: rank one by construction, so only the gap decides
+    return Rs, {"certificate_path": "local", **_certificate_figures(cert, 0.0, cost.rest, norm),
+                "polish_steps": steps, "cost_matrix_norm": norm, "redundant_constraints": False}
+
+
+def _certificate_figures(cert: Mapping[str, float], ratio: float, rest: float, norm: float) -> dict[str, Any]:
+    """The certificate's diagnostics (both paths): costs with `rest` added back, gaps, status."""
+    gap = cert["value"] - cert["lower_bound"]
+    relative_gap = gap / max(cert["value"], COST_FLOOR * norm)
+    return {
+        "cost": cert["value"] + rest,
+        "lower_bound": cert["lower_bound"] + rest,
+        "duality_gap": gap,
+        "relative_gap": relative_gap,
+        "eigenvalue_ratio": ratio,
+        "dual_slack_min_eigenvalue": cert["dual_slack_min_eigenvalue"],
+        "certificate_margin": cert["certificate_margin"],
+        "stationarity_residual": cert["stationarity_residual"],
+        "certified": is_certified(ratio, relative_gap),
+        "thresholds": {"eigenvalue_ratio": RATIO_THRESHOLD, "relative_gap": GAP_THRESHOLD},
+    }
 
 
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:

@@ -40,6 +40,8 @@ NOISE = NoiseModel.on(("A", "B"), 0.002, 0.2)
 SOLVERS = [("kron-lstsq", "numpy"), ("so3-sdp", "clarabel"), ("so3-sdp", "cvxpy"), ("so3-sdp", "picos"),
            ("lmi-sdp", "cvxpy"), ("lmi-sdp", "picos"), ("lmi-sdp", "casadi")]
 NOISE_FREE_TOL = 1e-9  # rad, and relative to the data's translation scale
+#: options that make so3-sdp solve its SDP (by default it certifies a local answer first)
+SDP = {"local_first": False}
 
 
 def solve(raw: dict, solver: str, backend: str | None = None, **options) -> handeye.Solution:
@@ -196,10 +198,11 @@ def test_cvxpy_problems_compiled_once_per_process(monkeypatch):
     monkeypatch.setattr(so3_sdp.CVXPY_CACHE, "problems", {})
     a, _ = PROBLEM.simulate(pairs=5, seed=8, noise=NOISE)
     b, _ = PROBLEM.simulate(pairs=40, seed=9, noise=NOISE)
-    for solver, module, key in (("lmi-sdp", lmi_sdp_axxb, ("CLARABEL",)), ("so3-sdp", so3_sdp, (True, "CLARABEL", 1))):
-        assert solve(a, solver, "cvxpy").diagnostics["compile_seconds"] > 0
+    for solver, module, key, options in (("lmi-sdp", lmi_sdp_axxb, ("CLARABEL",), {}),
+                                         ("so3-sdp", so3_sdp, (True, "CLARABEL", 1), SDP)):
+        assert solve(a, solver, "cvxpy", **options).diagnostics["compile_seconds"] > 0
         cached, builds = module.cvxpy_problem(*key), module.CVXPY_CACHE.builds
-        assert solve(b, solver, "cvxpy").diagnostics["compile_seconds"] == 0.0
+        assert solve(b, solver, "cvxpy", **options).diagnostics["compile_seconds"] == 0.0
         assert module.cvxpy_problem(*key) is cached and module.CVXPY_CACHE.builds == builds
     assert so3_sdp.cvxpy_problem(True, "CLARABEL", 1) is not so3_sdp.cvxpy_problem(True, "CLARABEL", 2)
 
@@ -212,7 +215,7 @@ def test_cvxpy_problems_compiled_once_per_process(monkeypatch):
 def test_so3_sdp_certifies_and_beats_kron_lstsq(backend):
     for seed in (5, 6):
         raw, _ = PROBLEM.simulate(pairs=6, seed=seed, noise=NoiseModel.on(("A", "B"), 0.02, 2.0))
-        sol = solve(raw, "so3-sdp", backend)
+        sol = solve(raw, "so3-sdp", backend, **SDP)
         d = sol.diagnostics
         assert sol.status is Status.OPTIMAL and d["certified"]
         assert d["eigenvalue_ratio"] < 1e-3 and d["relative_gap"] < 1e-6 and d["lower_bound"] <= d["cost"]
@@ -234,10 +237,10 @@ def test_so3_sdp_weak_relaxation_is_not_certified(backend):
     # seed 9 of that study: ratio 4e-8, relative gap 1.6
     raw, _ = PROBLEM.simulate(pairs=3, seed=9, noise=NoiseModel.on(("A", "B"), 0.2, 20.0), pairing="consecutive",
                               **PROBLEM.random_unknowns(np.random.default_rng(10_009)))
-    weak = solve(raw, "so3-sdp", backend, redundant=False)
+    weak = solve(raw, "so3-sdp", backend, redundant=False, **SDP)
     assert weak.status is Status.UNCERTIFIED and weak.diagnostics["relative_gap"] > 1e-2
     assert weak.diagnostics["eigenvalue_ratio"] < 1e-3  # rank one: only the gap shows it
-    strong = solve(raw, "so3-sdp", backend)
+    strong = solve(raw, "so3-sdp", backend, **SDP)
     assert strong.status is Status.OPTIMAL and strong.diagnostics["cost"] < weak.diagnostics["cost"]
 
 
@@ -246,7 +249,7 @@ def test_so3_sdp_clarabel_backend_matches_cvxpy(seed, pairing):
     """Backend clarabel (the default) poses the cvxpy backend's conic program directly: the same
     polished answer and certificate (measured: bit-identical)."""
     raw, _ = PROBLEM.simulate(pairs=17 if pairing == "consecutive" else 7, seed=seed, noise=NOISE, pairing=pairing)
-    native, ref = solve(raw, "so3-sdp"), solve(raw, "so3-sdp", "cvxpy")
+    native, ref = solve(raw, "so3-sdp", **SDP), solve(raw, "so3-sdp", "cvxpy", **SDP)
     assert native.backend == "clarabel"
     assert native.status is Status.OPTIMAL and ref.status is Status.OPTIMAL
     assert native.diagnostics["eigenvalue_ratio"] < 1e-3

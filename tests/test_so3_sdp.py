@@ -19,6 +19,8 @@ from handeye.se3 import random_poses, random_rotations, rotation_angle
 
 NOISE = NoiseModel.on("B", 0.002, 0.5)
 HEAVY = NoiseModel.on("B", 0.02, 5.0)
+#: options that make so3-sdp solve its SDP (by default it certifies a local answer first)
+SDP = {"local_first": False}
 
 
 def simulate(pairs: int, seed: int, noise: NoiseModel | None = NOISE):
@@ -102,8 +104,8 @@ def test_backends_agree():
     if reason:
         pytest.skip(reason)
     data, _ = simulate(8, seed=4, noise=HEAVY)
-    a = handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", **data)
-    b = handeye.solve("axyb", solver="so3-sdp", backend="picos", **data)
+    a = handeye.solve("axyb", solver="so3-sdp", **SDP, backend="cvxpy", **data)
+    b = handeye.solve("axyb", solver="so3-sdp", **SDP, backend="picos", **data)
     assert a.status is Status.OPTIMAL and b.status is Status.OPTIMAL
     scale = PROBLEM.validate(**data).translation_scale
     for name in ("X", "Y"):
@@ -119,14 +121,14 @@ def unrelated_poses(seed: int, pairs: int = 3) -> dict:
 
 def test_non_tight_relaxation_is_detected():
     # Seed found by a search (docs/solvers/so3-sdp.md): 3 of 200 such draws are not tight.
-    sol = handeye.solve("axyb", solver="so3-sdp", **unrelated_poses(15))
+    sol = handeye.solve("axyb", solver="so3-sdp", **SDP, **unrelated_poses(15))
     d = sol.diagnostics
     assert sol.status is Status.UNCERTIFIED and not d["certified"]
     assert d["eigenvalue_ratio"] > 1e-2  # Z is far from rank one
     assert d["relative_gap"] > 1e-4
     assert d["lower_bound"] < d["cost"]
     # a tight draw of the same kind is certified
-    assert handeye.solve("axyb", solver="so3-sdp", **unrelated_poses(0)).status is Status.OPTIMAL
+    assert handeye.solve("axyb", solver="so3-sdp", **SDP, **unrelated_poses(0)).status is Status.OPTIMAL
 
 
 @pytest.mark.parametrize("backend", ["clarabel", "cvxpy"])
@@ -135,27 +137,27 @@ def test_weak_relaxation_rank_one_reflection_is_caught_by_the_gap(backend):
     # (ratio ~ 0) at a reflection; after projection onto SO(3) only the duality gap shows it.
     data, _ = PROBLEM.simulate(pairs=3, seed=2, noise=NoiseModel.on("B", 1.0, 100.0),
                                **random_truth(np.random.default_rng(10_002)))
-    weak = handeye.solve("axyb", solver="so3-sdp", backend=backend, redundant=False, **data)
+    weak = handeye.solve("axyb", solver="so3-sdp", **SDP, backend=backend, redundant=False, **data)
     assert weak.status is Status.UNCERTIFIED
     assert weak.diagnostics["eigenvalue_ratio"] < so3_sdp.RATIO_THRESHOLD
     assert weak.diagnostics["relative_gap"] > 1e-2
-    strong = handeye.solve("axyb", solver="so3-sdp", backend=backend, **data)
+    strong = handeye.solve("axyb", solver="so3-sdp", **SDP, backend=backend, **data)
     assert strong.status is Status.OPTIMAL
     assert strong.diagnostics["cost"] < weak.diagnostics["cost"]
 
 
 def test_compiled_problem_reused():
     data, _ = simulate(4, seed=5)
-    handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", **data)
+    handeye.solve("axyb", solver="so3-sdp", **SDP, backend="cvxpy", **data)
     builds = so3_sdp.CVXPY_CACHE.builds
     problem = so3_sdp.cvxpy_problem(True, "CLARABEL")
-    handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", **simulate(9, seed=6)[0])
+    handeye.solve("axyb", solver="so3-sdp", **SDP, backend="cvxpy", **simulate(9, seed=6)[0])
     assert so3_sdp.CVXPY_CACHE.builds == builds
     assert so3_sdp.cvxpy_problem(True, "CLARABEL") is problem
     # backend clarabel: its constant data built once per (constraint set, rotations)
-    handeye.solve("axyb", solver="so3-sdp", **data)
+    handeye.solve("axyb", solver="so3-sdp", **SDP, **data)
     builds, sdp = so3_sdp.clarabel_builds, so3_sdp.clarabel_problem(True, 2)
-    sol = handeye.solve("axyb", solver="so3-sdp", backend="clarabel", **simulate(9, seed=6)[0])
+    sol = handeye.solve("axyb", solver="so3-sdp", **SDP, backend="clarabel", **simulate(9, seed=6)[0])
     assert sol.backend == "clarabel" and sol.diagnostics["compile_seconds"] == 0.0
     assert so3_sdp.clarabel_builds == builds and so3_sdp.clarabel_problem(True, 2) is sdp
     assert so3_sdp.clarabel_problem(True, 1) is not sdp and so3_sdp.clarabel_problem(False, 2) is not sdp
@@ -192,7 +194,7 @@ def test_solves_leave_settings_alone_and_repeat_exactly(monkeypatch):
     settings = dict(so3_sdp.CLARABEL_SETTINGS)
 
     def solve_twice(backend="cvxpy"):
-        a, b = (handeye.solve("axyb", solver="so3-sdp", backend=backend, **data) for _ in range(2))
+        a, b = (handeye.solve("axyb", solver="so3-sdp", **SDP, backend=backend, **data) for _ in range(2))
         for name in ("X", "Y"):
             np.testing.assert_array_equal(a.unknowns[name], b.unknowns[name])
         assert dict(so3_sdp.CLARABEL_SETTINGS) == settings
@@ -227,7 +229,7 @@ def test_solves_leave_settings_alone_and_repeat_exactly(monkeypatch):
 
 def test_cvxpy_solver_scs_is_certified_only_when_its_numbers_say_so(monkeypatch):
     data, truth = simulate(12, seed=11, noise=None)
-    sol = handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", cvxpy_solver="scs", polish=False, **data)  # any case
+    sol = handeye.solve("axyb", solver="so3-sdp", **SDP, backend="cvxpy", cvxpy_solver="scs", polish=False, **data)  # any case
     d = sol.diagnostics
     assert d["sdp_solver"] == "SCS" and d["sdp_status"] == "optimal"
     # SCS at eps 1e-9 (CVXPY_SETTINGS): certified (gap 1.1e-8), its own answer (no polish)
@@ -235,7 +237,7 @@ def test_cvxpy_solver_scs_is_certified_only_when_its_numbers_say_so(monkeypatch)
     assert sol.status is Status.OPTIMAL and d["relative_gap"] < so3_sdp.GAP_THRESHOLD
     errors = PROBLEM.errors(sol.unknowns, truth)
     assert 1e-12 < max(errors["X"]["rotation"], errors["Y"]["rotation"]) < 1e-6
-    polished = handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", cvxpy_solver="SCS", **data)
+    polished = handeye.solve("axyb", solver="so3-sdp", **SDP, backend="cvxpy", cvxpy_solver="SCS", **data)
     errors = PROBLEM.errors(polished.unknowns, truth)
     assert polished.status is Status.OPTIMAL
     assert max(errors["X"]["rotation"], errors["Y"]["rotation"]) < 1e-12
@@ -243,7 +245,7 @@ def test_cvxpy_solver_scs_is_certified_only_when_its_numbers_say_so(monkeypatch)
     # 8.8e-2, rotation 1.5e-4 rad off): uncertified, and the host's self-check finds the answer
     # far from the exact fit of these noise-free data: unreliable, never a silent "optimal"
     monkeypatch.setattr(so3_sdp, "CVXPY_SETTINGS", {"CLARABEL": so3_sdp.CLARABEL_SETTINGS})
-    loose = handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", cvxpy_solver="SCS", polish=False, **data)
+    loose = handeye.solve("axyb", solver="so3-sdp", **SDP, backend="cvxpy", cvxpy_solver="SCS", polish=False, **data)
     assert loose.diagnostics["sdp_status"] == "optimal"
     assert loose.status is Status.UNRELIABLE and not loose.diagnostics["certified"]
     assert loose.diagnostics["self_check"]["distance_sigmas"] > 100
@@ -316,8 +318,8 @@ def test_clarabel_svec_convention_on_sdps_with_known_answers():
 def test_clarabel_backend_matches_cvxpy(seed):
     """The same conic program: the same polished answer and certificate (measured: identical)."""
     data, _ = simulate(16, seed=seed, noise=NoiseModel.on("B", 0.002, 0.2))
-    native = handeye.solve("axyb", solver="so3-sdp", **data)
-    ref = handeye.solve("axyb", solver="so3-sdp", backend="cvxpy", **data)
+    native = handeye.solve("axyb", solver="so3-sdp", **SDP, **data)
+    ref = handeye.solve("axyb", solver="so3-sdp", **SDP, backend="cvxpy", **data)
     assert native.backend == "clarabel" and native.diagnostics["sdp_solver"] == "CLARABEL"
     assert native.status is Status.OPTIMAL and ref.status is Status.OPTIMAL
     assert native.diagnostics["eigenvalue_ratio"] < so3_sdp.RATIO_THRESHOLD
@@ -338,6 +340,59 @@ def test_clarabel_failures_are_solver_errors(monkeypatch):
     settings = so3_sdp.CLARABEL_SETTINGS
     monkeypatch.setattr(so3_sdp, "CLARABEL_SETTINGS", {**settings, "max_iter": 2})
     with pytest.raises(SolverError, match="so3-sdp: Clarabel returned status 'MaxIterations'"):
-        handeye.solve("axyb", solver="so3-sdp", **data)
+        handeye.solve("axyb", solver="so3-sdp", **SDP, **data)
     monkeypatch.setattr(so3_sdp, "CLARABEL_SETTINGS", {**settings, "direct_solve_method": "nonesuch"})
-    assert handeye.solve("axyb", solver="so3-sdp", **data).status is Status.OPTIMAL
+    assert handeye.solve("axyb", solver="so3-sdp", **SDP, **data).status is Status.OPTIMAL
+
+
+# --------------------------------------------------------------------------------------------
+# the local certificate: a local minimum certified from its first-order conditions, no SDP
+
+
+def axxb_data(pairs: int, seed: int, noise: NoiseModel) -> dict:
+    from handeye.problems.axxb import PROBLEM as AXXB
+
+    return AXXB.simulate(pairs=pairs, seed=seed, noise=noise,
+                         **AXXB.random_unknowns(np.random.default_rng(2000 + seed)))[0]
+
+
+@pytest.mark.parametrize("problem", ["axyb", "axxb"])
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_local_certificate_gives_the_sdp_answer_without_solving_it(problem, seed, monkeypatch):
+    data = (simulate(16, seed=seed, noise=HEAVY)[0] if problem == "axyb"
+            else axxb_data(16, seed, NoiseModel.on(("A", "B"), 0.02, 2.0)))
+    ref = handeye.solve(problem, solver="so3-sdp", **SDP, **data)
+
+    def no_sdp(*args):
+        raise AssertionError("the SDP was solved")
+
+    monkeypatch.setattr(so3_sdp, "_solve_clarabel", no_sdp)
+    fast = handeye.solve(problem, solver="so3-sdp", **data)
+    d = fast.diagnostics
+    assert fast.status is Status.OPTIMAL and d["certified"] and d["certificate_path"] == "local"
+    assert d["relative_gap"] < so3_sdp.GAP_THRESHOLD and d["lower_bound"] <= d["cost"]
+    assert d["certificate_margin"] > 1e-6 * d["cost_matrix_norm"]  # strictly inside the PSD cone
+    assert d["cost"] == pytest.approx(ref.diagnostics["cost"], rel=1e-9)
+    for name in ref.unknowns:
+        assert rotation_angle(fast.unknowns[name][:3, :3].T @ ref.unknowns[name][:3, :3]) < 1e-8
+        np.testing.assert_allclose(fast.unknowns[name][:3, 3], ref.unknowns[name][:3, 3], rtol=0,
+                                   atol=1e-8 * np.abs(ref.unknowns[name][:3, 3]).max())
+
+
+def test_local_certificate_is_a_bound_and_falls_back_to_the_sdp():
+    """On unrelated A, B (an arbitrary cost landscape) the local minimum is often not certified:
+    the SDP then decides, and says what the local attempt found. Where the local answer is
+    certified, no answer of the SDP costs less (the bound is valid)."""
+    paths = []
+    for seed in range(40):
+        data = unrelated_poses(seed)
+        fast = handeye.solve("axyb", solver="so3-sdp", **data)
+        ref = handeye.solve("axyb", solver="so3-sdp", **SDP, **data)
+        d = fast.diagnostics
+        paths.append(d["certificate_path"])
+        if d["certificate_path"] == "local":
+            assert d["cost"] <= ref.diagnostics["cost"] * (1 + so3_sdp.GAP_THRESHOLD)
+        else:
+            assert not d["local_certificate"]["relative_gap"] < so3_sdp.GAP_THRESHOLD
+            assert fast.status is ref.status and d["cost"] == pytest.approx(ref.diagnostics["cost"], rel=1e-9)
+    assert 5 <= paths.count("local") <= 35  # both paths were taken
