@@ -72,8 +72,10 @@ def consecutive_logs(T: np.ndarray, moving: bool = True) -> np.ndarray:
         if kept is not None and kept[0]() is T:
             return kept[1]
     R = T[:, :3, :3]
-    Rt = np.swapaxes(R[:-1], 1, 2)
-    phi = log(Rt @ R[1:] if moving else R[1:] @ Rt)
+    if moving:
+        phi = log(np.swapaxes(R[:-1], 1, 2) @ R[1:])
+    else:  # R_k+1 R_k^T = R_k (R_k^T R_k+1) R_k^T: the moving frame's rotation vector, turned by R_k
+        phi = np.einsum("nij,nj->ni", R[:-1], consecutive_logs(T, moving=True))
     if not T.flags.writeable:
         phi.setflags(write=False)
         _LOGS.pop(key, None)

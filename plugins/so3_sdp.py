@@ -333,13 +333,15 @@ def _local(cost: RotationCost, norm: float) -> tuple[list[np.ndarray], dict[str,
     """The local minimum of the QCQP and its certificate from the first-order conditions
     (`handeye.so3_relaxation.local_minimum`, `local_certificate`): (rotations, diagnostics with
     "certified"). A local solve that fails numerically is reported as not certified."""
+    root = np.sqrt(norm)  # the cost divided by |M| (as the SDP's): entries of M may pass 1e154
     try:
-        Rs, steps = local_minimum(cost)
+        Rs, steps = local_minimum(dataclasses.replace(cost, S=cost.S / root, s=cost.s / root))
     except (np.linalg.LinAlgError, InputError):  # the SDP decides
         return [], {"certified": False, "relative_gap": float("nan"), "dual_slack_min_eigenvalue": float("nan"),
                     "cost": float("nan")}
     y = np.append(rotations_vector(*Rs), 1.0)
-    cert = local_certificate(cost.matrix, y)
+    cert = local_certificate(cost.matrix / norm, y)
+    cert = {key: value * norm for key, value in cert.items()}  # each scales with M
     # Z = y y^T: rank one by construction, so only the gap decides
     return Rs, {"certificate_path": "local", **_certificate_figures(cert, 0.0, cost.rest, norm),
                 "polish_steps": steps, "cost_matrix_norm": norm, "redundant_constraints": False}

@@ -91,6 +91,14 @@ class AXYBData(PosePairs):
         sigma = np.linalg.svd(self.rotation_sum, compute_uv=False)
         return float(max(0.0, 1.0 - sigma[1] / self.m))
 
+    @functools.cached_property
+    def consecutive_motions(self) -> tuple[np.ndarray, ...]:
+        """`axyb_geometry.consecutive_motions` of the stations, computed once (the self-check's
+        noise estimate and its naming of directions both use them)."""
+        from handeye.problems import axyb_geometry
+
+        return axyb_geometry.consecutive_motions(self.A, self.B)
+
     def normal_equations(self, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
         """Eq. 8's normal equations (`normal_equations`)."""
         return normal_equations(self, scale)

@@ -171,7 +171,7 @@ def expected_rotation_residual(data: AXYBData) -> float | None:
 
     if data.m < 4:
         return None
-    phi_A, _, t_A, phi_B, t_B, angle_A = consecutive_motions(data.A, data.B)
+    phi_A, _, t_A, phi_B, t_B, angle_A = data.consecutive_motions
     sigma = angle_noise(angle_A, np.linalg.norm(phi_B, axis=1))
     return expected_from_invariants(sigma, pitch_noise(phi_A, t_A, phi_B, t_B), data.translation_scale, 1.0)
 
@@ -179,12 +179,12 @@ def expected_rotation_residual(data: AXYBData) -> float | None:
 def rotation_axes(data: AXYBData) -> dict[str, np.ndarray]:
     """The robot's main rotation axis in X's frame (the flange: motions A_k^-1 A_k+1) and in Y's
     (the base: A_k+1 A_k^-1)."""
-    from handeye.self_check import main_axis
+    from handeye.self_check import main_axes
 
     if data.m < 2:
         return {}
-    phi_right, phi_left, *_ = consecutive_motions(data.A, data.B)
-    axes = {"X": main_axis(phi_right), "Y": main_axis(phi_left)}
+    phi_right, phi_left, *_ = data.consecutive_motions
+    axes = dict(zip(("X", "Y"), main_axes(phi_right, phi_left)))
     return {k: v for k, v in axes.items() if v is not None}
 
 

@@ -319,7 +319,7 @@ def test_first_sdp_solve_reports_its_compilation(capsys, monkeypatch, solver):
     that the time includes the one-time set-up); the next solve of the same problem does not."""
     from handeye.plugins import lmi_sdp, so3_sdp
 
-    cvxpy = ("--solver", solver, "--backend", "cvxpy")
+    cvxpy = ("--solver", solver, "--backend", "cvxpy") + (("--option", "local_first=false") if solver == "so3-sdp" else ())
     monkeypatch.setattr(so3_sdp.CVXPY_CACHE, "problems", {})  # as in a fresh process
     monkeypatch.setattr(lmi_sdp.CVXPY_CACHE, "problems", {})
     code, out, _ = run_cli(capsys, "solve", "--example", *cvxpy, "--json")
