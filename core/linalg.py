@@ -37,9 +37,13 @@ def frobenius_norm(M: np.ndarray) -> float:
 
 
 def median(x: np.ndarray) -> float:
-    """The median of a 1-D array (the mean of the two middle values for an even length), as
-    np.median, by one sort: ~1 us against np.median's ~10 us for the few values a self-check
-    takes it of, and no slower up to ~10^5 values. NaN for an empty array."""
-    s = np.sort(np.asarray(x, dtype=float).ravel())
-    n = len(s)
-    return float(0.5 * (s[(n - 1) // 2] + s[n // 2])) if n else float("nan")
+    """The median of an array's values (the mean of the two middle values for an even count), as
+    np.median: by one sort for up to 1000 values (~1 us against np.median's ~10 us for the few a
+    self-check takes it of), by a partial sort (O(n)) beyond. NaN for an empty array."""
+    x = np.asarray(x, dtype=float).ravel()
+    n = len(x)
+    if n == 0:
+        return float("nan")
+    middle = [(n - 1) // 2, n // 2]
+    s = np.sort(x) if n <= 1000 else np.partition(x, middle)
+    return float(0.5 * (s[middle[0]] + s[middle[1]]))

@@ -391,14 +391,19 @@ def test_dask_executor_on_a_local_cluster(serial_result, tmp_path, capsys):
     distributed = pytest.importorskip("distributed")
     from handeye.cli import main
 
+    study = ["compare", "--solvers", "kron-lstsq,auto,so3-sdp", "--noise-levels", "0,0.01", "--pairs", "8",
+             "--trials", "2", "--no-progress", "-o", str(tmp_path)]
+    assert main([*study, "--name", "local", "--jobs", "2"]) == 0
     # in-process workers (threads): fast to start; the scheduler is reached by its address, as
     # `handeye compare --executor dask --scheduler ADDRESS` does with a remote cluster
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
                                   dashboard_address=None) as cluster:
         result = run_study(tiny_study(), progress=False, executor="dask", scheduler=cluster.scheduler_address)
-        code = main(["compare", "--solvers", "kron-lstsq", "--noise-levels", "0,0.01", "--pairs", "8",
-                     "--trials", "2", "--no-progress", "--name", "dask", "-o", str(tmp_path),
-                     "--executor", "dask", "--scheduler", cluster.scheduler_address])
+        code = main([*study, "--name", "dask", "--executor", "dask", "--scheduler", cluster.scheduler_address])
+    # the same CSV, row for row and to the last digit, but for the measured times
+    local, dask = read_csv(tmp_path / "local.csv"), read_csv(tmp_path / "dask.csv")
+    assert len(local) == len(dask) == 12
+    assert [{**r, "seconds": None, "study": None} for r in local] == [{**r, "seconds": None, "study": None} for r in dask]
     assert result.executor == "dask"
     assert len(result.records) == len(serial_result.records)
     for a, b in zip(serial_result.records, result.records):
@@ -406,7 +411,6 @@ def test_dask_executor_on_a_local_cluster(serial_result, tmp_path, capsys):
         assert all(a[c] == b[c] for c in ERROR_COLUMNS + RESIDUAL_COLUMNS)
     out = capsys.readouterr().out
     assert code == 0 and "[dask]" in out, out
-    assert len(read_csv(tmp_path / "dask.csv")) == 4
 
 
 def test_dask_executor_without_dask_says_how_to_install(monkeypatch):
@@ -529,3 +533,15 @@ def test_compare_axxb_default_sweeps_and_flags(tmp_path, capsys):
     assert main(["compare", "--paper", str(tmp_path / "p"), "--problem", "axxb"]) == 2
     assert main(["compare", "--pairing", "all", "-o", str(tmp_path / "q")]) == 2  # axyb has no pairing
     assert "the paper's study of problem 'axyb'" in capsys.readouterr().err
+
+
+def test_progress_bar_shows_rate_and_time_left(capsys):
+    """The bar on stderr counts the simulated data sets, with their rate and the time left."""
+    import re
+
+    result = run_study(tiny_study(), jobs=1, progress=True)
+    err = capsys.readouterr().err
+    final = err.replace("\r", "\n").strip().splitlines()[-1]
+    units = len(result.records) // len({r["label"] for r in result.records})
+    assert f"{units}/{units}" in final, final
+    assert re.search(r"\[\d\d:\d\d<\d\d:\d\d, +[\d.]+(trial/s|s/trial)\]", final), final
