@@ -61,7 +61,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--trials", type=int, default=20)
     args = parser.parse_args()
-    print(f"{"data":<40} {'sets':>4} {'local':>6} {'sdp':>6} {'sdp ok':>6} {'max rot':>9} {'max tr':>9}"
+    print(f"{'data':<40} {'sets':>4} {'local':>6} {'sdp':>6} {'sdp ok':>6} {'max rot':>9} {'max tr':>9}"
           f" {'diff':>5} {'ms fast':>8} {'ms sdp':>8}")
     print("(local: certified without the SDP; sdp: fell back to it; sdp ok: the SDP's own answer certified; "
           "max rot / max tr: largest difference of the two answers, rad / relative; diff: statuses that differ)")
