@@ -20,13 +20,17 @@ Everything that does not depend on C (A as a CSC matrix, q, the cone, the svec i
 once (`DualSDP.build`); a solve forms svec C and one `clarabel.DefaultSolver`. A `DualSDP` is
 immutable and a solve creates its own solver and settings, so one instance may serve several
 threads at once.
+
+`solve_conic` is the one place that creates and runs a `clarabel.DefaultSolver` (settings, the
+fallback for an installed Clarabel without "faer", errors as SolverError); `DualSDP` and the
+native backend of `lmi-sdp` (handeye.plugins.lmi_sdp_clarabel) both use it.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -102,29 +106,9 @@ class DualSDP:
 
     def solve(self, C: np.ndarray, settings: Mapping[str, Any], who: str) -> DualSDPSolution:
         """Solve for C: (n, n) symmetric, with Clarabel `settings` (attribute -> value; verbose off
-        unless given). A setting "direct_solve_method" that the installed Clarabel rejects (< 0.10:
-        no "faer") is dropped for this call. SolverError (naming `who`) when Clarabel fails or
-        ends without a usable solution (`STATUSES`)."""
-        import clarabel
-
-        settings = {"verbose": False, **settings}
-
-        def solver(settings: dict[str, Any]) -> Any:
-            s = clarabel.DefaultSettings()
-            for name, value in settings.items():
-                setattr(s, name, value)
-            return clarabel.DefaultSolver(self.P, self.q, self.A, svec(C), list(self.cones), s)
-
-        try:
-            try:
-                instance = solver(settings)
-            except Exception as exc:
-                if "direct_solve_method" not in str(exc) or settings.pop("direct_solve_method", None) is None:
-                    raise
-                instance = solver(settings)
-            solution = instance.solve()
-        except Exception as exc:
-            raise SolverError(f"{who}: Clarabel failed on the SDP: {exc}") from exc
+        unless given; see `solve_conic`). SolverError (naming `who`) when Clarabel fails or ends
+        without a usable solution (`STATUSES`)."""
+        solution = solve_conic(self.P, self.q, self.A, svec(C), self.cones, settings, who)
         status = STATUSES.get(str(solution.status))
         if status is None:
             raise SolverError(f"{who}: Clarabel returned status {str(solution.status)!r} for the SDP "
@@ -134,3 +118,32 @@ class DualSDP:
         return DualSDPSolution(Z=unsvec(np.array(solution.z, dtype=float), self.n), nu=nu, status=status,
                                objective=float(-self.q @ nu), iterations=int(solution.iterations),
                                solve_seconds=float(solution.solve_time))
+
+
+def solve_conic(P: Any, q: np.ndarray, A: Any, b: np.ndarray, cones: Sequence[Any],
+                settings: Mapping[str, Any], who: str) -> Any:
+    """Clarabel's min 1/2 x^T P x + q^T x s.t. A x + s = b, s in `cones` (P, A: scipy.sparse CSC;
+    q: (n,); b: (m,)) with `settings` (attribute -> value; verbose off unless given): Clarabel's
+    solution object, whatever its status (the caller maps it). A setting "direct_solve_method"
+    that the installed Clarabel rejects (< 0.10: no "faer") is dropped for this call. SolverError
+    naming `who` when Clarabel raises (bad data, unknown setting)."""
+    import clarabel
+
+    settings = {"verbose": False, **settings}
+
+    def solver(settings: dict[str, Any]) -> Any:
+        s = clarabel.DefaultSettings()
+        for name, value in settings.items():
+            setattr(s, name, value)
+        return clarabel.DefaultSolver(P, q, A, b, list(cones), s)
+
+    try:
+        try:
+            instance = solver(settings)
+        except Exception as exc:
+            if "direct_solve_method" not in str(exc) or settings.pop("direct_solve_method", None) is None:
+                raise
+            instance = solver(settings)
+        return instance.solve()
+    except Exception as exc:
+        raise SolverError(f"{who}: Clarabel failed on the SDP: {exc}") from exc

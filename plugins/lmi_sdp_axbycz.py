@@ -45,7 +45,10 @@ paper's way: t_X, t_Y of tau and t_Z = Q^T y / |y|^2; tau is determined from 14 
 Defaults that differ from ``axyb`` (`AXBYCZOptions`): ``normalize=True``
 (in the data's units, mm, the translation rows weigh ~1e6 times the rotation rows and the normal
 equations then give the rotations of exact data to ~1e-7 rad only, against ~1e-13 normalised) and
-``translations="resolve"`` (tau is not determined below 14 triples). Backend ``casadi``: the
+``translations="resolve"`` (tau is not determined below 14 triples). Backend ``clarabel``
+(default): both SDPs in Clarabel's own API, constant data built once
+(`handeye.plugins.lmi_sdp_clarabel`: `solve_axbycz` for point 2, `solve_eq14` with n = 132 for
+``scale="translations"``); ``cvxpy`` and ``picos`` as for ``axyb``. Backend ``casadi``: the
 lifted cost under exact SO(3) (`handeye.plugins.lmi_sdp_axbycz_casadi`).
 """
 
@@ -78,6 +81,8 @@ from handeye.plugins.lmi_sdp import (
     _status,
     solve_lmi,
 )
+from handeye.plugins.lmi_sdp_clarabel import SOLVER as CLARABEL
+from handeye.plugins.lmi_sdp_clarabel import solve_axbycz
 from handeye.problems import axbycz_kronecker as lifted
 from handeye.problems.axbycz import AXBYCZData
 from handeye.se3 import make_pose
@@ -102,7 +107,7 @@ SCALES = ("norm", "translations")
 @dataclasses.dataclass(frozen=True)
 class AXBYCZOptions(AXXBOptions):
     """Options of `lmi-sdp` for ``axbycz``: those of `handeye.plugins.lmi_sdp.AXXBOptions`
-    (``polish``: backends cvxpy and picos with scale "norm") and scale: "norm" (|r|^2 = 12, from
+    (``polish``: the SDP backends with scale "norm") and scale: "norm" (|r|^2 = 12, from
     10 triples) or "translations" (the paper's eq. 14 as it is, from 15 triples). Two defaults
     differ from ``axyb``'s: normalize=True and translations="resolve" (module docstring)."""
 
@@ -216,14 +221,19 @@ def _solve_picos(d: np.ndarray, p: np.ndarray) -> SDPResult:
 
 def solve_sdp(cost: lifted.LiftedCost, backend: str, cvxpy_solver: str | None = None
               ) -> tuple[list[np.ndarray], SDPResult, float, bool]:
-    """The SDP of point 2 for `cost` on backend "cvxpy" or "picos": (candidates for r (point 3),
-    raw result, the scale the cost was divided by, rank two)."""
+    """The SDP of point 2 for `cost` on backend "clarabel", "cvxpy" or "picos": (candidates for r
+    (point 3), raw result, the scale the cost was divided by, rank two)."""
     d, V = np.linalg.eigh(cost.P)
     pt = V.T @ cost.p
     norm = max(float(np.max(np.abs(d))), float(np.linalg.norm(pt)) / np.sqrt(lifted.SPHERE))
     if not np.isfinite(norm) or norm == 0.0:
         raise SolverError("lmi-sdp: the cost matrix of the lifted system is zero or not finite")
-    if backend == "cvxpy":
+    if backend == "clarabel":
+        native = solve_axbycz(d / norm, pt / norm, lifted.SPHERE, WHAT)
+        w, rho = native.x[:N_R], native.x[N_R:]
+        result = SDPResult(w, rho, float(d @ w - 2 * pt @ rho) / norm, native.status, native.solver_status,
+                           CLARABEL, native.iterations)
+    elif backend == "cvxpy":
         result = _solve_cvxpy(d / norm, pt / norm, resolve_cvxpy_solver(cvxpy_solver))
     elif backend == "picos":
         result = _solve_picos(d / norm, pt / norm)

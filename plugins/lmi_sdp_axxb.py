@@ -38,9 +38,10 @@ is therefore kept and the scale fixed as `kron-lstsq` fixes it, |r|^2 = 3 (r = v
    default), t_X = t(r) of r (``translations="beta"``, the paper's: the translation part of the
    optimal beta) or re-solved given R_X (``"resolve"``).
 
-Backends: ``cvxpy`` (the SDP built once per cvxpy solver with M a Parameter, DPP, cached here),
-``picos`` (CVXOPT, built per call); ``casadi`` is `lmi_sdp_casadi.solve_casadi_axxb` (exact
-SO(3), IPOPT; ``polish`` does not apply). Options: those of `lmi-sdp`
+Backends: ``clarabel`` (default; the SDP in Clarabel's own API, its constant data built once:
+`handeye.plugins.lmi_sdp_clarabel.solve_axxb`), ``cvxpy`` (the SDP built once per cvxpy solver
+with M a Parameter, DPP, cached here), ``picos`` (CVXOPT, built per call); ``casadi`` is
+`lmi_sdp_casadi.solve_casadi_axxb` (exact SO(3), IPOPT; ``polish`` does not apply). Options: those of `lmi-sdp`
 (`handeye.plugins.lmi_sdp.Options`) plus ``polish`` (`handeye.plugins.lmi_sdp.AXXBOptions`).
 """
 
@@ -70,6 +71,8 @@ from handeye.plugins.lmi_sdp import (
     AXXBOptions,
     _status,
 )
+from handeye.plugins.lmi_sdp_clarabel import SOLVER as CLARABEL
+from handeye.plugins.lmi_sdp_clarabel import solve_axxb
 from handeye.problems.axxb import AXXBData, solve_translation
 from handeye.rotation_cost import RotationCost, signed_rotations
 from handeye.se3 import make_pose
@@ -195,14 +198,17 @@ def _solve_picos(M: np.ndarray) -> SDPResult:
 
 
 def solve_sdp(cost: RotationCost, backend: str, cvxpy_solver: str | None = None) -> tuple[np.ndarray, SDPResult, float]:
-    """The SDP for `cost` (one rotation) on backend "cvxpy" or "picos": (Z (10, 10), raw result,
-    |M|_F, the scale M was divided by for the solver)."""
+    """The SDP for `cost` (one rotation) on backend "clarabel", "cvxpy" or "picos": (Z (10, 10), raw
+    result, |M|_F, the scale M was divided by for the solver)."""
     M = cost.matrix
     norm = frobenius_norm(M)
     if not np.isfinite(norm) or norm == 0.0:
         raise SolverError("lmi-sdp: the cost matrix built from the motions is zero or not finite")
     if backend == "cvxpy":
         result = _solve_cvxpy(M / norm, resolve_cvxpy_solver(cvxpy_solver))
+    elif backend == "clarabel":
+        Z, value, native = solve_axxb(0.5 * (M + M.T) / norm, WHAT)
+        result = SDPResult(Z, value, native.status, native.solver_status, CLARABEL, native.iterations)
     elif backend == "picos":
         result = _solve_picos(M / norm)
     else:
