@@ -75,6 +75,10 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
         able = [n for n in registry.solver_names(problem) if registry.solver(n, problem).planar_mode]
         raise InputError(f"solver {solver!r} has no planar (4-DOF) mode for data whose robot rotates about one "
                          f"axis; use one of {', '.join(able) or '(none registered)'}")
+    if getattr(data, "camera_scale_unknown", False) and not spec.camera_scale_mode:
+        able = [n for n in registry.solver_names(problem) if registry.solver(n, problem).camera_scale_mode]
+        raise InputError(f"solver {solver!r} takes the camera's translations as metric; for camera_scale='unknown' "
+                         f"use one of {', '.join(able) or '(none registered)'}")
     options = parse_options(spec.options, {k: v for k, v in data_and_options.items() if k not in given}, solver)
 
     start = time.perf_counter()

@@ -215,8 +215,9 @@ class PosePairs:
         return translation_rms(self.A, self.B)
 
     def scaled(self, s: float):
-        """The same data (same class) with every translation divided by s."""
-        return type(self)(*scaled_stacks((self.A, self.B), s))
+        """The same data (same class, the same facts) with every translation divided by s."""
+        A, B = scaled_stacks((self.A, self.B), s)
+        return dataclasses.replace(self, A=A, B=B)
 
     @functools.cached_property
     def rotation_sum(self) -> np.ndarray:

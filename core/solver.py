@@ -48,6 +48,9 @@ class SolverSpec:
     planar_mode: True when the solver honours the planar (4-DOF) mode: data whose robot rotates
         about one axis, with the translation that leaves undetermined given by the user (the
         validated data's ``planar``); the host refuses such data for the other solvers.
+    camera_scale_mode: True when the solver honours data whose camera translations are known
+        only up to scale (``camera_scale="unknown"``, `handeye.camera_scale`); the host refuses
+        such data for the other solvers.
     """
 
     name: str
@@ -62,6 +65,7 @@ class SolverSpec:
     exact: bool = True
     check: Callable[[str], str | None] | None = None
     planar_mode: bool = False
+    camera_scale_mode: bool = False
     simulate_options: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:

@@ -289,6 +289,9 @@ def _diagnostics(pipeline: list[str], start: str, init_status: Status, init_diag
         "starts": starts,
         "refine": {k: v for k, v in diag.items() if k != "warnings"},
     }
+    for key in ("camera_scale", "camera_scale_std"):  # the camera's scale, when unknown (handeye.camera_scale)
+        if key in diag:
+            diagnostics[key] = diag[key]
     warnings = warnings + diag.get("warnings", [])
     if warnings:
         diagnostics["warnings"] = warnings
@@ -331,7 +334,7 @@ def _run_on_stations(data: Any, options: Options, backend: str) -> SolverOutput:
         stations = AXYBData(A_abs, B_abs, planar=data.planar)  # exact products of validated motions
         start, poses, init_status, init_diag, warnings = None, None, None, {}, []
     else:
-        stations = AXYB.validate(A=A_abs, B=B_abs)
+        stations = AXYB.validate(A=A_abs, B=B_abs, camera_scale="unknown" if data.camera_scale_unknown else "known")
         start, poses, init_status, init_diag, warnings = _refine.start(data, None)
     if start is not None and _certified(init_status, init_diag):
         ropts = options.refine_options("axyb")
@@ -361,6 +364,7 @@ SPECS = (
         citation="Pan et al., IEEE T-ASE 2022 (eq. 8); see docs/solvers/auto.md",
         unit_invariant=True,
         planar_mode=True,
+        camera_scale_mode=True,
     ),
     SolverSpec(
         name="auto",
@@ -371,6 +375,7 @@ SPECS = (
         citation="Pan et al., IEEE T-ASE 2022 (eq. 8); see docs/solvers/auto.md",
         unit_invariant=True,
         planar_mode=True,
+        camera_scale_mode=True,
     ),
     SolverSpec(
         name="auto",

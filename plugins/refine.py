@@ -52,7 +52,7 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
-from handeye import SolverOutput, SolverSpec, Status, hookimpl, nlls
+from handeye import SolverOutput, SolverSpec, Status, camera_scale, hookimpl, nlls
 from handeye.errors import BackendUnavailableError, InputError, SolverError
 from handeye.options import check_choice, check_positive
 from handeye.problems.axbycz import AXBYCZData
@@ -244,8 +244,9 @@ def problem_of(data: Any) -> str:
 
 
 def model_of(data: Any) -> nlls.PoseModel:
-    """The engine's model of the problem on these validated data."""
-    return _served(data)[1](data)
+    """The engine's model of the problem on these validated data (the camera's scale profiled out
+    when the data say it is unknown, `handeye.camera_scale`)."""
+    return camera_scale.model_for(data, _served(data)[1](data))
 
 
 def _available(name: str, problem: str, planar: bool = False) -> bool:
@@ -326,6 +327,9 @@ def run_init(name: str, data: Any) -> tuple[tuple[np.ndarray, ...], Status, dict
     if is_planar(data) and not spec.planar_mode:
         raise InputError(f"init solver {name!r} has no planar (4-DOF) mode for data whose robot rotates about one "
                          f"axis; use init='{default_init(problem, planar=True)}'")
+    if getattr(data, "camera_scale_unknown", False) and not spec.camera_scale_mode:
+        raise InputError(f"init solver {name!r} takes the camera's translations as metric; for "
+                         "camera_scale='unknown' use init='so3-sdp'")
     reason = spec.unavailable_reason(spec.default_backend)
     if reason:
         raise BackendUnavailableError(f"init solver {name!r} is unavailable: {reason}")
@@ -345,8 +349,20 @@ def settings_of(options: _Options, m: int) -> nlls.Settings:
 
 def refine(data: Any, poses0: tuple[np.ndarray, ...], options: _Options) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """Refine the poses poses0 (in the problem's order of unknowns) on validated `data` with
-    `options` (the init options are not used here): (poses, status, diagnostics)."""
-    return nlls.refine(model_of(data), poses0, settings_of(options, data.m))
+    `options` (the init options are not used here): (poses, status, diagnostics); with the
+    camera's scale unknown also that scale and its standard deviation (`handeye.camera_scale`)."""
+    model = model_of(data)
+    settings = settings_of(options, data.m)
+    if isinstance(model, camera_scale.ScaledCameraModel) and settings.W is not None and settings.W.L is not None:
+        raise InputError("with camera_scale='unknown' give the noise as sigma_rot/sigma_trans (or let it be estimated), "
+                         "not as a covariance: the camera's scale is fitted under one sigma per residual group")
+    poses, status, diagnostics = nlls.refine(model, poses0, settings)
+    if isinstance(model, camera_scale.ScaledCameraModel):
+        W = settings.W
+        sigma_rot, sigma_trans = (diagnostics["sigma_rot"], diagnostics["sigma_trans"]) if W is None else (W.sigma_rot, W.sigma_trans)
+        factor = diagnostics["variance_factor"] if settings.weights == "estimated" else 1.0
+        diagnostics.update(camera_scale.scale_figures(model, poses, sigma_rot, sigma_trans, factor))
+    return poses, status, diagnostics
 
 
 def run(data: Any, options: _Options, backend: str) -> SolverOutput:
@@ -390,6 +406,7 @@ SPECS = (
         unit_invariant=True,
         exact=True,
         planar_mode=True,
+        camera_scale_mode=True,
     ),
     SolverSpec(
         name="refine",
@@ -401,6 +418,7 @@ SPECS = (
         unit_invariant=True,
         exact=True,
         planar_mode=True,
+        camera_scale_mode=True,
     ),
     SolverSpec(
         name="refine",

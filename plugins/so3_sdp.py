@@ -52,7 +52,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye import SolverOutput, SolverSpec, Status, camera_scale, hookimpl
 from handeye.errors import DegenerateDataError, InputError, SolverError, shown
 from handeye.linalg import frobenius_norm
 from handeye.plugins._clarabel_sdp import DualSDP
@@ -63,7 +63,9 @@ from handeye.plugins._cvxpy_solvers import (
     resolve_cvxpy_solver,
 )
 from handeye.problems.axxb import AXXBData
+from handeye.problems.axxb_geometry import AXXBModel
 from handeye.problems.axyb import AXYBData
+from handeye.problems.axyb_geometry import AXYBModel
 from handeye.rotation_cost import RotationCost, eliminate_translations, rotations_vector
 from handeye.se3 import make_pose, rotation_angle
 from handeye.so3_relaxation import (
@@ -367,6 +369,8 @@ def _certificate_figures(cert: Mapping[str, float], ratio: float, rest: float, n
 
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     """``axyb``: eq. 8 over SO(3) x SO(3) (module docstring)."""
+    if data.camera_scale_unknown:
+        return _unknown_scale(data, options, backend, run, AXYBModel)
     scale = data.translation_scale if options.normalize else 1.0
     try:
         cost = eliminate_translations(data.kronecker(scale))
@@ -382,11 +386,28 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
 
 def run_axxb(data: AXXBData, options: Options, backend: str) -> SolverOutput:
     """``axxb``: the Kronecker cost of A_i X = X B_i over SO(3) (module docstring)."""
+    if data.camera_scale_unknown:
+        return _unknown_scale(data, options, backend, run_axxb, AXXBModel)
     scale = data.translation_scale if options.normalize else 1.0
     cost = RotationCost.from_normal_equations(*data.normal_equations(scale), rotations=1)
     (RX,), (tX,), status, diagnostics = solve_relaxation(cost, options, backend)
     return SolverOutput(unknowns={"X": make_pose(RX, tX * scale)}, status=status,
                         diagnostics={**diagnostics, "translation_scale": scale})
+
+
+def _unknown_scale(data: Any, options: Options, backend: str, solve: Any, model: type) -> SolverOutput:
+    """Camera translations known only up to scale (`handeye.camera_scale`): the rotations
+    certified on the rotation rows alone (the data with every translation zero), then the
+    translations and the camera's scale by linear least squares given them."""
+    rotations = solve(camera_scale.rotation_only(data), options, backend)
+    poses, s = camera_scale.translations_and_scale(model(data), tuple(rotations.unknowns.values()))
+    if not s > 0.0:
+        raise DegenerateDataError(f"the camera's scale fitted to these poses is {s:.3g}, not positive: the camera's "
+                                  "translations do not match the robot's motion (check the pairing and the setup)")
+    return SolverOutput(unknowns=dict(zip(rotations.unknowns, poses)), status=rotations.status,
+                        diagnostics={**rotations.diagnostics, "camera_scale": s,
+                                     "formulation": "rotations from the rotation rows alone (the camera's scale unknown), "
+                                                    "then translations and scale by linear least squares"})
 
 
 SPEC = SolverSpec(
@@ -400,6 +421,7 @@ SPEC = SolverSpec(
     citation="Pan et al., IEEE T-ASE 2022, eq. 8; relaxation and certificate as in Briales & "
              "Gonzalez-Jimenez, CVPR 2017, and Rosen et al., IJRR 2019",
     unit_invariant=lambda options: options.normalize,  # "Units" in docs/solvers/so3-sdp.md
+    camera_scale_mode=True,
 )
 
 #: The same solver for ``axxb`` (one rotation): same backends, options and certificate.

@@ -28,7 +28,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from handeye import hookimpl, so3_fast
+from handeye import camera_scale, hookimpl, so3_fast
 from handeye.errors import DegenerateDataError, InputError
 from handeye.kronecker import PosePairs
 from handeye.noise import NoiseModel
@@ -73,6 +73,8 @@ class AXXBData(PosePairs):
     """
 
     planar: planar_mode.Planar | None = None
+    #: the camera's translations are known only up to scale (`handeye.camera_scale`)
+    camera_scale_unknown: bool = False
 
     def scaled(self, s: float) -> AXXBData:
         """The same data with every translation divided by s (the planar value too)."""
@@ -287,16 +289,23 @@ class AXXB(Problem):
                                    cell_truth={"eye-in-hand": {"X": "X"}, "eye-to-hand": {"X": "Y"}})
 
     #: a planar robot's translation of X along its rotation axis (`AXXBData.planar`)
-    optional_fields = ("tz_X",)
+    optional_fields = ("tz_X", "camera_scale")
 
     def validate(self, **data: Any) -> AXXBData:
         """The validated motions; ``tz_X`` (data units) for motions that all rotate about one axis
-        (`handeye.problems.planar`: required then, refused otherwise)."""
-        facts = planar_mode.take_facts(data, self.optional_fields)
+        (`handeye.problems.planar`: required then, refused otherwise); ``camera_scale="unknown"``
+        for camera translations known only up to scale (`handeye.camera_scale`)."""
+        facts = planar_mode.take_facts(data, ("tz_X",))
+        unknown_scale = camera_scale.take(data)
         out = AXXBData.validated(self.name, data, self.min_pairs)
         planar = planar_mode.for_axxb(out.A, out.rotation_vectors[0], out.translation_scale, facts)
+        if planar is not None and unknown_scale:
+            raise InputError("camera_scale='unknown' is not supported for motions that rotate about one axis: "
+                             "record motions that rotate about at least two axes, or give the camera's scale")
         if planar is not None:
             return dataclasses.replace(out, planar=planar)
+        if unknown_scale:
+            out = dataclasses.replace(out, camera_scale_unknown=True)
         moving = int(np.sum(out.angles[0] > MIN_MOTION_ANGLE))
         if moving < 2 or out.axis_spread < DEGENERATE_AXIS_SPREAD:
             raise DegenerateDataError(

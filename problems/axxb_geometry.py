@@ -29,7 +29,7 @@ approximate (docs/solvers/refine.md measures both).
 from __future__ import annotations
 
 import numpy as np
-from handeye import so3_fast
+from handeye import camera_scale, so3_fast
 from handeye.nlls import Poses
 from handeye.problems.axxb import AXXBData
 from handeye.problems.axyb_geometry import AXYBModel
@@ -69,6 +69,11 @@ class AXXBModel(AXYBModel):
         J[:, 3:, 3:6] = RAX - RX
         return J
 
+    def camera_direction(self, poses: Poses) -> np.ndarray:
+        """d e / d s for camera translations s t_B: (m, 6) = [0; -R_X t_B]."""
+        X, = poses
+        return super().camera_direction((X, X))
+
     def normal_equations(self, poses: Poses, e: np.ndarray, wr: float, wt: float,
                          d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """A X = Y B's closed-form sums at (X, X), folded onto X (module docstring)."""
@@ -86,7 +91,7 @@ def expected_rotation_residual(data: AXXBData) -> float | None:
     from handeye.self_check import angle_noise, expected_from_invariants, pitch_noise
 
     phi_A, phi_B = data.rotation_vectors
-    pitch = pitch_noise(phi_A, data.A[:, :3, 3], phi_B, data.B[:, :3, 3])
+    pitch = None if data.camera_scale_unknown else pitch_noise(phi_A, data.A[:, :3, 3], phi_B, data.B[:, :3, 3])
     return expected_from_invariants(angle_noise(*data.angles), pitch, data.translation_scale, 2.0)
 
 
@@ -109,5 +114,6 @@ def check_model(data: AXXBData, unknowns: dict[str, np.ndarray]) -> tuple[AXYBMo
     X = np.asarray(unknowns["X"], dtype=float)
     if data.stations is not None:
         A, B = data.stations
-        return AXYBModel(AXYBData(A, B, planar=data.planar)), (X, fitted_Y(A, B, X)), ("X",)
-    return AXXBModel(data), (X,), ("X",)
+        stations = AXYBData(A, B, planar=data.planar, camera_scale_unknown=data.camera_scale_unknown)
+        return camera_scale.model_for(stations, AXYBModel(stations)), (X, fitted_Y(A, B, X)), ("X",)
+    return camera_scale.model_for(data, AXXBModel(data)), (X,), ("X",)

@@ -22,7 +22,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from handeye import hookimpl
+from handeye import camera_scale, hookimpl
 from handeye.errors import DegenerateDataError, InputError
 from handeye.kinematics import random_flange_poses
 from handeye.kronecker import (
@@ -71,6 +71,8 @@ class AXYBData(PosePairs):
     #: the board's image observations behind B (`handeye.vision.observations.BoardObservations`),
     #: for solvers that fit the images themselves (`reprojection`); None for pose data
     images: Any = None
+    #: the camera's translations are known only up to scale (`handeye.camera_scale`)
+    camera_scale_unknown: bool = False
 
     def scaled(self, s: float) -> AXYBData:
         """The same data with every translation divided by s (the planar value and the board too)."""
@@ -217,7 +219,7 @@ class AXYB(Problem):
     min_pairs = 3
     #: a planar robot's translation along its rotation axis (one of them; `AXYBData.planar`), and
     #: the board's image observations behind B (`AXYBData.images`)
-    optional_fields = ("tz_X", "tz_Y", "images")
+    optional_fields = ("tz_X", "tz_Y", "images", "camera_scale")
     station_reader = StationReader(pairs_from_stations)
 
     def validate(self, **data: Any) -> AXYBData:
@@ -225,14 +227,20 @@ class AXYB(Problem):
         one axis (`handeye.problems.planar`: required then, refused otherwise)."""
         images = data.pop("images", None)
         facts = planar_mode.take_facts(data, ("tz_X", "tz_Y"))
+        unknown_scale = camera_scale.take(data)
         out = AXYBData.validated(self.name, data, self.min_pairs)
         if images is not None:
             from handeye.vision.observations import checked
 
             out = dataclasses.replace(out, images=checked(images, out.m))
         planar = planar_mode.for_axyb(out.A, out.translation_scale, facts)
+        if planar is not None and unknown_scale:
+            raise InputError("camera_scale='unknown' is not supported for a robot that rotates about one axis: "
+                             "record poses that rotate about at least two axes, or give the camera's scale")
         if planar is not None:  # rotations about one axis: the translations fix their gauge
             return dataclasses.replace(out, planar=planar)
+        if unknown_scale:
+            out = dataclasses.replace(out, camera_scale_unknown=True)
         excitation = out.rotation_excitation
         if excitation < DEGENERATE_EXCITATION:
             raise DegenerateDataError(

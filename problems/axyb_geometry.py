@@ -21,8 +21,10 @@ pairs on, the normal equations for per-group sigmas are summed in closed form
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
-from handeye import so3_fast
+from handeye import camera_scale, so3_fast
 from handeye.nlls import PoseModel, Poses
 from handeye.problems.axyb import AXYBData
 
@@ -93,6 +95,19 @@ class AXYBModel(PoseModel):
         J[:, 3:, 6:9] = (Y[:3, :3] @ self.TBx_T).reshape(3, m, 3).transpose(1, 0, 2)
         J[:, 3:, 9:12] = minus_RY
         return J
+
+    def camera_direction(self, poses: Poses) -> np.ndarray:
+        """d e / d s when the camera translations are s t_B (an unknown camera scale,
+        `handeye.camera_scale`): (m, 6) = [0; -R_Y t_B]; e is linear in s, so this is exact."""
+        g = np.zeros((self.m, 6))
+        g[:, 3:] = -self.tB @ poses[1][:3, :3].T
+        return g
+
+    def with_camera_scale(self, s: float) -> AXYBModel:
+        """This model with the camera translations t_B multiplied by s (the rest shared)."""
+        out = copy.copy(self)
+        out.tB, out.TBx_T = s * self.tB, s * self.TBx_T
+        return out
 
     def normal_equations(self, poses: Poses, e: np.ndarray, wr: float, wt: float,
                          d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -173,7 +188,8 @@ def expected_rotation_residual(data: AXYBData) -> float | None:
         return None
     phi_A, _, t_A, phi_B, t_B, angle_A = data.consecutive_motions
     sigma = angle_noise(angle_A, np.linalg.norm(phi_B, axis=1))
-    return expected_from_invariants(sigma, pitch_noise(phi_A, t_A, phi_B, t_B), data.translation_scale, 1.0)
+    pitch = None if data.camera_scale_unknown else pitch_noise(phi_A, t_A, phi_B, t_B)  # B's pitch in its own unit
+    return expected_from_invariants(sigma, pitch, data.translation_scale, 1.0)
 
 
 def rotation_axes(data: AXYBData) -> dict[str, np.ndarray]:
@@ -190,7 +206,8 @@ def rotation_axes(data: AXYBData) -> dict[str, np.ndarray]:
 
 def check_model(data: AXYBData, unknowns: dict[str, np.ndarray]) -> tuple[AXYBModel, tuple[np.ndarray, ...], tuple[str, ...]]:
     """`Problem.check_model` for A_i X = Y B_i: this model at the answer (X, Y)."""
-    return AXYBModel(data), (np.asarray(unknowns["X"], dtype=float), np.asarray(unknowns["Y"], dtype=float)), ("X", "Y")
+    return (camera_scale.model_for(data, AXYBModel(data)),
+            (np.asarray(unknowns["X"], dtype=float), np.asarray(unknowns["Y"], dtype=float)), ("X", "Y"))
 
 
 def fitted_Y(A: np.ndarray, B: np.ndarray, X: np.ndarray) -> np.ndarray:
