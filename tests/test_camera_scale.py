@@ -74,7 +74,7 @@ def test_the_scale_and_its_uncertainty_on_noisy_data(problem):
 
 def test_units():
     """The robot's unit sets the answer's; the camera's unit only the scale."""
-    data, truth = simulate("axyb", seed=2, noise=ACCURACY_NOISE)
+    data, _ = simulate("axyb", seed=2, noise=ACCURACY_NOISE)
     camera = camera_in_own_unit(data)
     base = handeye.solve("axyb", camera_scale="unknown", **camera)
     robot_in_m = {"A": np.array(camera["A"]), "B": camera["B"]}
