@@ -109,3 +109,18 @@ def test_camera_translations_all_zero_leave_the_scale_undetermined():
     B[:, :3, 3] = 0.0
     with pytest.raises(handeye.DegenerateDataError):
         handeye.solve("axyb", solver="so3-sdp", camera_scale="unknown", A=data["A"], B=B)
+
+
+def test_command_line(tmp_path, capsys):
+    """handeye solve --camera-scale unknown: the scale printed, the residuals in the robot's unit;
+    a solver that cannot take it is bad input (exit 2)."""
+    from handeye.cli import main
+    from handeye.io import save_data
+
+    data, _ = simulate("axyb", seed=5)
+    path = save_data(tmp_path / "monocular.json", camera_in_own_unit(data))
+    assert main(["solve", str(path), "--camera-scale", "unknown"]) == 0
+    out = capsys.readouterr().out
+    assert f"camera scale s = {SCALE:.6g}" in out
+    assert main(["solve", str(path), "--camera-scale", "unknown", "--solver", "shah"]) == 2
+    assert "use one of auto, refine, so3-sdp" in capsys.readouterr().err

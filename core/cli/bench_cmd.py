@@ -59,6 +59,7 @@ from ..errors import InputError, UnknownPluginError
 from ..noise import NoiseModel
 from ..registry import get_registry
 from ..se3 import inverse
+from . import _kinhec
 from ._common import add_force_flag, check_new_file
 
 NAME = "bench"
@@ -211,6 +212,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also write every timing to FILE (JSON; an existing file is kept unless --force)")
     add_force_flag(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    _kinhec.add_arguments(parser)  # --kinhec DATA_DIR: KinHEC's protocol (docs/kinhec.md)
 
 
 def parse_pairs(text: str, minimum: int = 3) -> list[int]:
@@ -524,6 +526,8 @@ def machine_note() -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    if _kinhec.requested(args):
+        return _kinhec.run(args)
     bench = setting(args.problem)
     problem = get_registry().problem(bench.problem)
     pairs = parse_pairs(args.pairs or bench.default_pairs, max(problem.min_pairs, 2))

@@ -75,7 +75,7 @@ from ..registry import get_registry
 from ..se3 import inverse
 from ..solution import Status, standard_deviations
 from ..station_matching import MATCHES
-from . import _images, _matching, _planar, _streams
+from . import _facts, _images, _matching, _streams
 from ._common import (
     _plain,
     add_force_flag,
@@ -145,7 +145,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--solver", help="solver (default: 'auto' if installed, else 'kron-lstsq'); see handeye list")
     parser.add_argument("--backend", help="backend of the solver (default: the solver's default)")
     parser.add_argument("--option", action="append", metavar="KEY=VALUE", help="solver option, repeatable")
-    _planar.add_flags(parser, "the robot file's length unit")
+    _facts.add_flags(parser, "the robot file's length unit")
     parser.add_argument("-o", "--output", metavar="FILE", help="write the result as JSON (an existing file is kept "
                                                               "unless --force)")
     parser.add_argument("--yaml", metavar="FILE", help="write the result as YAML (an existing file is kept unless --force)")
@@ -267,7 +267,10 @@ def run(args: argparse.Namespace) -> int:
                          "station is one pair: drop it")
     parent, child = _frame_ids(args.frame_ids, ROS_FRAMES[(args.problem, args.setup)][1:])
     options = parse_key_values(args.option)
-    facts = _planar.take(args, options)
+    facts = _facts.take(args, options)
+    if from_images and facts.get("camera_scale") == "unknown":
+        raise InputError("--camera-scale unknown does not apply to --images: the board's size gives the camera's "
+                         "translations in the board's unit; drop it")
 
     images, robot_file, camera_file, robot, robot_rows, camera_rows, matching, warnings = _matching.stations(
         args, from_images, _read)
@@ -295,7 +298,8 @@ def run(args: argparse.Namespace) -> int:
         warnings.append(instead)
 
     problem = get_registry().problem(args.problem)
-    residuals = problem.residuals(problem.validate(**pose_file.data, **facts), solution.unknowns)
+    measured = _facts.in_robot_unit(pose_file.data, facts, solution.diagnostics)
+    residuals = problem.residuals(problem.validate(**measured, **facts), solution.unknowns)
     report = None
     if not args.no_checks and solution.status not in UNUSABLE:
         report = check(Streams(robot.poses, camera.poses, robot.unit, args.setup, args.problem,

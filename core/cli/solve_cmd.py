@@ -57,7 +57,7 @@ from ..quality_report import check_report_path, collect, write_report
 from ..registry import get_registry
 from ..se3 import inverse
 from ..solution import Status, standard_deviations
-from . import _planar
+from . import _facts
 from ._common import (
     add_force_flag,
     check_new_file,
@@ -106,7 +106,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--option", action="append", metavar="KEY=VALUE",
                         help="solver option, repeatable; VALUE true/false (any case) is a bool, else it is "
                              "read as JSON when it parses (1e-8, \"x\"), else as text")
-    _planar.add_flags(parser, "the data's length unit")
+    _facts.add_flags(parser, "the data's length unit")
     parser.add_argument("--json", action="store_true", help="machine-readable output")
     parser.add_argument("--report", metavar="FILE",
                         help="write a quality report: .html (one self-contained page with plots) or .md (markdown, "
@@ -142,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
         source = args.file
     data, truth, metadata = pose_file.data, pose_file.truth, pose_file.metadata
     options = parse_key_values(args.option)
-    facts = _planar.take(args, options)
+    facts = _facts.take(args, options)
     clash = sorted(set(options) & set(data))
     if clash:
         raise InputError(f"--option {clash} clashes with the data field(s) of problem {args.problem!r}")
@@ -150,7 +150,8 @@ def run(args: argparse.Namespace) -> int:
 
     solution = solve(args.problem, solver=solver, backend=args.backend, **data, **facts, **options)
     problem = get_registry().problem(args.problem)
-    residuals = problem.residuals(problem.validate(**data, **facts), solution.unknowns)
+    measured = _facts.in_robot_unit(data, facts, solution.diagnostics)
+    residuals = problem.residuals(problem.validate(**measured, **facts), solution.unknowns)
     errors = problem.errors(solution.unknowns, truth) if truth is not None else None
     checks = None
     if pose_file.poses is not None and not args.no_checks and solution.status not in UNUSABLE:
@@ -266,6 +267,11 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
         if std is not None:
             lines.append(f"  1-sigma: rotation {_value('rotation', std['rotation'], unit)}   "
                          f"translation {_value('translation', std['translation'], unit)}")
+    if "camera_scale" in diagnostics:
+        std = diagnostics.get("camera_scale_std")
+        sigma = "" if std is None else f" (1-sigma {std:.2g})"
+        lines += ["", (f"camera scale s = {diagnostics['camera_scale']:.6g}{sigma}: the camera's translations times s "
+                       "are in the robot's unit (the residuals below use them)")]
     if not frames:
         lines += ["", ("(no setup given: docs/conventions.md says which frames the unknowns are for "
                        "eye-in-hand and eye-to-hand data)")]

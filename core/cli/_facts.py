@@ -1,0 +1,59 @@
+"""The flags of ``handeye solve`` and ``handeye calibrate`` that state facts about the cell, which
+go to the problem's validation as well as to the solve (they are not solver options):
+
+- ``--tz-X``, ``--tz-Y``: a robot whose rotations all share one axis (a SCARA) cannot determine
+  the translation of X along that axis; the user gives it (handeye.problems.planar, docs/planar.md);
+- ``--camera-scale unknown``: the camera's translations are known only up to scale (monocular
+  SLAM or structure from motion; handeye.camera_scale, docs/camera-scale.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+
+#: flag -> the keyword of handeye.solve
+FACTS = {"--tz-X": "tz_X", "--tz-Y": "tz_Y", "--camera-scale": "camera_scale"}
+
+
+def add_flags(parser: argparse.ArgumentParser, unit: str) -> None:
+    """Add --tz-X, --tz-Y (`unit`: the length unit their values are in) and --camera-scale."""
+    parser.add_argument("--tz-X", dest="tz_X", type=float, metavar="VALUE",
+                        help="planar robot (a SCARA: every rotation about one axis): the translation of X along that "
+                             f"axis, which such data cannot determine, in {unit} (from CAD or a measurement; 0 solves "
+                             "the other parameters); for a SCARA flange simply X's z; docs/planar.md")
+    parser.add_argument("--tz-Y", dest="tz_Y", type=float, metavar="VALUE",
+                        help="axyb, planar robot: Y's translation along the robot's rotation axis instead of --tz-X "
+                             "(either fixes both)")
+    parser.add_argument("--camera-scale", dest="camera_scale", choices=("known", "unknown"),
+                        help="'unknown': the camera's translations are known only up to scale (monocular SLAM, "
+                             "structure from motion); the scale is estimated with X (and Y) by auto, refine and "
+                             "so3-sdp; default known (the camera's translations in the robot's unit); "
+                             "docs/camera-scale.md")
+
+
+def take(args: argparse.Namespace, options: dict[str, Any]) -> dict[str, Any]:
+    """The facts given by the flags, or as ``--option tz_X=VALUE`` (removed from `options`)."""
+    facts = {key: getattr(args, key) for key in FACTS.values() if getattr(args, key, None) is not None}
+    for key in FACTS.values():
+        if key in options:
+            if key in facts:
+                raise InputError(f"{key} is given twice (--{key.replace('_', '-')} and --option {key}=...); give it once")
+            facts[key] = options.pop(key)
+    return facts
+
+
+def in_robot_unit(data: dict[str, Any], facts: dict[str, Any], diagnostics: dict[str, Any]) -> dict[str, Any]:
+    """The data with the camera's translations (B) in the robot's unit: multiplied by the camera
+    scale the solve estimated when the scale is unknown; else the data as they are (for the
+    residuals shown to the user)."""
+    scale = diagnostics.get("camera_scale") if facts.get("camera_scale") == "unknown" else None
+    if scale is None:
+        return data
+    B = np.array(data["B"], dtype=float)
+    B[:, :3, 3] *= scale
+    return {**data, "B": B}

@@ -1,0 +1,729 @@
+"""``handeye bench --kinhec DATA_DIR``: handeye's solvers run by KinHEC's own benchmark protocol.
+
+KinHEC (PyPI ``kinhec``, MIT) is the public benchmark of hand-eye / robot-world calibration:
+simulated pose streams of 13 arm models, eye-in-hand and eye-to-hand, in tracks (``noise``,
+``motion``, ``temporal``, ``outliers``, ``monocular``, ``robot_error``, ``pnp``, ``mixed``) and
+11 reference solvers. Its documented extension point is the dict ``kinhec.benchmark.SOLVERS`` of
+callables ``f(data, rng) -> {"X": (4, 4), "Y": (4, 4) or None}``, where data is the protocol's
+``(A_abs, B_abs, A_rel, B_rel)``: the absolute keyframe poses (``A_i X = Y B_i``, eye-in-hand
+``A_i = T_base_ee``, ``B_i = inv(T_cam_target)``: handeye's own conventions, metres) and the
+consecutive keyframe motions (``A_i X = X B_i``). Running our solvers through KinHEC's
+``run_benchmark`` (rather than re-implementing its protocol) is what makes the figures comparable
+with everyone else's.
+
+What this module adds (docs/kinhec.md):
+
+- `handeye_entries`: every solver of problem ``axyb`` on its default backend (``auto`` first),
+  registered as ``handeye:<name>`` and given the absolute keyframe poses, and every solver of
+  ``axxb``, registered as ``handeye-axxb:<name>`` and given the consecutive motions. A solver
+  that needs more than poses (``reprojection``: board images) is left out, found by one probe
+  solve on simulated data, which also warms up the solvers' imports (cvxpy, Clarabel) so that
+  KinHEC's first timed sequence does not pay for them.
+- `register_solvers` puts them in ``SOLVERS`` (and ``SOLVER_DOCS``, which KinHEC's protocol.json
+  reads); `run_kinhec` runs ``run_benchmark`` with them, then writes, beside KinHEC's own outputs
+  (results.csv, leaderboard.md, ...), handeye's head-to-head of ``handeye:auto`` against KinHEC's
+  best AX=YB method ``shah+lm`` per sequence and a per-track summary of every solver, as
+  markdown and CSV.
+- `export_fixture`: one sequence's keyframe data, as the protocol hands them to the solvers, to a
+  small compressed NPZ (tests/data/kinhec/).
+
+Statuses. KinHEC records a solve that raises as a failed row (``ok`` False, ``error`` the
+exception) and every finite answer as a success. A handeye solve that returns a status other than
+``optimal`` (``not_converged``, ``unreliable``, ...) still returns its answer to KinHEC, so that
+the leaderboard compares like with like (KinHEC's references have no status and always answer),
+and its status goes into extra columns (``handeye_status``, ``handeye_note``) of results.csv and
+of the head-to-head CSV; the per-track summary shows the share of *usable* answers (status
+``optimal``, ``optimal_inaccurate`` or ``uncertified``) beside KinHEC's success rate. The status
+is captured by wrapping ``kinhec.benchmark.evaluate_sequence`` for the run (the solver callable
+does not see which sequence it solves), and both the wrapper and the registrations are removed
+afterwards.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+import dataclasses
+import functools
+import importlib
+import json
+import math
+import multiprocessing
+import os
+import platform
+import statistics
+import sys
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from ..errors import DegenerateDataError, HandEyeError, InputError, SolverError
+from ._common import check_new_results
+
+#: the oldest KinHEC whose protocol this module follows
+MIN_VERSION = (1, 1)
+INSTALL_HINT = 'pip install "handeye[kinhec]"'
+#: KinHEC names of handeye's solvers: AX=YB on the absolute keyframe poses, AX=XB on the motions
+AXYB_PREFIX, AXXB_PREFIX = "handeye:", "handeye-axxb:"
+AUTO = AXYB_PREFIX + "auto"
+#: KinHEC's best AX=YB method (Shah's closed form + joint LM refinement), the head-to-head reference
+REFERENCE = "shah+lm"
+#: statuses whose answer a user may use (the CLI exits 1 on the others)
+USABLE = ("optimal", "optimal_inaccurate", "uncertified")
+#: what KinHEC's run_benchmark writes to the output folder, and what this module adds there
+KINHEC_FILES = ("results.csv", "results.parquet", "leaderboard.md", "summary.json", "protocol.json")
+HANDEYE_FILES = ("handeye_head_to_head.csv", "handeye_head_to_head.md", "handeye_tracks.csv", "handeye_tracks.md")
+#: pose pairs of the probe solve (simulated, noise-free) that finds the solvers able to run
+PROBE_PAIRS = 12
+#: head-to-head: auto's X translation error above this multiple of shah+lm's is counted as worse
+WORSE_FACTOR = 1.05
+#: flags that apply to --kinhec only (dest, flag)
+_ONLY_KINHEC = (("kinhec_out", "--kinhec-out"), ("tracks", "--tracks"), ("max_sequences", "--max-sequences"),
+                ("workers", "--workers"))
+
+
+# ---------------------------------------------------------------------------------------------
+# KinHEC and the solvers registered into it
+# ---------------------------------------------------------------------------------------------
+
+def import_kinhec() -> ModuleType:
+    """``kinhec.benchmark``; InputError (one line, naming the pip extra) when KinHEC is missing or
+    older than `MIN_VERSION`."""
+    try:
+        kinhec = importlib.import_module("kinhec")
+        benchmark = importlib.import_module("kinhec.benchmark")
+    except ImportError as exc:
+        raise InputError(f"--kinhec needs the kinhec package, which cannot be imported here ({exc}); "
+                         f"{INSTALL_HINT}") from None
+    version = str(getattr(kinhec, "__version__", "0"))
+    if _version_tuple(version) < MIN_VERSION:
+        raise InputError(f"kinhec {version} is older than {'.'.join(map(str, MIN_VERSION))}, whose benchmark "
+                         f"protocol --kinhec follows; pip install -U \"handeye[kinhec]\"")
+    for name in ("SOLVERS", "run_benchmark"):
+        if not hasattr(benchmark, name):
+            raise InputError(f"kinhec {version} has no kinhec.benchmark.{name}; pip install -U \"handeye[kinhec]\"")
+    return benchmark
+
+
+def _version_tuple(text: str) -> tuple[int, ...]:
+    parts = []
+    for part in text.split(".")[:3]:
+        digits = "".join(c for c in part if c.isdigit())
+        parts.append(int(digits) if digits else 0)
+    return tuple(parts)
+
+
+@dataclasses.dataclass(frozen=True)
+class Entry:
+    """One handeye solver as KinHEC sees it.
+
+    name: the KinHEC solver name (``handeye:auto``, ``handeye-axxb:park``). problem: ``axyb``
+    (given the absolute keyframe poses) or ``axxb`` (given the consecutive motions). solver,
+    backend: what `handeye.solve` is called with. doc: the line of KinHEC's protocol.json.
+    """
+
+    name: str
+    problem: str
+    solver: str
+    backend: str
+    doc: str
+
+
+def handeye_entries(probe: bool = True) -> tuple[list[Entry], list[str]]:
+    """The handeye solvers to register (axyb ones first, ``auto`` first of each problem) and one
+    note per solver left out (backend unavailable, or, when `probe`, an InputError on simulated
+    poses: it needs other inputs).
+
+    The probe solves a noise-free simulated problem once with each solver; it also imports what
+    each solver needs, so the timings KinHEC takes do not include first-call import costs.
+    """
+    from ..api import solve
+    from ..registry import get_registry
+
+    registry = get_registry()
+    entries: list[Entry] = []
+    skipped: list[str] = []
+    for problem, prefix in (("axyb", AXYB_PREFIX), ("axxb", AXXB_PREFIX)):
+        spec_problem = registry.problem(problem)
+        data = None
+        if probe:
+            simulated, _ = spec_problem.simulate(pairs=PROBE_PAIRS, seed=0)
+            data = {field: simulated[field] for field in spec_problem.data_fields}
+        for name in sorted(registry.solver_names(problem), key=lambda n: (n != "auto", n)):
+            spec = registry.solver(name, problem)
+            backend = spec.default_backend
+            reason = spec.unavailable_reason(backend)
+            if reason:
+                skipped.append(f"{prefix}{name}: {reason}")
+                continue
+            if data is not None:
+                try:
+                    solve(problem, solver=name, backend=backend, **data)
+                except DegenerateDataError:
+                    pass  # a data verdict on the probe, not a missing input
+                except InputError as exc:
+                    skipped.append(f"{prefix}{name}: {_one_line(exc)}")
+                    continue
+                except HandEyeError:
+                    pass  # a solver failure: KinHEC records those per sequence
+            what = "absolute keyframe poses (AX=YB)" if problem == "axyb" else "consecutive keyframe motions (AX=XB)"
+            doc = f"handeye {name} ({backend}) on the {what}: {spec.summary}"
+            entries.append(Entry(prefix + name, problem, name, backend, doc))
+    return entries, skipped
+
+
+#: the handeye outcome of the last solve of each registered solver in this process, read by the
+#: evaluate_sequence wrapper (`_with_outcomes`) into the rows of the sequence just solved
+_OUTCOMES: dict[str, dict[str, Any]] = {}
+
+
+def adaptor(entry: Entry) -> Callable[[Sequence[np.ndarray], Any], dict[str, Any]]:
+    """The KinHEC solver callable of `entry`: ``f(data, rng) -> {"X", "Y"}``.
+
+    data = (A_abs, B_abs, A_rel, B_rel), each (n, 4, 4), translations in metres. An exception of
+    `handeye.solve` propagates (KinHEC records the row as failed); any returned answer is given
+    back whatever its status, and the status, the solver's own time and the first warning are
+    kept for the results' ``handeye_*`` columns (module docstring).
+    """
+
+    def run(data: Sequence[np.ndarray], rng: Any = None) -> dict[str, Any]:
+        from ..api import solve
+
+        A_abs, B_abs, A_rel, B_rel = data
+        A, B = (A_abs, B_abs) if entry.problem == "axyb" else (A_rel, B_rel)
+        try:
+            sol = solve(entry.problem, solver=entry.solver, backend=entry.backend, A=A, B=B)
+        except Exception as exc:
+            _OUTCOMES[entry.name] = {"handeye_status": "raised", "handeye_seconds": math.nan,
+                                     "handeye_note": f"{type(exc).__name__}: {_one_line(exc)}"[:300]}
+            raise
+        _OUTCOMES[entry.name] = {"handeye_status": sol.status.value, "handeye_seconds": sol.seconds,
+                                 "handeye_note": (sol.warnings[0] if sol.warnings else "")[:300]}
+        return {"X": np.array(sol.X), "Y": np.array(sol.Y) if entry.problem == "axyb" else None}
+
+    run.__name__ = run.__qualname__ = f"handeye_{entry.problem}_{entry.solver.replace('-', '_')}"
+    return run
+
+
+def register_solvers(entries: Sequence[Entry] | None = None, benchmark: ModuleType | None = None) -> list[str]:
+    """Register `entries` (default: `handeye_entries()`) into KinHEC's ``SOLVERS`` (and
+    ``SOLVER_DOCS``); return their names. For use from Python::
+
+        from handeye.cli._kinhec import register_solvers
+        import kinhec.benchmark
+        names = register_solvers()
+        kinhec.benchmark.run_benchmark("data/smoke", solver_names=names + ["shah+lm"])
+
+    (statuses are captured only by `run_kinhec`, which also removes the registrations).
+    """
+    benchmark = benchmark if benchmark is not None else import_kinhec()
+    entries = list(entries) if entries is not None else handeye_entries()[0]
+    docs = getattr(benchmark, "SOLVER_DOCS", None)
+    for entry in entries:
+        benchmark.SOLVERS[entry.name] = adaptor(entry)
+        if isinstance(docs, dict):
+            docs[entry.name] = entry.doc
+    return [entry.name for entry in entries]
+
+
+def _with_outcomes(evaluate: Callable[..., list[dict[str, Any]]]) -> Callable[..., list[dict[str, Any]]]:
+    """``kinhec.benchmark.evaluate_sequence`` that adds the handeye outcome of each registered
+    solver to its row (KinHEC writes every key of a row as a column of results.csv)."""
+
+    @functools.wraps(evaluate)
+    def evaluate_sequence(*args: Any, **kwargs: Any) -> list[dict[str, Any]]:
+        _OUTCOMES.clear()
+        rows = evaluate(*args, **kwargs)
+        for row in rows:
+            name = row.get("solver")
+            if isinstance(name, str) and name.startswith((AXYB_PREFIX, AXXB_PREFIX)):
+                row.update(_OUTCOMES.get(name, {"handeye_status": "not run", "handeye_seconds": math.nan,
+                                                "handeye_note": str(row.get("error", ""))}))
+        _OUTCOMES.clear()
+        return rows
+
+    return evaluate_sequence
+
+
+@contextlib.contextmanager
+def registered(benchmark: ModuleType, entries: Sequence[Entry]) -> Iterator[list[str]]:
+    """`register_solvers` and the status-capturing ``evaluate_sequence`` for the duration of the
+    block; KinHEC's SOLVERS, SOLVER_DOCS and evaluate_sequence are restored afterwards."""
+    solvers = dict(benchmark.SOLVERS)
+    docs = getattr(benchmark, "SOLVER_DOCS", None)
+    saved_docs = dict(docs) if isinstance(docs, dict) else None
+    evaluate = getattr(benchmark, "evaluate_sequence", None)
+    try:
+        names = register_solvers(entries, benchmark)
+        if evaluate is not None:
+            benchmark.evaluate_sequence = _with_outcomes(evaluate)
+        yield names
+    finally:
+        benchmark.SOLVERS.clear()
+        benchmark.SOLVERS.update(solvers)
+        if saved_docs is not None:
+            docs.clear()
+            docs.update(saved_docs)
+        if evaluate is not None:
+            benchmark.evaluate_sequence = evaluate
+
+
+def select_solvers(selection: str | None, available: Sequence[str], references: Sequence[str]) -> list[str]:
+    """The KinHEC solver names to run, from ``--solvers`` (comma-separated KinHEC names, or the
+    groups ``handeye``, ``handeye-axxb``, ``kinhec``); default all. `AUTO` and `REFERENCE` are
+    always run (the head-to-head needs them)."""
+    groups = {"handeye": [n for n in available if n.startswith(AXYB_PREFIX)],
+              "handeye-axxb": [n for n in available if n.startswith(AXXB_PREFIX)],
+              "kinhec": list(references)}
+    if not selection:
+        names = list(available)
+    else:
+        names = []
+        for item in (s.strip() for s in selection.split(",") if s.strip()):
+            if item in groups:
+                names += groups[item]
+            elif item in available:
+                names.append(item)
+            else:
+                raise InputError(f"--solvers: {item!r} is not a KinHEC solver here; give names among "
+                                 f"{', '.join(available)}, or the groups {', '.join(groups)}")
+    for name in (REFERENCE, AUTO):
+        if name not in available:
+            raise InputError(f"KinHEC solver {name!r} is not registered (known: {', '.join(available)}); "
+                             "the head-to-head needs it")
+        if name not in names:
+            names.insert(0, name)
+    return list(dict.fromkeys(names))
+
+
+# ---------------------------------------------------------------------------------------------
+# the run
+# ---------------------------------------------------------------------------------------------
+
+@dataclasses.dataclass
+class KinhecRun:
+    """What `run_kinhec` produced: KinHEC's rows (with the ``handeye_*`` columns), handeye's
+    tables, the output folder and the notes (solvers left out)."""
+
+    rows: list[dict[str, Any]]
+    head_to_head: list[dict[str, Any]]
+    tracks: list[dict[str, Any]]
+    auto_vs_best: list[dict[str, Any]]
+    out_dir: Path
+    solvers: list[str]
+    references: list[str]
+    skipped: list[str]
+    seconds: float
+    kinhec_version: str
+
+
+def run_kinhec(data_dir: str | Path, out_dir: str | Path | None = None, *, tracks: Sequence[str] | None = None,
+               max_sequences: int | None = None, solvers: str | None = None, workers: int = 1,
+               progress: bool = True, force: bool = False) -> KinhecRun:
+    """Run KinHEC's protocol (``kinhec.benchmark.run_benchmark``) on the dataset `data_dir` with
+    handeye's solvers registered beside KinHEC's references; write KinHEC's outputs and handeye's
+    (`HANDEYE_FILES`) to `out_dir` (default ``<data_dir>/benchmarks``, KinHEC's default).
+
+    tracks: KinHEC tracks to run (default all); max_sequences: a random subset of that many
+    (KinHEC's sampling, seed 0); solvers: see `select_solvers`; workers: KinHEC's process pool
+    (needs the ``fork`` start method, which hands the registrations to the workers).
+    Raises InputError for a bad folder, flag or a missing KinHEC; SolverError when KinHEC's run
+    itself fails.
+    """
+    benchmark = import_kinhec()
+    root = Path(data_dir)
+    if not (root / "sequences.parquet").is_file():
+        raise InputError(f"--kinhec {str(root)!r}: not a KinHEC dataset folder (no sequences.parquet); make one "
+                         f"with: kinhec generate --tier smoke --out {root}")
+    out = Path(out_dir) if out_dir is not None else root / "benchmarks"
+    check_new_results("--kinhec-out", out, KINHEC_FILES + HANDEYE_FILES, force)
+    if workers < 1:
+        raise InputError(f"--workers must be >= 1, got {workers}")
+    if workers > 1 and multiprocessing.get_start_method(allow_none=False) != "fork":
+        raise InputError(f"--workers {workers} needs the 'fork' start method (KinHEC's workers must inherit the "
+                         f"registered solvers), not {multiprocessing.get_start_method()!r}; use --workers 1")
+    if max_sequences is not None and max_sequences < 1:
+        raise InputError(f"--max-sequences must be >= 1, got {max_sequences}")
+    tracks = list(tracks) if tracks else None
+    _check_tracks(root, tracks)
+
+    references = [name for name in benchmark.SOLVERS if not name.startswith((AXYB_PREFIX, AXXB_PREFIX))]
+    entries, skipped = handeye_entries()
+    available = references + [e.name for e in entries]
+    names = select_solvers(solvers, available, references)
+    start = time.perf_counter()
+    with registered(benchmark, [e for e in entries if e.name in names]), contextlib.redirect_stdout(sys.stderr):
+        try:
+            result = benchmark.run_benchmark(root, out, names, tracks, max_sequences, None, progress=progress,
+                                             workers=workers)
+        except RuntimeError as exc:  # KinHEC: no results, or chunks that crashed (not solver failures)
+            raise SolverError(f"KinHEC's run_benchmark failed: {_one_line(exc)}") from None
+    seconds = time.perf_counter() - start
+    rows = result.to_dict("records") if hasattr(result, "to_dict") else [dict(r) for r in result]
+    version = str(getattr(sys.modules.get("kinhec"), "__version__", "?"))
+    run = KinhecRun(rows, head_to_head(rows), track_summary(rows, references), auto_vs_best(rows, references),
+                    out, names, [n for n in references if n in names], skipped, seconds, version)
+    write_outputs(run, root)
+    return run
+
+
+def _check_tracks(root: Path, tracks: Sequence[str] | None) -> None:
+    """InputError for a track the dataset does not hold (read from its light index sequences.csv)."""
+    index = root / "sequences.csv"
+    if not tracks or not index.is_file():
+        return
+    with open(index, newline="", encoding="utf-8") as f:
+        present = sorted({row.get("track", "") for row in csv.DictReader(f)} - {""})
+    unknown = [t for t in tracks if t not in present]
+    if unknown:
+        raise InputError(f"--tracks: {str(root)!r} holds no track {unknown[0]!r}; it holds {', '.join(present)}")
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+# ---------------------------------------------------------------------------------------------
+# handeye's tables (plain Python: KinHEC's pandas is not needed for them)
+# ---------------------------------------------------------------------------------------------
+
+def _num(value: Any) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def _text(value: Any) -> str:
+    return value if isinstance(value, str) else ""
+
+
+def _median(values: Sequence[float]) -> float:
+    finite = [v for v in values if math.isfinite(v)]
+    return statistics.median(finite) if finite else math.nan
+
+
+def _ratio(a: float, b: float) -> float:
+    return a / b if math.isfinite(a) and math.isfinite(b) and b > 0 else math.nan
+
+
+def _ok(row: Mapping[str, Any]) -> bool:
+    return bool(row.get("ok")) and math.isfinite(_num(row.get("X_rot_err_deg")))
+
+
+def _groups(rows: Sequence[Mapping[str, Any]], keys: Sequence[str]) -> dict[tuple[Any, ...], list[Mapping[str, Any]]]:
+    out: dict[tuple[Any, ...], list[Mapping[str, Any]]] = {}
+    for row in rows:
+        out.setdefault(tuple(row.get(k) for k in keys), []).append(row)
+    return dict(sorted(out.items(), key=lambda kv: tuple(str(k) for k in kv[0])))
+
+
+def head_to_head(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """One row per (sequence, synchronisation mode): `AUTO` against `REFERENCE` (X errors in
+    degrees and millimetres, their ratios auto / shah+lm, the runtime ratio) with auto's status."""
+    out = []
+    for (sequence, sync), group in _groups(rows, ("sequence_id", "eval_sync")).items():
+        by = {r.get("solver"): r for r in group}
+        auto, ref = by.get(AUTO), by.get(REFERENCE)
+        if auto is None or ref is None:
+            continue
+        a_rot, a_trans = (_num(auto.get(k)) if _ok(auto) else math.nan for k in ("X_rot_err_deg", "X_trans_err_mm"))
+        r_rot, r_trans = (_num(ref.get(k)) if _ok(ref) else math.nan for k in ("X_rot_err_deg", "X_trans_err_mm"))
+        a_ms, r_ms = _num(auto.get("runtime_ms")), _num(ref.get("runtime_ms"))
+        note = _text(auto.get("error")) or _text(auto.get("handeye_note"))
+        out.append({
+            "sequence_id": sequence, "track": auto.get("track"), "level": auto.get("level"),
+            "robot": auto.get("robot"), "configuration": auto.get("configuration"), "eval_sync": sync,
+            "n_keyframes": int(_num(auto.get("n_motions"))) + 1 if math.isfinite(_num(auto.get("n_motions"))) else "",
+            "auto_ok": _ok(auto), "auto_status": _text(auto.get("handeye_status")) or ("raised" if not _ok(auto) else ""),
+            "auto_X_rot_deg": a_rot, "auto_X_trans_mm": a_trans,
+            "shah_lm_ok": _ok(ref), "shah_lm_X_rot_deg": r_rot, "shah_lm_X_trans_mm": r_trans,
+            "rot_ratio": _ratio(a_rot, r_rot), "trans_ratio": _ratio(a_trans, r_trans),
+            "auto_ms": a_ms, "shah_lm_ms": r_ms, "time_ratio": _ratio(a_ms, r_ms),
+            "auto_note": note,
+        })
+    return out
+
+
+def _kind(name: str) -> str:
+    if name.startswith(AXYB_PREFIX):
+        return "handeye AX=YB"
+    if name.startswith(AXXB_PREFIX):
+        return "handeye AX=XB"
+    return "KinHEC reference"
+
+
+def track_summary(rows: Sequence[Mapping[str, Any]], references: Sequence[str] = ()) -> list[dict[str, Any]]:
+    """Per (track, synchronisation mode, solver): sequences, success rate (KinHEC's: a finite
+    answer), usable rate (handeye solvers: success with a `USABLE` status), median X and Y errors
+    over the successes, median runtime and its ratio to shah+lm's; sorted by median X translation
+    error within a track, as KinHEC's leaderboard."""
+    out = []
+    for (track, sync), group in _groups(rows, ("track", "eval_sync")).items():
+        per_solver = _groups(group, ("solver",))
+        ref_ms = _median([_num(r.get("runtime_ms")) for r in per_solver.get((REFERENCE,), []) if _ok(r)])
+        block = []
+        for (solver,), runs in per_solver.items():
+            ok = [r for r in runs if _ok(r)]
+            handeye = str(solver).startswith((AXYB_PREFIX, AXXB_PREFIX))
+            usable = sum(1 for r in ok if _text(r.get("handeye_status")) in USABLE) / len(runs) if handeye else math.nan
+            ms = _median([_num(r.get("runtime_ms")) for r in ok])
+            block.append({
+                "track": track, "eval_sync": sync, "solver": solver, "kind": _kind(str(solver)), "n": len(runs),
+                "success_rate": len(ok) / len(runs), "usable_rate": usable,
+                **{f"{k}_median": _median([_num(r.get(k)) for r in ok])
+                   for k in ("X_rot_err_deg", "X_trans_err_mm", "Y_rot_err_deg", "Y_trans_err_mm")},
+                "runtime_ms_median": ms, "time_ratio_to_shah_lm": _ratio(ms, ref_ms),
+            })
+        block.sort(key=lambda s: (not math.isfinite(s["X_trans_err_mm_median"]), s["X_trans_err_mm_median"]))
+        out += block
+    return out
+
+
+def auto_vs_best(rows: Sequence[Mapping[str, Any]], references: Sequence[str]) -> list[dict[str, Any]]:
+    """Per (track, synchronisation mode), and over every sequence (track "all", oracle
+    synchronisation): `AUTO`'s medians beside those of the KinHEC reference with the lowest median
+    X translation error there, and of shah+lm; auto's success and usable rates, the median of its
+    per-sequence runtime ratio to shah+lm, and the sequences where its X translation error exceeds
+    `WORSE_FACTOR` times shah+lm's."""
+    pairs = head_to_head(rows)
+    summary = track_summary(rows, references)
+    cells = [(t, s) for t, s in dict.fromkeys((r["track"], r["eval_sync"]) for r in summary)]
+    out = []
+    for track, sync in [*cells, ("all", "oracle")]:
+        if track == "all":
+            pooled = [r for r in rows if r.get("eval_sync") == "oracle"]
+            stats = {r["solver"]: r for r in track_summary([{**r, "track": "all"} for r in pooled], references)}
+            seqs = [p for p in pairs if p["eval_sync"] == "oracle"]
+        else:
+            stats = {r["solver"]: r for r in summary if r["track"] == track and r["eval_sync"] == sync}
+            seqs = [p for p in pairs if p["track"] == track and p["eval_sync"] == sync]
+        auto = stats.get(AUTO)
+        if auto is None:
+            continue
+        refs = [stats[n] for n in references if n in stats and math.isfinite(stats[n]["X_trans_err_mm_median"])]
+        best = min(refs, key=lambda s: s["X_trans_err_mm_median"]) if refs else None
+        shah = stats.get(REFERENCE, {})
+        worse = sum(1 for p in seqs if math.isfinite(p["trans_ratio"]) and p["trans_ratio"] > WORSE_FACTOR)
+        flagged = sum(1 for p in seqs if p["auto_status"] != "optimal")
+        out.append({
+            "track": track, "eval_sync": sync, "n": auto["n"],
+            "auto_success_rate": auto["success_rate"], "auto_usable_rate": auto["usable_rate"],
+            "auto_X_rot_deg": auto["X_rot_err_deg_median"], "auto_X_trans_mm": auto["X_trans_err_mm_median"],
+            "best_reference": best["solver"] if best else "",
+            "best_X_rot_deg": best["X_rot_err_deg_median"] if best else math.nan,
+            "best_X_trans_mm": best["X_trans_err_mm_median"] if best else math.nan,
+            "shah_lm_X_rot_deg": shah.get("X_rot_err_deg_median", math.nan),
+            "shah_lm_X_trans_mm": shah.get("X_trans_err_mm_median", math.nan),
+            "time_ratio_to_shah_lm": _median([p["time_ratio"] for p in seqs]),
+            "auto_worse_than_shah_lm": worse, "auto_not_optimal": flagged,
+        })
+    return out
+
+
+def _fmt(value: Any, digits: int = 3) -> str:
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, (int, np.integer)):
+        return str(value)
+    if isinstance(value, (float, np.floating)):
+        return "-" if not math.isfinite(value) else f"{value:.{digits}f}"
+    return str(value)
+
+
+def _pct(value: float) -> str:
+    return "-" if not math.isfinite(value) else f"{100 * value:.0f}%"
+
+
+def _md_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(cell.replace("|", "/") for cell in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def auto_vs_best_table(summary: Sequence[Mapping[str, Any]]) -> str:
+    """`auto_vs_best` as a markdown table (also what the command prints)."""
+    header = ["track", "sync", "n", "auto succ.", "auto usable", "auto X rot [deg]", "auto X trans [mm]",
+              "best reference", "best X rot [deg]", "best X trans [mm]", "shah+lm X rot [deg]",
+              "shah+lm X trans [mm]", "time / shah+lm", f"auto > {WORSE_FACTOR:g}x shah+lm", "auto not optimal"]
+    body = [[str(r["track"]), str(r["eval_sync"]), str(r["n"]), _pct(r["auto_success_rate"]),
+             _pct(r["auto_usable_rate"]), _fmt(r["auto_X_rot_deg"]), _fmt(r["auto_X_trans_mm"]),
+             r["best_reference"] or "-", _fmt(r["best_X_rot_deg"]), _fmt(r["best_X_trans_mm"]),
+             _fmt(r["shah_lm_X_rot_deg"]), _fmt(r["shah_lm_X_trans_mm"]), _fmt(r["time_ratio_to_shah_lm"], 2),
+             str(r["auto_worse_than_shah_lm"]), str(r["auto_not_optimal"])] for r in summary]
+    return _md_table(header, body)
+
+
+def _write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:
+    fields = list(dict.fromkeys(k for r in rows for k in r))
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=fields)
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: ("" if isinstance(v, float) and not math.isfinite(v) else v) for k, v in row.items()})
+
+
+def machine_line(kinhec_version: str) -> str:
+    """When and where: date, machine, load, versions."""
+    from .. import __version__
+
+    load = " ".join(f"{v:.2f}" for v in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
+    return (f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; {platform.machine()}, {os.cpu_count()} cores, "
+            f"load average {load}; python {platform.python_version()}, handeye {__version__}, kinhec {kinhec_version}")
+
+
+def write_outputs(run: KinhecRun, data_dir: Path) -> list[Path]:
+    """Write `HANDEYE_FILES` to ``run.out_dir``; return their paths."""
+    out = run.out_dir
+    out.mkdir(parents=True, exist_ok=True)
+    head = (f"KinHEC protocol (kinhec.benchmark.run_benchmark) on {data_dir}: "
+            f"{len({r.get('sequence_id') for r in run.rows})} sequences, {len(run.solvers)} solvers, "
+            f"{run.seconds:.0f} s; {machine_line(run.kinhec_version)}.")
+    _write_csv(out / "handeye_head_to_head.csv", run.head_to_head)
+    _write_csv(out / "handeye_tracks.csv", run.tracks)
+    per_seq = [[str(p["sequence_id"]), str(p["track"]), str(p["eval_sync"]), str(p["robot"]), str(p["n_keyframes"]),
+                p["auto_status"], _fmt(p["auto_X_rot_deg"]), _fmt(p["auto_X_trans_mm"]), _fmt(p["shah_lm_X_rot_deg"]),
+                _fmt(p["shah_lm_X_trans_mm"]), _fmt(p["rot_ratio"], 2), _fmt(p["trans_ratio"], 2),
+                _fmt(p["time_ratio"], 2), p["auto_note"][:120]] for p in run.head_to_head]
+    text = [
+        "# handeye:auto against KinHEC's shah+lm", "", head, "",
+        (f"X errors: rotation [deg], translation [mm], medians over the sequences a solver answered. `usable`: "
+         f"answered with status {', '.join(USABLE)}. `best reference`: the KinHEC reference solver with the lowest "
+         f"median X translation error on the track. `time / shah+lm`: median over the sequences of auto's "
+         f"runtime over shah+lm's (KinHEC's timing: the whole handeye.solve call)."), "",
+        "## Per track", "", auto_vs_best_table(run.auto_vs_best), "",
+        "## Per sequence", "",
+        _md_table(["sequence", "track", "sync", "robot", "keyframes", "auto status", "auto X rot", "auto X trans",
+                   "shah+lm X rot", "shah+lm X trans", "rot ratio", "trans ratio", "time ratio", "note"], per_seq),
+        "",
+    ]
+    (out / "handeye_head_to_head.md").write_text("\n".join(text), encoding="utf-8")
+    blocks = ["# Every solver per KinHEC track", "", head, "",
+              "Medians over the sequences a solver answered (`succ.`: KinHEC's success, a finite answer; `usable`: "
+              "handeye solvers only, answered with status " + ", ".join(USABLE) + "); sorted by median X "
+              "translation error. Runtime: KinHEC's timing of the solver callable.", ""]
+    for (track, sync), group in _groups(run.tracks, ("track", "eval_sync")).items():
+        blocks += [f"## {track} ({sync} synchronisation)", "", _md_table(
+            ["solver", "kind", "n", "succ.", "usable", "X rot [deg]", "X trans [mm]", "Y rot [deg]", "Y trans [mm]",
+             "runtime [ms]", "time / shah+lm"],
+            [[str(s["solver"]), s["kind"], str(s["n"]), _pct(s["success_rate"]), _pct(s["usable_rate"]),
+              _fmt(s["X_rot_err_deg_median"]), _fmt(s["X_trans_err_mm_median"]), _fmt(s["Y_rot_err_deg_median"]),
+              _fmt(s["Y_trans_err_mm_median"]), _fmt(s["runtime_ms_median"], 1), _fmt(s["time_ratio_to_shah_lm"], 2)]
+             for s in sorted(group, key=lambda s: (not math.isfinite(s["X_trans_err_mm_median"]),
+                                                   s["X_trans_err_mm_median"]))]), ""]
+    (out / "handeye_tracks.md").write_text("\n".join(blocks), encoding="utf-8")
+    return [out / name for name in HANDEYE_FILES]
+
+
+# ---------------------------------------------------------------------------------------------
+# regression fixtures
+# ---------------------------------------------------------------------------------------------
+
+def export_fixture(data_dir: str | Path, sequence_id: str, path: str | Path) -> dict[str, Any]:
+    """Save sequence `sequence_id` of the KinHEC dataset `data_dir` as the protocol hands it to the
+    solvers (the absolute keyframe poses A, B in metres, oracle synchronisation) with its truth
+    (X_true, Y_true), its identity (tier, seeds, track, robot, ...) and the X errors of KinHEC's
+    shah+lm and of handeye's auto on it, to the compressed NPZ `path`; return the saved fields.
+
+    Uses ``kinhec.benchmark._keyframe_data``: KinHEC's own keyframe selection, so the fixture holds
+    exactly what `adaptor` gets.
+    """
+    benchmark = import_kinhec()
+    from kinhec.io import load_sequence
+    from kinhec.metrics import calibration_errors
+
+    from ..api import solve
+
+    root = Path(data_dir)
+    seq = load_sequence(root, sequence_id)
+    data = benchmark._keyframe_data(seq, None if seq.synchronous else seq.time_offset)
+    if data is None:
+        raise InputError(f"{sequence_id}: fewer than 3 paired frames; KinHEC's protocol solves nothing on it")
+    A_abs, B_abs = data[0], data[1]
+    ref = calibration_errors(benchmark.SOLVERS[REFERENCE](data, np.random.default_rng(0))["X"], seq.X)
+    try:
+        sol = solve("axyb", A=A_abs, B=B_abs)
+        auto = calibration_errors(np.array(sol.X), seq.X)
+        auto_status = sol.status.value
+    except HandEyeError as exc:
+        auto, auto_status = {"X_rot_err_deg": math.nan, "X_trans_err_mm": math.nan}, f"raised: {_one_line(exc)}"
+    info = json.loads((root / "generation_info.json").read_text(encoding="utf-8"))
+    m = seq.manifest
+    fields: dict[str, Any] = {
+        "A": A_abs, "B": B_abs, "X_true": seq.X, "Y_true": seq.Y, "units": "m",
+        "setup": "eye-in-hand" if seq.eye_in_hand else "eye-to-hand",
+        "sequence_id": sequence_id, "track": m["track"], "level": m["level"], "robot": m["robot"],
+        "configuration": m["configuration"], "family": m["family"],
+        "eval_sync": "oracle", "time_offset_s": float(m["time_offset_s"]),
+        "kinhec_version": str(info.get("generator_version", "")), "tier": str(info.get("tier", "")),
+        "global_seed": int(info.get("global_seed", -1)), "seed": int(seq.config.seed) if seq.config else -1,
+        "ref_solver": REFERENCE, "ref_X_rot_deg": ref["X_rot_err_deg"], "ref_X_trans_mm": ref["X_trans_err_mm"],
+        "auto_X_rot_deg": auto["X_rot_err_deg"], "auto_X_trans_mm": auto["X_trans_err_mm"], "auto_status": auto_status,
+    }
+    np.savez_compressed(path, **{k: np.asarray(v) for k, v in fields.items()})
+    return fields
+
+
+# ---------------------------------------------------------------------------------------------
+# the command line (handeye bench adds these flags and dispatches here)
+# ---------------------------------------------------------------------------------------------
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The --kinhec flags of ``handeye bench``."""
+    group = parser.add_argument_group("KinHEC benchmark (docs/kinhec.md; needs pip install \"handeye[kinhec]\")")
+    group.add_argument("--kinhec", metavar="DATA_DIR",
+                       help="run KinHEC's own protocol on the dataset DATA_DIR (made by kinhec generate) with every "
+                            "handeye solver registered beside KinHEC's references (handeye:NAME: AX=YB; "
+                            "handeye-axxb:NAME: AX=XB); --solvers then takes KinHEC names or the groups handeye, "
+                            "handeye-axxb, kinhec (handeye:auto and shah+lm always run)")
+    group.add_argument("--kinhec-out", metavar="DIR",
+                       help="where KinHEC's results and handeye's head-to-head go (default DATA_DIR/benchmarks; "
+                            "results there are kept unless --force)")
+    group.add_argument("--tracks", metavar="LIST", help="comma-separated KinHEC tracks (default: all)")
+    group.add_argument("--max-sequences", type=int, metavar="N",
+                       help="a random subset of N sequences (KinHEC's sampling, seed 0)")
+    group.add_argument("--workers", type=int, metavar="N", help="KinHEC's worker processes (default 1)")
+
+
+def requested(args: argparse.Namespace) -> bool:
+    """Whether ``handeye bench`` runs KinHEC (``--kinhec``); InputError for a flag of the other
+    mode (a --kinhec flag without it, or --pairs / --json / --problem with it)."""
+    if args.kinhec is None:
+        given = [flag for dest, flag in _ONLY_KINHEC if getattr(args, dest, None) is not None]
+        if given:
+            raise InputError(f"{given[0]} applies to handeye bench --kinhec DATA_DIR only")
+        return False
+    for dest, flag in (("pairs", "--pairs"), ("json", "--json")):
+        if getattr(args, dest, None) is not None:
+            raise InputError(f"{flag} does not apply to --kinhec: KinHEC's protocol makes the data, and the results "
+                             "go to --kinhec-out")
+    if getattr(args, "problem", "axyb") != "axyb":
+        raise InputError("--problem does not apply to --kinhec: handeye's axyb and axxb solvers are both registered")
+    return True
+
+
+def run(args: argparse.Namespace) -> int:
+    """``handeye bench --kinhec DATA_DIR ...``: `run_kinhec`, then the per-track table on stdout."""
+    tracks = [t.strip() for t in args.tracks.split(",") if t.strip()] if args.tracks else None
+    result = run_kinhec(args.kinhec, args.kinhec_out, tracks=tracks, max_sequences=args.max_sequences,
+                        solvers=args.solvers, workers=args.workers or 1, progress=not args.no_progress,
+                        force=args.force)
+    n_seq = len({r.get("sequence_id") for r in result.rows})
+    print(f"handeye bench --kinhec {args.kinhec}: {n_seq} sequences, {len(result.solvers)} solvers "
+          f"({len(result.references)} KinHEC references), {result.seconds:.0f} s; {machine_line(result.kinhec_version)}")
+    print()
+    print(f"{AUTO} against the best KinHEC reference of each track (medians; X rot [deg], X trans [mm]):")
+    print(auto_vs_best_table(result.auto_vs_best))
+    if result.skipped:
+        print()
+        print("handeye solvers not registered:")
+        for note in result.skipped:
+            print(f"  {note}")
+    print()
+    print(f"written to {result.out_dir}: " + ", ".join(KINHEC_FILES + HANDEYE_FILES))
+    return 0
