@@ -26,6 +26,12 @@ solver's (third parties' too), against the data it was computed from:
    determinant and singular values of each rotation block before projection onto SO(3), see
    `rotation_block_figures`): det <= 0 or singular values further apart than BLOCK_SPREAD.
 
+5. **Camera scale** (A X = Y B, A X = X B): the factor s the camera's translations need to fit
+   the robot's (`handeye.camera_scale`), from the best fit (`_camera_scale`): beyond a factor
+   SCALE_FAIL either way a failure (a unit mix-up, or a monocular camera: give
+   camera_scale="unknown"), beyond SCALE_WARN a warning; both only SCALE_SIGMAS standard
+   deviations from 1.
+
 Then **observability**: the covariance of the best fit, at the noise the data show, says how
 precisely the data determine each unknown; where the 1-sigma of a rotation exceeds
 `PRECISION_ROTATION_DEG` or of a translation exceeds `PRECISION_TRANSLATION` of the data's lever
@@ -46,7 +52,7 @@ from typing import Any
 
 import numpy as np
 
-from . import nlls, so3_fast
+from . import camera_scale, nlls, so3_fast
 from .errors import DegenerateDataError
 from .linalg import median
 from .robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
@@ -65,6 +71,14 @@ DISTANCE_FAIL = 100.0
 #: exact for every practical purpose (numerical solvers stop at ~1e-8 on noise-free data, where
 #: the best fit's sigma is ~1e-13 and every such answer would otherwise be "many sigmas" off)
 NUMERICAL_FLOOR = 1e-6
+#: check 5: the camera's translations need a factor s to fit the robot's: a failure beyond a
+#: factor SCALE_FAIL either way (a unit mix-up, m against mm or inch, or a monocular camera), a
+#: warning beyond SCALE_WARN (1%: a board size or focal length off, or robot errors that mimic
+#: them: the bundled real circle-grid set, with robot errors dominating its pixel noise, fits
+#: best at 0.94), each only when s is SCALE_SIGMAS standard deviations from 1
+SCALE_FAIL = 1.5
+SCALE_WARN = 0.01
+SCALE_SIGMAS = 5.0
 #: check 4: largest ratio of the singular values of a rotation block before projection
 BLOCK_SPREAD = 2.0
 #: motions rotating less than this (rad) give no usable angle difference (check 1)
@@ -214,11 +228,13 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
     """Checks 2 and 3, and the observability warnings."""
     model, poses, interest = spec
     try:
-        fit, cov, flagged = _best_fit(model, poses)
+        fit, cov, flagged, res = _best_fit(model, poses)
     except DegenerateDataError:
         failures.append("the data do not determine the unknowns near this answer (the least-squares fit from it "
                         "is singular)")
         return
+    if not flagged.any():
+        _camera_scale(model, res, cov, failures, warnings, figures)
     names = model.unknowns
     delta = _difference(poses, fit)
     keep = np.concatenate([np.arange(6 * j, 6 * j + 6) for j, n in enumerate(names) if n in interest])
@@ -259,8 +275,51 @@ def _best_fit(model: Any, poses: tuple[np.ndarray, ...]) -> tuple[tuple[np.ndarr
         loss = "cauchy"
         res = nlls.levenberg_marquardt(model, res.poses, None, loss, DEFAULT_LOSS_SCALE, MAX_ITER, FIT_TOL)
         flagged = _beyond(res.e, model.scale)
-    return res.poses, nlls.covariance(res, loss, DEFAULT_LOSS_SCALE, estimated=True)[0], flagged
+    return res.poses, nlls.covariance(res, loss, DEFAULT_LOSS_SCALE, estimated=True)[0], flagged, res
 
+
+def _camera_scale(model: Any, res: Any, cov: np.ndarray, failures: list[str], warnings: list[str],
+                  figures: dict[str, Any]) -> None:
+    """Check 5: do the camera's translations fit the robot's at scale 1? Screened in one
+    Gauss-Newton step from the best fit for the scale s of the camera's translations
+    (`handeye.camera_scale`; the residual is linear in s and the fit stationary in the poses),
+    with its standard deviation from the Schur complement of s in the information matrix; where
+    s moves by more than SCALE_WARN and two standard deviations, the fit is redone with s free
+    (the residuals at s = 1 carry the misfit of a wrong scale, which inflates the noise and
+    would hide it) and s judged there. Models without a camera, or whose camera scale is
+    already unknown, are skipped."""
+    if not hasattr(model, "camera_direction") or res.W.L is not None:
+        return
+    g = model.camera_direction(res.poses)
+    gw, ew = res.W.residual(g).ravel(), res.ew.ravel()
+    J = res.W.jacobian(model.jacobian(res.poses, res.e))
+    b = J.reshape(-1, J.shape[2]).T @ gw
+    factor = float(ew @ ew) / max(ew.size - len(b), 1)  # the variance factor of cov
+    schur = float(gw @ gw) - float(b @ cov @ b) / factor
+    if not schur > 0.0:
+        return
+    s, std = 1.0 - float(gw @ ew) / schur, math.sqrt(factor / schur)
+    if abs(s - 1.0) > SCALE_WARN and abs(s - 1.0) > 2.0 * std:
+        try:
+            free = camera_scale.ScaledCameraModel(model)
+            fit = nlls.levenberg_marquardt(free, res.poses, None, "linear", DEFAULT_LOSS_SCALE, MAX_ITER, FIT_TOL)
+            figures_s = camera_scale.scale_figures(free, fit.poses, fit.W.sigma_rot, fit.W.sigma_trans,
+                                                   nlls.covariance(fit, "linear", DEFAULT_LOSS_SCALE, True)[1])
+            s, std = figures_s["camera_scale"], figures_s["camera_scale_std"]
+        except DegenerateDataError:
+            return
+    if not s > SCALE_SIGMAS * std:  # the robot's translations do not fix the camera's scale (e.g. none)
+        return
+    z = (s - 1.0) / std
+    figures["camera_scale"] = {"scale": s, "std": std, "sigmas": z}
+    text = (f"the camera's translations fit the robot's best when multiplied by {s:.4g} (+-{std:.2g}, "
+            f"{abs(z):.3g} standard deviations from 1)")
+    if abs(math.log(s)) > math.log(SCALE_FAIL) and abs(z) > SCALE_SIGMAS:
+        failures.append(f"{text}: are both in one length unit (m against mm)? For a camera whose translations are "
+                        "known only up to scale (monocular SLAM), give camera_scale='unknown'")
+    elif abs(s - 1.0) > SCALE_WARN and abs(z) > SCALE_SIGMAS:
+        warnings.append(f"self-check: {text}: check the board's size and the camera's focal length (a PnP pose's "
+                        "distance scales with both); camera_scale='unknown' fits the factor")
 
 def problem_pairs(data: Any) -> int | None:
     """The number of pairs of the problem's own data (to tell when the check's model is on

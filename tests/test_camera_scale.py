@@ -124,3 +124,33 @@ def test_command_line(tmp_path, capsys):
     assert f"camera scale s = {SCALE:.6g}" in out
     assert main(["solve", str(path), "--camera-scale", "unknown", "--solver", "shah"]) == 2
     assert "use one of auto, refine, so3-sdp" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("factor, status, says", [
+    (1.0, Status.OPTIMAL, None),
+    (1.02, Status.OPTIMAL, "check the board's size and the camera's focal length"),  # a warning
+    (1e-3, Status.UNRELIABLE, "are both in one length unit"),  # camera in m, robot in mm
+    (SCALE, Status.UNRELIABLE, "give camera_scale='unknown'"),  # a monocular camera taken as metric
+])
+def test_the_self_check_notices_camera_translations_in_another_unit(factor, status, says):
+    """Check 5 of handeye.self_check: the camera's translations must fit the robot's at scale 1."""
+    data, _ = simulate("axyb", seed=6, noise=ACCURACY_NOISE, pairs=8)
+    sol = handeye.solve("axyb", **camera_in_own_unit(data, 1.0 / factor))
+    check = sol.diagnostics["self_check"]["camera_scale"]
+    assert sol.status is status
+    assert check["scale"] == pytest.approx(1.0 / factor, rel=0.01)
+    if says is None:
+        assert abs(check["sigmas"]) < 3 and not sol.warnings
+    else:
+        assert any("fit the robot's best when multiplied by" in w and says in w for w in sol.warnings), sol.warnings
+    if status is Status.OPTIMAL and says:
+        assert handeye.solve("axyb", camera_scale="unknown", **camera_in_own_unit(data, 1.0 / factor)).warnings == []
+
+
+def test_no_scale_verdict_where_the_robot_does_not_translate():
+    """A robot turning about its flange origin (no translations in A) does not fix the camera's
+    scale: check 5 says nothing."""
+    from handeye.harness import campaign
+
+    data, _ = campaign.make_case("pure-rotation", 4).data("axyb")
+    assert "camera_scale" not in handeye.solve("axyb", **data).diagnostics["self_check"]
