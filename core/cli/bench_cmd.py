@@ -303,7 +303,7 @@ def bench_data(problem: str, m: int, noise: NoiseModel, seed: int,
         robot, camera = stations["A"], inverse(stations["B"])
         return {"A": A, "B": B}, _lists(robot, camera)
     data, _ = get_registry().problem(problem).simulate(pairs=m, seed=seed, noise=noise, **(simulate_options or {}))
-    data = {k: np.asarray(v) for k, v in data.items()}
+    data = {k: np.asarray(v) if k in ("A", "B", "C") else v for k, v in data.items()}  # images stay observations
     return data, _lists(data["A"], data["B"])
 
 
