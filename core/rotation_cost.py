@@ -170,3 +170,20 @@ def signed_rotations(cost: RotationCost, r: np.ndarray,
     flipped = costs[1] < costs[0]
     return candidates[int(flipped)], bool(flipped)
 
+
+def signed_blocks(system: KroneckerSystem, MX: np.ndarray, MY: np.ndarray,
+                  orthogonalize: Callable[[np.ndarray], np.ndarray] = project_to_so3) -> tuple[tuple[np.ndarray, np.ndarray], bool]:
+    """The rotations of the least-squares blocks (M_X, M_Y) of eq. 8, or of (-M_X, -M_Y), made
+    rotations by `orthogonalize`, whichever leaves the smaller eq. 8 cost (translations at their
+    optimum): (rotations, flipped). The rotation rows are homogeneous, so only the translation
+    rows fix the blocks' sign; where they are weak against the noise (small translations, e.g.
+    a wrist turning in place: kinhec small tier motion-000060, IRB 120) the least squares can
+    come out near -(R_X, R_Y), and its projection ~180 deg off, while the other sign fits the
+    data far better. Without a translation-eliminated cost (translations all zero) no flip."""
+    try:
+        cost = eliminate_translations(system)
+    except DegenerateDataError:
+        return (orthogonalize(MX), orthogonalize(MY)), False
+    Rs, flipped = signed_rotations(cost, np.concatenate([MX.ravel(order="F"), MY.ravel(order="F")]), orthogonalize)
+    return (Rs[0], Rs[1]), flipped
+

@@ -47,7 +47,7 @@ from handeye.kronecker import reduce_normal_equations
 from handeye.problems import planar as planar_mode
 from handeye.problems.axxb import AXXBData, solve_translation
 from handeye.problems.axyb import AXYBData, solve_translations, split_beta
-from handeye.rotation_cost import RotationCost, signed_rotations, sphere_least_squares
+from handeye.rotation_cost import RotationCost, signed_blocks, signed_rotations, sphere_least_squares
 from handeye.se3 import make_pose, project_to_so3
 
 
@@ -63,12 +63,13 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
         return _run_planar(data, options)
     system = data.kronecker(data.translation_scale if options.normalize else 1.0)
     MX, MY, _, _ = split_beta(system.least_squares())
-    RX, RY = project_to_so3(MX), project_to_so3(MY)
+    (RX, RY), flipped = signed_blocks(system, MX, MY)
     tX, tY = solve_translations(data, RX, RY)
     return SolverOutput(
         unknowns={"X": make_pose(RX, tX), "Y": make_pose(RY, tY)},
         status=Status.OPTIMAL,
-        diagnostics={"residual_eq8": system.rest, "sigma_min_R1": system.smallest_singular_value()},
+        diagnostics={"residual_eq8": system.rest, "sigma_min_R1": system.smallest_singular_value(),
+                     "sign_flipped": flipped},
     )
 
 

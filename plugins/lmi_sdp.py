@@ -121,6 +121,7 @@ from handeye.problems.axyb import (
     solve_translations,
     split_beta,
 )
+from handeye.rotation_cost import signed_blocks
 from handeye.se3 import gram_schmidt, make_pose, project_to_so3
 
 ORTHOGONALIZERS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
@@ -423,12 +424,18 @@ def _run_sdp(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     system = data.kronecker(scale)
     beta, u, result = solve_lmi(system, backend, options)
     MX, MY, tX, tY = split_beta(beta)
+    # beyond the paper: the sign of the blocks chosen by eq. 8's cost (`signed_blocks`; the
+    # translations of beta belong to the other sign, so they are re-solved when it flips)
+    _, flipped = signed_blocks(system, MX, MY, ORTHOGONALIZERS[options.orthogonalize])
+    if flipped:
+        MX, MY = -MX, -MY
     e = system.R1 @ beta - system.q1
     beta_out = beta.copy()
     beta_out[18:] *= scale
     beta_out.flags.writeable = False
     return SolverOutput(
-        unknowns=_unknowns(data, options, MX, MY, tX * scale, tY * scale),
+        unknowns=_unknowns(data, dataclasses.replace(options, translations="resolve") if flipped else options,
+                           MX, MY, tX * scale, tY * scale),
         status=result.status,
         diagnostics={
             "u": u,
@@ -445,6 +452,7 @@ def _run_sdp(data: AXYBData, options: Options, backend: str) -> SolverOutput:
             "translations": options.translations,
             "normalized": bool(options.normalize),
             "translation_scale": scale,
+            "sign_flipped": flipped,
         },
     )
 
