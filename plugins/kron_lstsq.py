@@ -47,7 +47,12 @@ from handeye.kronecker import reduce_normal_equations
 from handeye.problems import planar as planar_mode
 from handeye.problems.axxb import AXXBData, solve_translation
 from handeye.problems.axyb import AXYBData, solve_translations, split_beta
-from handeye.rotation_cost import RotationCost, signed_blocks, signed_rotations, sphere_least_squares
+from handeye.rotation_cost import (
+    RotationCost,
+    signed_blocks,
+    signed_rotations,
+    sphere_least_squares,
+)
 from handeye.se3 import make_pose, project_to_so3
 
 
