@@ -545,3 +545,10 @@ def test_progress_bar_shows_rate_and_time_left(capsys):
     units = len(result.records) // len({r["label"] for r in result.records})
     assert f"{units}/{units}" in final, final
     assert re.search(r"\[\d\d:\d\d<\d\d:\d\d, +[\d.]+(trial/s|s/trial)\]", final), final
+
+
+def test_default_studies_leave_out_solvers_that_need_board_images():
+    from handeye.harness.study import default_specs
+
+    labels = [spec.label for spec in default_specs("axyb")]
+    assert "reprojection" not in labels and "auto" in labels and "lmi-sdp/cvxpy" in labels

@@ -260,9 +260,12 @@ def default_specs(problem: str = "axyb") -> tuple[Spec, ...]:
     """Every registered solver of `problem` with its default backend, plus every other backend of
     ``lmi-sdp`` (the paper's method: its backends are part of the comparison) and, where a solver
     wraps several methods behind an option (`OPTION_VARIANTS`: OpenCV's five AX=XB methods), one
-    spec per method. Backends that cannot run here are left out."""
+    spec per method. Backends that cannot run here are left out, and so are solvers that fit
+    board images (`SolverSpec.simulate_options` asking for ``images``: ``reprojection``), which
+    pose data cannot feed (bench/reprojection_study.py is their study)."""
     registry = get_registry()
     return tuple(spec for name in registry.solver_names(problem)
+                 if "images" not in registry.solver(name, problem).simulate_options
                  for spec in _solver_specs(name, registry.solver(name, problem), problem=problem))
 
 
