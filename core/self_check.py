@@ -299,8 +299,12 @@ def _camera_scale(model: Any, res: Any, cov: np.ndarray, failures: list[str], wa
         return
     g = model.camera_direction(res.poses)
     gw, ew = res.W.residual(g).ravel(), res.ew.ravel()
-    J = res.W.jacobian(model.jacobian(res.poses, res.e))
-    b = J.reshape(-1, J.shape[2]).T @ gw
+    if model.m >= model.sums_min_pairs:  # J^T W g in closed form (the translation rows do not see e's rotations)
+        mixed = np.concatenate([res.e[:, :3], g[:, 3:]], axis=1)
+        b = model.normal_equations(res.poses, mixed, res.W.sigma_rot ** -2, res.W.sigma_trans ** -2, np.ones(model.m))[1]
+    else:
+        J = res.W.jacobian(model.jacobian(res.poses, res.e))
+        b = J.reshape(-1, J.shape[2]).T @ gw  # cov is P (P^T H P)^-1 P^T: b stays in the full 6k
     factor = float(ew @ ew) / max(ew.size - len(b), 1)  # the variance factor of cov
     schur = float(gw @ gw) - float(b @ cov @ b) / factor
     if not schur > 0.0:
