@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Any
 
@@ -91,7 +92,12 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
     diagnostics = dict(output.diagnostics)
     weak = spec_problem.diagnose(data)
     status = Status(output.status)
-    check = assess(spec_problem, data, unknowns, diagnostics)
+    # an answer that comes with the camera's scale (auto estimates it where the data demand it)
+    # is judged with that scale free, as its solver fitted it (handeye.camera_scale)
+    check_data = data
+    if "camera_scale" in diagnostics and getattr(data, "camera_scale_unknown", True) is False:
+        check_data = dataclasses.replace(data, camera_scale_unknown=True)
+    check = assess(spec_problem, check_data, unknowns, diagnostics)
     diagnostics["self_check"] = {"reliable": check.reliable, "failures": list(check.failures), **check.figures}
     warnings = list(weak.pop("warnings", [])) + list(diagnostics.get("warnings", [])) + list(check.warnings)
     if not check.reliable:

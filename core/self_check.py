@@ -285,6 +285,31 @@ def _best_fit(model: Any, poses: tuple[np.ndarray, ...]) -> tuple[tuple[np.ndarr
     return res.poses, nlls.covariance(res, loss, DEFAULT_LOSS_SCALE, estimated=True)[0], flagged, res
 
 
+def camera_scale_verdict(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray]) -> dict[str, Any] | None:
+    """Check 5 alone, for a solver that wants to know whether the data demand a camera scale
+    (`auto`): the figures of `_camera_scale` with "verdict" "fail", "warn" or None, or None when
+    the check does not apply (no camera, the scale already unknown, pairs far off the others,
+    the fit singular)."""
+    spec = problem.check_model(data, unknowns)
+    if spec is None:
+        return None
+    model, poses, _ = spec
+    try:
+        fit, cov, flagged, res = _best_fit(model, poses)
+    except DegenerateDataError:
+        return None
+    if flagged.any():
+        return None
+    failures: list[str] = []
+    warnings: list[str] = []
+    figures: dict[str, Any] = {}
+    _camera_scale(model, res, cov, failures, warnings, figures)
+    if "camera_scale" not in figures:
+        return None
+    verdict = "fail" if failures else "warn" if warnings else None
+    return {**figures["camera_scale"], "verdict": verdict}
+
+
 def _camera_scale(model: Any, res: Any, cov: np.ndarray, failures: list[str], warnings: list[str],
                   figures: dict[str, Any]) -> None:
     """Check 5: do the camera's translations fit the robot's at scale 1? Screened in one

@@ -112,6 +112,42 @@ class Options:
 
 
 def run(data: Any, options: Options, backend: str) -> SolverOutput:
+    """The pipeline of the module docstring; then, where the camera's translations fit the
+    robot's only at another scale (the host's check 5, `handeye.self_check`: a factor beyond 1.5
+    that explains the translation misfit), the pipeline again with that scale unknown
+    (`handeye.camera_scale`), with a warning."""
+    output = _run(data, options, backend)
+    if not _scale_may_be_estimated(data, options):
+        return output
+    from handeye.problems.axxb import PROBLEM as AXXB
+    from handeye.problems.axyb import PROBLEM as AXYB
+    from handeye.self_check import camera_scale_verdict
+
+    problem = {"axyb": AXYB, "axxb": AXXB}[_refine.problem_of(data)]
+    verdict = camera_scale_verdict(problem, data, output.unknowns)
+    if verdict is None or verdict["verdict"] != "fail":
+        return output
+    scaled = _run(dataclasses.replace(data, camera_scale_unknown=True), options, backend)
+    s, std = scaled.diagnostics.get("camera_scale"), scaled.diagnostics.get("camera_scale_std")
+    note = (f"auto: the camera's translations fit the robot's only when multiplied by {verdict['scale']:.4g} (the "
+            f"translation residuals {verdict['translation_fit_gain']:.3g} times smaller), so auto estimated that "
+            f"factor, as camera_scale='unknown' does: {s:.6g} (1-sigma {std:.2g}). A monocular camera, or the two in "
+            "different length units: if they should be in one, fix the data; camera_scale='known' would keep the "
+            "scale at 1 (and the answer would be unreliable)")
+    diagnostics = {**scaled.diagnostics, "camera_scale_test": jsonable(verdict),
+                   "warnings": [note, *scaled.diagnostics.get("warnings", [])]}
+    return SolverOutput(unknowns=scaled.unknowns, status=scaled.status, diagnostics=diagnostics)
+
+
+def _scale_may_be_estimated(data: Any, options: Options) -> bool:
+    """auto may estimate the camera's scale where the data demand it: A X = Y B or A X = X B, the
+    scale not already unknown, not planar (unsupported there), no start and no covariance
+    stated (the scale is fitted under per-group weights)."""
+    return (_refine.problem_of(data) in ("axyb", "axxb") and not getattr(data, "camera_scale_unknown", False)
+            and not _refine.is_planar(data) and options.init is None and options.covariance is None)
+
+
+def _run(data: Any, options: Options, backend: str) -> SolverOutput:
     problem = _refine.problem_of(data)
     if problem == "axxb" and data.stations is not None and _weights_are_estimated(options):
         return _run_on_stations(data, options, backend)
@@ -346,7 +382,7 @@ def _run_on_stations(data: Any, options: Options, backend: str) -> SolverOutput:
         diagnostics.update(report)
         output = SolverOutput(unknowns={"X": X}, status=status, diagnostics=diagnostics)
     else:
-        output = run(stations, options, backend)
+        output = _run(stations, options, backend)
     diagnostics = dict(output.diagnostics)
     diagnostics["formulation"] = (f"A_k X = Y B_k on the {len(A_abs)} stations the {data.m} motions were made "
                                   "from (maximum likelihood for independent noise on each station)")

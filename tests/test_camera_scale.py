@@ -133,9 +133,10 @@ def test_command_line(tmp_path, capsys):
     (SCALE, Status.UNRELIABLE, "give camera_scale='unknown'"),  # a monocular camera taken as metric
 ])
 def test_the_self_check_notices_camera_translations_in_another_unit(factor, status, says):
-    """Check 5 of handeye.self_check: the camera's translations must fit the robot's at scale 1."""
+    """Check 5 of handeye.self_check: the camera's translations must fit the robot's at scale 1
+    (here judging refine's answer: auto estimates the scale where the data demand it, below)."""
     data, _ = simulate("axyb", seed=6, noise=ACCURACY_NOISE, pairs=8)
-    sol = handeye.solve("axyb", **camera_in_own_unit(data, 1.0 / factor))
+    sol = handeye.solve("axyb", solver="refine", **camera_in_own_unit(data, 1.0 / factor))
     check = sol.diagnostics["self_check"]["camera_scale"]
     assert sol.status is status
     assert check["scale"] == pytest.approx(1.0 / factor, rel=0.01)
@@ -154,3 +155,20 @@ def test_no_scale_verdict_where_the_robot_does_not_translate():
 
     data, _ = campaign.make_case("pure-rotation", 4).data("axyb")
     assert "camera_scale" not in handeye.solve("axyb", **data).diagnostics["self_check"]
+
+
+@pytest.mark.parametrize("problem", ["axyb", "axxb"])
+@pytest.mark.parametrize("factor", [SCALE, 1e-3])
+def test_auto_estimates_the_scale_where_the_data_demand_it(problem, factor):
+    """A camera in another unit, or monocular, taken as metric: auto fits the scale (with a
+    warning) and its answer is as if camera_scale='unknown' had been given."""
+    data, truth = simulate(problem, seed=7, noise=ACCURACY_NOISE, pairs=12)
+    camera = camera_in_own_unit(data, factor)
+    sol = handeye.solve(problem, **camera)
+    told = handeye.solve(problem, camera_scale="unknown", **camera)
+    assert sol.status is Status.OPTIMAL and sol.warnings[0].startswith("auto: the camera's translations fit")
+    assert scale_of(sol) == pytest.approx(scale_of(told), rel=1e-9) == pytest.approx(factor, rel=0.01)
+    for name in sol.unknowns:
+        np.testing.assert_allclose(sol.unknowns[name], told.unknowns[name], rtol=1e-9, atol=1e-9)
+    assert PROBLEMS[problem].errors(sol.unknowns, truth)["X"]["translation"] < 2.0  # mm
+    assert "camera_scale_test" in sol.diagnostics
