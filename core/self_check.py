@@ -295,7 +295,7 @@ def camera_scale_verdict(problem: Any, data: Any, unknowns: Mapping[str, np.ndar
         return None
     model, poses, _ = spec
     try:
-        fit, cov, flagged, res = _best_fit(model, poses)
+        _, cov, flagged, res = _best_fit(model, poses)
     except DegenerateDataError:
         return None
     if flagged.any():
