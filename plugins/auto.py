@@ -58,6 +58,12 @@ from handeye.whitening import Whitening, estimate_sigmas
 
 #: keys of an init solver's diagnostics that make up its certificate
 CERTIFICATE_KEYS = ("certified", "eigenvalue_ratio", "relative_gap", "duality_gap", "lower_bound", "cost", "thresholds")
+#: camera poses that drift (`_drift`): lag-1 autocorrelation of the A X = Y B translation
+#: residuals beyond this (and beyond 3 / sqrt(m)), from DRIFT_MIN_PAIRS stations on. Measured
+#: (kinhec smoke tier, docs/solvers/auto.md): drifting (visual-odometry) camera poses 0.79-0.98,
+#: every other noise model of the tier -0.40..0.20
+DRIFT_AUTOCORRELATION = 0.6
+DRIFT_MIN_PAIRS = 20
 #: values of option `outliers`
 OUTLIER_CHOICES = ("reject", "keep")
 #: problems without a certifiable start: the safeguard's second start always runs
@@ -115,10 +121,18 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
     """The pipeline of the module docstring; then, where the camera's translations fit the
     robot's only at another scale (the host's check 5, `handeye.self_check`: a factor beyond 1.5
     that explains the translation misfit), the pipeline again with that scale unknown
-    (`handeye.camera_scale`), with a warning."""
+    (`handeye.camera_scale`), with a warning; then, for A X = Y B whose camera poses drift, X
+    from the consecutive motions (`_drift`)."""
     output = _run(data, options, backend)
-    if not _scale_may_be_estimated(data, options):
-        return output
+    if _scale_may_be_estimated(data, options):
+        data, output = _estimate_scale_if_needed(data, options, backend, output)
+    return _drift(data, options, backend, output)
+
+
+def _estimate_scale_if_needed(data: Any, options: Options, backend: str,
+                              output: SolverOutput) -> tuple[Any, SolverOutput]:
+    """(data, output) as they are, or with the camera's scale unknown and solved again when check
+    5 fails on `output` (`run`)."""
     from handeye.problems.axxb import PROBLEM as AXXB
     from handeye.problems.axyb import PROBLEM as AXYB
     from handeye.self_check import camera_scale_verdict
@@ -126,17 +140,64 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
     problem = {"axyb": AXYB, "axxb": AXXB}[_refine.problem_of(data)]
     verdict = camera_scale_verdict(problem, data, output.unknowns)
     if verdict is None or verdict["verdict"] != "fail":
-        return output
-    scaled = _run(dataclasses.replace(data, camera_scale_unknown=True), options, backend)
-    s, std = scaled.diagnostics.get("camera_scale"), scaled.diagnostics.get("camera_scale_std")
+        return data, output
+    data = dataclasses.replace(data, camera_scale_unknown=True)
+    scaled = _run(data, options, backend)
+    s, std = scaled.diagnostics.get("camera_scale", verdict["scale"]), scaled.diagnostics.get("camera_scale_std")
+    sigma = "" if std is None else f" (1-sigma {std:.2g})"
     note = (f"auto: the camera's translations fit the robot's only when multiplied by {verdict['scale']:.4g} (the "
             f"translation residuals {verdict['translation_fit_gain']:.3g} times smaller), so auto estimated that "
-            f"factor, as camera_scale='unknown' does: {s:.6g} (1-sigma {std:.2g}). A monocular camera, or the two in "
+            f"factor, as camera_scale='unknown' does: {s:.6g}{sigma}. A monocular camera, or the two in "
             "different length units: if they should be in one, fix the data; camera_scale='known' would keep the "
             "scale at 1 (and the answer would be unreliable)")
     diagnostics = {**scaled.diagnostics, "camera_scale_test": jsonable(verdict),
                    "warnings": [note, *scaled.diagnostics.get("warnings", [])]}
-    return SolverOutput(unknowns=scaled.unknowns, status=scaled.status, diagnostics=diagnostics)
+    return data, SolverOutput(unknowns=scaled.unknowns, status=scaled.status, diagnostics=diagnostics)
+
+
+def _drift(data: Any, options: Options, backend: str, output: SolverOutput) -> SolverOutput:
+    """A X = Y B whose camera poses drift (visual odometry, SLAM: each pose's error carries the
+    earlier ones'): the residuals of A_k X = Y B_k at the answer are correlated from one station
+    to the next (lag-1 autocorrelation of the translation residuals, in the order of the data,
+    above DRIFT_AUTOCORRELATION and 3 / sqrt(m), from DRIFT_MIN_PAIRS stations on), while the
+    errors of consecutive motions do not accumulate. X then comes from A_k^-1 A_k+1 X =
+    X B_k^-1 B_k+1 (`auto` for A X = X B on those motions) and Y is the fit of the stations to
+    it (`fitted_Y`: the average over the drift), with a warning; the A X = Y B answer is kept in
+    the diagnostics. Anything else: `output` as it is, with the autocorrelation reported."""
+    if (_refine.problem_of(data) != "axyb" or data.m < DRIFT_MIN_PAIRS or _refine.is_planar(data)
+            or options.init is not None or options.covariance is not None):
+        return output
+    from handeye.problems.axxb import PROBLEM as AXXB
+    from handeye.problems.axyb_geometry import fitted_Y
+
+    scale_unknown = bool(data.camera_scale_unknown)
+    e = _refine.model_of(data).residuals((output.unknowns["X"], output.unknowns["Y"]))[:, 3:]
+    e = e - e.mean(axis=0)
+    acf = float(np.sum(e[1:] * e[:-1]) / max(float(np.sum(e * e)), 1e-300))
+    if acf <= max(DRIFT_AUTOCORRELATION, 3.0 / np.sqrt(data.m)):
+        return SolverOutput(output.unknowns, output.status, {**output.diagnostics, "drift_autocorrelation": acf})
+    A, B = data.A, data.B
+    try:
+        motions = AXXB.validate(A=np.linalg.inv(A[:-1]) @ A[1:], B=np.linalg.inv(B[:-1]) @ B[1:],
+                                camera_scale="unknown" if scale_unknown else "known")
+        sub = _run(motions, options, backend)
+    except (DegenerateDataError, InputError):
+        return SolverOutput(output.unknowns, output.status, {**output.diagnostics, "drift_autocorrelation": acf})
+    X = sub.unknowns["X"]
+    metric_B = np.array(B)
+    metric_B[:, :3, 3] *= sub.diagnostics.get("camera_scale", 1.0)
+    note = (f"auto: the camera's poses drift over the recording (the residuals of A_k X = Y B_k are correlated from "
+            f"one station to the next: lag-1 autocorrelation {acf:.2f}), as visual odometry's do; X comes from the "
+            f"{motions.m} consecutive motions (A X = X B), whose errors do not accumulate, and Y is the stations' "
+            "average fit to it")
+    earlier = [w for w in output.diagnostics.get("warnings", []) if w.startswith("auto: the camera's translations")]
+    diagnostics = {**sub.diagnostics, "drift_autocorrelation": acf,
+                   "formulation": f"A_k X = X B_k on the {motions.m} consecutive motions (the camera's poses drift)",
+                   "axyb_answer": jsonable(output.unknowns),
+                   "warnings": [*earlier, note, *sub.diagnostics.get("warnings", [])]}
+    if "camera_scale_test" in output.diagnostics:
+        diagnostics["camera_scale_test"] = output.diagnostics["camera_scale_test"]
+    return SolverOutput({"X": X, "Y": fitted_Y(A, metric_B, X)}, sub.status, diagnostics)
 
 
 def _scale_may_be_estimated(data: Any, options: Options) -> bool:

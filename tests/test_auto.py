@@ -365,3 +365,38 @@ def test_auto_axbycz_second_start_is_the_first_that_solves_the_data(monkeypatch)
     assert alone.diagnostics["pipeline"] == ["wang", "refine"]
     for k in ("X", "Y", "Z"):
         np.testing.assert_allclose(alone.unknowns[k], sol.unknowns[k], atol=1e-6)
+
+
+def drifting(B: np.ndarray, rng: np.random.Generator, rot: float = 0.002, trans: float = 1.0) -> np.ndarray:
+    """The camera poses B (T_target_cam) with an error that accumulates along the recording in
+    the world (board) frame, as visual odometry's: D_k B_k with D_k = D_k-1 exp(xi_k),
+    xi_k ~ N(0, rot^2, trans^2)."""
+    from handeye.se3 import make_pose, so3_exp
+
+    out, D = np.array(B), np.eye(4)
+    for k in range(len(B)):
+        D = D @ make_pose(so3_exp(rng.normal(0.0, rot, 3)), rng.normal(0.0, trans, 3))
+        out[k] = D @ B[k]
+    return out
+
+
+def test_drifting_camera_poses_take_the_consecutive_motions():
+    """Camera poses whose error accumulates: the A X = Y B residuals are correlated from one
+    station to the next and auto takes X from the consecutive motions (A X = X B), which is
+    several times more accurate there; independent noise keeps A X = Y B."""
+    from handeye.plugins.auto import DRIFT_AUTOCORRELATION
+
+    drift_err, axyb_err = [], []
+    for seed in range(5):
+        data, truth = PROBLEM.simulate(pairs=40, seed=seed)
+        B = drifting(data["B"], np.random.default_rng(seed))
+        sol = handeye.solve("axyb", A=data["A"], B=B)
+        assert sol.diagnostics["drift_autocorrelation"] > DRIFT_AUTOCORRELATION
+        assert "consecutive motions" in sol.diagnostics["formulation"] and "drift" in sol.warnings[0]
+        drift_err.append(PROBLEM.errors(sol.unknowns, truth)["X"]["translation"])
+        plain = handeye.solve("axyb", solver="refine", A=data["A"], B=B)
+        axyb_err.append(PROBLEM.errors(plain.unknowns, truth)["X"]["translation"])
+        clean, _ = PROBLEM.simulate(pairs=40, seed=seed, noise=NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)}))
+        kept = handeye.solve("axyb", **clean)
+        assert kept.diagnostics["drift_autocorrelation"] < DRIFT_AUTOCORRELATION and "formulation" not in kept.diagnostics
+    assert np.median(drift_err) < 0.5 * np.median(axyb_err)
