@@ -324,9 +324,8 @@ def _camera_scale(model: Any, res: Any, cov: np.ndarray, failures: list[str], wa
         return
     g = model.camera_direction(res.poses)
     gw, ew = res.W.residual(g).ravel(), res.ew.ravel()
-    if model.m >= model.sums_min_pairs:  # J^T W g in closed form (the translation rows do not see e's rotations)
-        mixed = np.concatenate([res.e[:, :3], g[:, 3:]], axis=1)
-        b = model.normal_equations(res.poses, mixed, res.W.sigma_rot ** -2, res.W.sigma_trans ** -2, np.ones(model.m))[1]
+    if model.m >= model.sums_min_pairs:  # J^T W g in closed form: g lives on the translation rows only
+        b = model.translation_gradient(res.poses, g[:, 3:]) / res.W.sigma_trans ** 2
     else:
         J = res.W.jacobian(model.jacobian(res.poses, res.e))
         b = J.reshape(-1, J.shape[2]).T @ gw  # cov is P (P^T H P)^-1 P^T: b stays in the full 6k

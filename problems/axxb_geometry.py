@@ -74,6 +74,12 @@ class AXXBModel(AXYBModel):
         X, = poses
         return super().camera_direction((X, X))
 
+    def translation_gradient(self, poses: Poses, t: np.ndarray) -> np.ndarray:
+        """`AXYBModel.translation_gradient` at (X, X), folded onto X: (6,)."""
+        X, = poses
+        g = super().translation_gradient((X, X), t)
+        return g[:6] + g[6:]
+
     def normal_equations(self, poses: Poses, e: np.ndarray, wr: float, wt: float,
                          d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """A X = Y B's closed-form sums at (X, X), folded onto X (module docstring)."""

@@ -103,6 +103,18 @@ class AXYBModel(PoseModel):
         g[:, 3:] = -self.tB @ poses[1][:3, :3].T
         return g
 
+    def translation_gradient(self, poses: Poses, t: np.ndarray) -> np.ndarray:
+        """sum_i J_t,i^T t_i: (12,) for vectors t: (m, 3) on the translation rows (J_t the
+        translation rows of `jacobian`, which do not depend on the residual), in O(m) without
+        forming J (the g_trans of `normal_equations` with unit weights)."""
+        X, Y = poses
+        RX, RY = X[:3, :3], Y[:3, :3]
+        g = np.zeros(12)
+        g[3:6] = RX.T @ np.einsum("nji,nj->i", self.RA9.reshape(self.m, 3, 3), t)
+        g[6:9] = RY.T @ np.cross(t, self.tB @ RY.T).sum(axis=0)
+        g[9:12] = -(RY.T @ t.sum(axis=0))
+        return g
+
     def with_camera_scale(self, s: float) -> AXYBModel:
         """This model with the camera translations t_B multiplied by s (the rest shared)."""
         out = copy.copy(self)
