@@ -310,6 +310,33 @@ def camera_scale_verdict(problem: Any, data: Any, unknowns: Mapping[str, np.ndar
     return {**figures["camera_scale"], "verdict": verdict}
 
 
+def camera_scale_screen(model: Any, poses: tuple[np.ndarray, ...], e: np.ndarray, W: Any,
+                        cov: np.ndarray) -> tuple[float, float] | None:
+    """Check 5's screen: (s, its standard deviation) for the scale of the camera's translations
+    in one Gauss-Newton step from a least-squares fit (`poses`, its residuals e, per-group
+    weights W, covariance cov as `handeye.nlls.covariance` gives it); exact in s, which the
+    residual is linear in, with the poses stationary at the fit. None where the data do not
+    determine s (the Schur complement of s is not positive)."""
+    g = model.camera_direction(poses)
+    gw, ew = W.residual(g).ravel(), W.residual(e).ravel()
+    if model.m >= model.sums_min_pairs:  # J^T W g in closed form: g lives on the translation rows only
+        b = model.translation_gradient(poses, g[:, 3:]) / W.sigma_trans ** 2
+    else:
+        J = W.jacobian(model.jacobian(poses, e))
+        b = J.reshape(-1, J.shape[2]).T @ gw  # cov is P (P^T H P)^-1 P^T: b stays in the full 6k
+    factor = float(ew @ ew) / max(ew.size - len(b), 1)  # the variance factor of cov
+    schur = float(gw @ gw) - float(b @ cov @ b) / factor
+    if not schur > 0.0:
+        return None
+    return 1.0 - float(gw @ ew) / schur, math.sqrt(factor / schur)
+
+
+def scale_suspect(s: float, std: float) -> bool:
+    """Whether a screened scale needs the fit with s free (`_camera_scale`): it moved by more
+    than SCALE_WARN and two standard deviations."""
+    return abs(s - 1.0) > SCALE_WARN and abs(s - 1.0) > 2.0 * std
+
+
 def _camera_scale(model: Any, res: Any, cov: np.ndarray, failures: list[str], warnings: list[str],
                   figures: dict[str, Any]) -> None:
     """Check 5: do the camera's translations fit the robot's at scale 1? Screened in one
@@ -322,20 +349,12 @@ def _camera_scale(model: Any, res: Any, cov: np.ndarray, failures: list[str], wa
     already unknown, are skipped."""
     if not hasattr(model, "camera_direction") or res.W.L is not None:
         return
-    g = model.camera_direction(res.poses)
-    gw, ew = res.W.residual(g).ravel(), res.ew.ravel()
-    if model.m >= model.sums_min_pairs:  # J^T W g in closed form: g lives on the translation rows only
-        b = model.translation_gradient(res.poses, g[:, 3:]) / res.W.sigma_trans ** 2
-    else:
-        J = res.W.jacobian(model.jacobian(res.poses, res.e))
-        b = J.reshape(-1, J.shape[2]).T @ gw  # cov is P (P^T H P)^-1 P^T: b stays in the full 6k
-    factor = float(ew @ ew) / max(ew.size - len(b), 1)  # the variance factor of cov
-    schur = float(gw @ gw) - float(b @ cov @ b) / factor
-    if not schur > 0.0:
+    screen = camera_scale_screen(model, res.poses, res.e, res.W, cov)
+    if screen is None:
         return
-    s, std = 1.0 - float(gw @ ew) / schur, math.sqrt(factor / schur)
+    s, std = screen
     gain = 1.0
-    if abs(s - 1.0) > SCALE_WARN and abs(s - 1.0) > 2.0 * std:
+    if scale_suspect(s, std):
         try:
             free = camera_scale.ScaledCameraModel(model)
             fit = nlls.levenberg_marquardt(free, res.poses, None, "linear", DEFAULT_LOSS_SCALE, MAX_ITER, FIT_TOL)

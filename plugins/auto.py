@@ -124,20 +124,41 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
     (`handeye.camera_scale`), with a warning; then, for A X = Y B whose camera poses drift, X
     from the consecutive motions (`_drift`)."""
     output = _run(data, options, backend)
+    at = _residuals_at(data, output)  # (model, residuals) at the answer, shared by the two steps
     if _scale_may_be_estimated(data, options):
-        data, output = _estimate_scale_if_needed(data, options, backend, output)
-    return _drift(data, options, backend, output)
+        data, scaled = _estimate_scale_if_needed(data, options, backend, output, at)
+        at, output = (at if scaled is output else None), scaled
+    return _drift(data, options, backend, output, at)
 
 
-def _estimate_scale_if_needed(data: Any, options: Options, backend: str,
-                              output: SolverOutput) -> tuple[Any, SolverOutput]:
+def _residuals_at(data: Any, output: SolverOutput) -> tuple[Any, np.ndarray] | None:
+    """(model, residuals) of A X = Y B at auto's answer, or None for other problems."""
+    if _refine.problem_of(data) != "axyb" or _refine.is_planar(data):
+        return None
+    model = _refine.model_of(data)
+    return model, model.residuals((output.unknowns["X"], output.unknowns["Y"]))
+
+
+def _estimate_scale_if_needed(data: Any, options: Options, backend: str, output: SolverOutput,
+                              at: tuple[Any, np.ndarray] | None = None) -> tuple[Any, SolverOutput]:
     """(data, output) as they are, or with the camera's scale unknown and solved again when check
     5 fails on `output` (`run`)."""
     from handeye.problems.axxb import PROBLEM as AXXB
     from handeye.problems.axyb import PROBLEM as AXYB
-    from handeye.self_check import camera_scale_verdict
+    from handeye.self_check import camera_scale_screen, camera_scale_verdict, scale_suspect
 
-    problem = {"axyb": AXYB, "axxb": AXXB}[_refine.problem_of(data)]
+    name = _refine.problem_of(data)
+    fitted = output.diagnostics.get("refine", {})
+    if at is not None and "formulation" not in output.diagnostics and "covariance_XY" in fitted \
+            and not fitted.get("outliers_left_out") and "sigma_rot" in fitted:
+        # screened from refine's own fit (one residual evaluation): most data end here
+        model, residuals = at
+        screen = camera_scale_screen(model, (output.unknowns["X"], output.unknowns["Y"]), residuals,
+                                     Whitening(fitted["sigma_rot"], fitted["sigma_trans"]),
+                                     np.asarray(fitted["covariance_XY"], dtype=float))
+        if screen is None or not scale_suspect(*screen):
+            return data, output
+    problem = {"axyb": AXYB, "axxb": AXXB}[name]
     verdict = camera_scale_verdict(problem, data, output.unknowns)
     if verdict is None or verdict["verdict"] != "fail":
         return data, output
@@ -155,7 +176,8 @@ def _estimate_scale_if_needed(data: Any, options: Options, backend: str,
     return data, SolverOutput(unknowns=scaled.unknowns, status=scaled.status, diagnostics=diagnostics)
 
 
-def _drift(data: Any, options: Options, backend: str, output: SolverOutput) -> SolverOutput:
+def _drift(data: Any, options: Options, backend: str, output: SolverOutput,
+           at: tuple[Any, np.ndarray] | None = None) -> SolverOutput:
     """A X = Y B whose camera poses drift (visual odometry, SLAM: each pose's error carries the
     earlier ones'): the residuals of A_k X = Y B_k at the answer are correlated from one station
     to the next (lag-1 autocorrelation of the translation residuals, in the order of the data,
@@ -171,7 +193,7 @@ def _drift(data: Any, options: Options, backend: str, output: SolverOutput) -> S
     from handeye.problems.axyb_geometry import fitted_Y
 
     scale_unknown = bool(data.camera_scale_unknown)
-    e = _refine.model_of(data).residuals((output.unknowns["X"], output.unknowns["Y"]))[:, 3:]
+    e = (at or _residuals_at(data, output))[1][:, 3:]
     e = e - e.mean(axis=0)
     acf = float(np.sum(e[1:] * e[:-1]) / max(float(np.sum(e * e)), 1e-300))
     if acf <= max(DRIFT_AUTOCORRELATION, 3.0 / np.sqrt(data.m)):
