@@ -145,7 +145,11 @@ def _estimate_scale_if_needed(data: Any, options: Options, backend: str, output:
     5 fails on `output` (`run`)."""
     from handeye.problems.axxb import PROBLEM as AXXB
     from handeye.problems.axyb import PROBLEM as AXYB
-    from handeye.self_check import camera_scale_screen, camera_scale_verdict, scale_suspect
+    from handeye.self_check import (
+        camera_scale_screen,
+        camera_scale_verdict,
+        scale_suspect,
+    )
 
     name = _refine.problem_of(data)
     fitted = output.diagnostics.get("refine", {})
