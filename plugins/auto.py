@@ -48,7 +48,7 @@ import dataclasses
 from typing import Any
 
 import numpy as np
-from handeye import SolverOutput, SolverSpec, Status, hookimpl, nlls
+from handeye import SolverOutput, SolverSpec, Status, camera_scale, hookimpl, nlls
 from handeye.errors import DegenerateDataError, InputError
 from handeye.options import check_choice
 from handeye.plugins import refine as _refine
@@ -372,7 +372,11 @@ def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, d
     stacks = [f.name for f in dataclasses.fields(data) if f.name in ("A", "B", "C")]
     subset = dataclasses.replace(data, **{f: getattr(data, f)[inliers] for f in stacks})  # keeps the planar mode
     try:
-        new_poses, new_status, new_diag = nlls.refine(_refine.model_of(subset), fit, sub_settings)
+        sub_model = _refine.model_of(subset)
+        new_poses, new_status, new_diag = nlls.refine(sub_model, fit, sub_settings)
+        if isinstance(sub_model, camera_scale.ScaledCameraModel):  # the scale of the camera, as refine reports it
+            new_diag.update(camera_scale.scale_figures(sub_model, new_poses, new_diag["sigma_rot"], new_diag["sigma_trans"],
+                                                       new_diag["variance_factor"]))
     except DegenerateDataError:
         return poses, status, diag, [], (
             f"{what} {_listing(np.flatnonzero(flagged))} are far off the others, but the rest do not determine "

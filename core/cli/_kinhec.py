@@ -63,7 +63,6 @@ from typing import Any
 import numpy as np
 
 from ..errors import DegenerateDataError, HandEyeError, InputError, SolverError
-from ._common import check_new_results
 
 #: the oldest KinHEC whose protocol this module follows
 MIN_VERSION = (1, 1)
@@ -320,6 +319,8 @@ class KinhecRun:
     skipped: list[str]
     seconds: float
     kinhec_version: str
+    #: `machine_line` taken when the run started (the code a long run uses is the code at its start)
+    machine: str = ""
 
 
 def run_kinhec(data_dir: str | Path, out_dir: str | Path | None = None, *, tracks: Sequence[str] | None = None,
@@ -341,7 +342,10 @@ def run_kinhec(data_dir: str | Path, out_dir: str | Path | None = None, *, track
         raise InputError(f"--kinhec {str(root)!r}: not a KinHEC dataset folder (no sequences.parquet); make one "
                          f"with: kinhec generate --tier smoke --out {root}")
     out = Path(out_dir) if out_dir is not None else root / "benchmarks"
-    check_new_results("--kinhec-out", out, KINHEC_FILES + HANDEYE_FILES, force)
+    existing = [name for name in KINHEC_FILES + HANDEYE_FILES if (out / name).exists()]
+    if existing and not force:
+        raise InputError(f"--kinhec-out {str(out)!r} already holds {existing[0]!r} from an earlier run; pass --force "
+                         "to overwrite its results, or name another folder with --kinhec-out")
     if workers < 1:
         raise InputError(f"--workers must be >= 1, got {workers}")
     if workers > 1 and multiprocessing.get_start_method(allow_none=False) != "fork":
@@ -356,6 +360,8 @@ def run_kinhec(data_dir: str | Path, out_dir: str | Path | None = None, *, track
     entries, skipped = handeye_entries()
     available = references + [e.name for e in entries]
     names = select_solvers(solvers, available, references)
+    version = str(getattr(sys.modules.get("kinhec"), "__version__", "?"))
+    machine = machine_line(version)
     start = time.perf_counter()
     with registered(benchmark, [e for e in entries if e.name in names]), contextlib.redirect_stdout(sys.stderr):
         try:
@@ -365,9 +371,8 @@ def run_kinhec(data_dir: str | Path, out_dir: str | Path | None = None, *, track
             raise SolverError(f"KinHEC's run_benchmark failed: {_one_line(exc)}") from None
     seconds = time.perf_counter() - start
     rows = result.to_dict("records") if hasattr(result, "to_dict") else [dict(r) for r in result]
-    version = str(getattr(sys.modules.get("kinhec"), "__version__", "?"))
-    run = KinhecRun(rows, head_to_head(rows), track_summary(rows, references), auto_vs_best(rows, references),
-                    out, names, [n for n in references if n in names], skipped, seconds, version)
+    run = KinhecRun(rows, head_to_head(rows), track_summary(rows), auto_vs_best(rows, references),
+                    out, names, [n for n in references if n in names], skipped, seconds, version, machine)
     write_outputs(run, root)
     return run
 
@@ -458,7 +463,7 @@ def _kind(name: str) -> str:
     return "KinHEC reference"
 
 
-def track_summary(rows: Sequence[Mapping[str, Any]], references: Sequence[str] = ()) -> list[dict[str, Any]]:
+def track_summary(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """Per (track, synchronisation mode, solver): sequences, success rate (KinHEC's: a finite
     answer), usable rate (handeye solvers: success with a `USABLE` status), median X and Y errors
     over the successes, median runtime and its ratio to shah+lm's; sorted by median X translation
@@ -488,17 +493,19 @@ def track_summary(rows: Sequence[Mapping[str, Any]], references: Sequence[str] =
 def auto_vs_best(rows: Sequence[Mapping[str, Any]], references: Sequence[str]) -> list[dict[str, Any]]:
     """Per (track, synchronisation mode), and over every sequence (track "all", oracle
     synchronisation): `AUTO`'s medians beside those of the KinHEC reference with the lowest median
-    X translation error there, and of shah+lm; auto's success and usable rates, the median of its
-    per-sequence runtime ratio to shah+lm, and the sequences where its X translation error exceeds
-    `WORSE_FACTOR` times shah+lm's."""
+    X translation error there, and of shah+lm; auto's success and usable rates, the median X
+    translation errors of auto and shah+lm over the sequences both answered ("paired": each
+    solver's own medians leave out the sequences it refused, which are the hardest), the median of
+    auto's per-sequence runtime ratio to shah+lm, and the sequences where its X translation error
+    exceeds `WORSE_FACTOR` times shah+lm's."""
     pairs = head_to_head(rows)
-    summary = track_summary(rows, references)
+    summary = track_summary(rows)
     cells = [(t, s) for t, s in dict.fromkeys((r["track"], r["eval_sync"]) for r in summary)]
     out = []
     for track, sync in [*cells, ("all", "oracle")]:
         if track == "all":
             pooled = [r for r in rows if r.get("eval_sync") == "oracle"]
-            stats = {r["solver"]: r for r in track_summary([{**r, "track": "all"} for r in pooled], references)}
+            stats = {r["solver"]: r for r in track_summary([{**r, "track": "all"} for r in pooled])}
             seqs = [p for p in pairs if p["eval_sync"] == "oracle"]
         else:
             stats = {r["solver"]: r for r in summary if r["track"] == track and r["eval_sync"] == sync}
@@ -509,6 +516,7 @@ def auto_vs_best(rows: Sequence[Mapping[str, Any]], references: Sequence[str]) -
         refs = [stats[n] for n in references if n in stats and math.isfinite(stats[n]["X_trans_err_mm_median"])]
         best = min(refs, key=lambda s: s["X_trans_err_mm_median"]) if refs else None
         shah = stats.get(REFERENCE, {})
+        both = [p for p in seqs if p["auto_ok"] and p["shah_lm_ok"]]
         worse = sum(1 for p in seqs if math.isfinite(p["trans_ratio"]) and p["trans_ratio"] > WORSE_FACTOR)
         flagged = sum(1 for p in seqs if p["auto_status"] != "optimal")
         out.append({
@@ -520,6 +528,9 @@ def auto_vs_best(rows: Sequence[Mapping[str, Any]], references: Sequence[str]) -
             "best_X_trans_mm": best["X_trans_err_mm_median"] if best else math.nan,
             "shah_lm_X_rot_deg": shah.get("X_rot_err_deg_median", math.nan),
             "shah_lm_X_trans_mm": shah.get("X_trans_err_mm_median", math.nan),
+            "paired_n": len(both),
+            "paired_auto_X_trans_mm": _median([p["auto_X_trans_mm"] for p in both]),
+            "paired_shah_lm_X_trans_mm": _median([p["shah_lm_X_trans_mm"] for p in both]),
             "time_ratio_to_shah_lm": _median([p["time_ratio"] for p in seqs]),
             "auto_worse_than_shah_lm": worse, "auto_not_optimal": flagged,
         })
@@ -550,11 +561,14 @@ def auto_vs_best_table(summary: Sequence[Mapping[str, Any]]) -> str:
     """`auto_vs_best` as a markdown table (also what the command prints)."""
     header = ["track", "sync", "n", "auto succ.", "auto usable", "auto X rot [deg]", "auto X trans [mm]",
               "best reference", "best X rot [deg]", "best X trans [mm]", "shah+lm X rot [deg]",
-              "shah+lm X trans [mm]", "time / shah+lm", f"auto > {WORSE_FACTOR:g}x shah+lm", "auto not optimal"]
+              "shah+lm X trans [mm]", "paired X trans: auto / shah+lm (n)", "time / shah+lm",
+              f"auto > {WORSE_FACTOR:g}x shah+lm", "auto not optimal"]
     body = [[str(r["track"]), str(r["eval_sync"]), str(r["n"]), _pct(r["auto_success_rate"]),
              _pct(r["auto_usable_rate"]), _fmt(r["auto_X_rot_deg"]), _fmt(r["auto_X_trans_mm"]),
              r["best_reference"] or "-", _fmt(r["best_X_rot_deg"]), _fmt(r["best_X_trans_mm"]),
-             _fmt(r["shah_lm_X_rot_deg"]), _fmt(r["shah_lm_X_trans_mm"]), _fmt(r["time_ratio_to_shah_lm"], 2),
+             _fmt(r["shah_lm_X_rot_deg"]), _fmt(r["shah_lm_X_trans_mm"]),
+             f"{_fmt(r['paired_auto_X_trans_mm'])} / {_fmt(r['paired_shah_lm_X_trans_mm'])} ({r['paired_n']})",
+             _fmt(r["time_ratio_to_shah_lm"], 2),
              str(r["auto_worse_than_shah_lm"]), str(r["auto_not_optimal"])] for r in summary]
     return _md_table(header, body)
 
@@ -569,12 +583,31 @@ def _write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:
 
 
 def machine_line(kinhec_version: str) -> str:
-    """When and where: date, machine, load, versions."""
+    """When and where: date, machine, load, versions (handeye's with its git commit when it runs
+    from a checkout, ``+dirty`` with uncommitted changes: the figures belong to that code)."""
     from .. import __version__
 
     load = " ".join(f"{v:.2f}" for v in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
     return (f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; {platform.machine()}, {os.cpu_count()} cores, "
-            f"load average {load}; python {platform.python_version()}, handeye {__version__}, kinhec {kinhec_version}")
+            f"load average {load}; python {platform.python_version()}, handeye {__version__}{_git_commit()}, "
+            f"kinhec {kinhec_version}")
+
+
+def _git_commit() -> str:
+    """`` (git abc1234)`` / `` (git abc1234+dirty)`` for a checkout, else ``""``."""
+    import subprocess
+
+    here = Path(__file__).resolve().parent
+    try:
+        head = subprocess.run(["git", "-C", str(here), "rev-parse", "--short", "HEAD"], check=False,
+                              capture_output=True, text=True, timeout=10)
+        if head.returncode != 0:
+            return ""
+        dirty = subprocess.run(["git", "-C", str(here), "status", "--porcelain", "--untracked-files=no"],
+                               check=False, capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return f" (git {head.stdout.strip()}{'+dirty' if dirty.stdout.strip() else ''})"
 
 
 def write_outputs(run: KinhecRun, data_dir: Path) -> list[Path]:
@@ -583,7 +616,7 @@ def write_outputs(run: KinhecRun, data_dir: Path) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     head = (f"KinHEC protocol (kinhec.benchmark.run_benchmark) on {data_dir}: "
             f"{len({r.get('sequence_id') for r in run.rows})} sequences, {len(run.solvers)} solvers, "
-            f"{run.seconds:.0f} s; {machine_line(run.kinhec_version)}.")
+            f"{run.seconds:.0f} s; started {run.machine or machine_line(run.kinhec_version)}.")
     _write_csv(out / "handeye_head_to_head.csv", run.head_to_head)
     _write_csv(out / "handeye_tracks.csv", run.tracks)
     per_seq = [[str(p["sequence_id"]), str(p["track"]), str(p["eval_sync"]), str(p["robot"]), str(p["n_keyframes"]),
@@ -594,7 +627,8 @@ def write_outputs(run: KinhecRun, data_dir: Path) -> list[Path]:
         "# handeye:auto against KinHEC's shah+lm", "", head, "",
         (f"X errors: rotation [deg], translation [mm], medians over the sequences a solver answered. `usable`: "
          f"answered with status {', '.join(USABLE)}. `best reference`: the KinHEC reference solver with the lowest "
-         f"median X translation error on the track. `time / shah+lm`: median over the sequences of auto's "
+         f"median X translation error on the track. `paired`: medians over the sequences both auto and shah+lm "
+         f"answered. `time / shah+lm`: median over the sequences of auto's "
          f"runtime over shah+lm's (KinHEC's timing: the whole handeye.solve call)."), "",
         "## Per track", "", auto_vs_best_table(run.auto_vs_best), "",
         "## Per sequence", "",
@@ -624,46 +658,55 @@ def write_outputs(run: KinhecRun, data_dir: Path) -> list[Path]:
 # regression fixtures
 # ---------------------------------------------------------------------------------------------
 
-def export_fixture(data_dir: str | Path, sequence_id: str, path: str | Path) -> dict[str, Any]:
+def export_fixture(data_dir: str | Path, sequence_id: str, path: str | Path, sync: str = "oracle",
+                   extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Save sequence `sequence_id` of the KinHEC dataset `data_dir` as the protocol hands it to the
-    solvers (the absolute keyframe poses A, B in metres, oracle synchronisation) with its truth
-    (X_true, Y_true), its identity (tier, seeds, track, robot, ...) and the X errors of KinHEC's
-    shah+lm and of handeye's auto on it, to the compressed NPZ `path`; return the saved fields.
+    solvers (the absolute keyframe poses A, B in metres) with its truth (X_true, Y_true), its
+    identity (tier, seeds, track, robot, ...) and the X errors of KinHEC's shah+lm on it (KinHEC's
+    code: the same whatever handeye's version), plus the fields of `extra` (e.g. what a benchmark
+    run recorded for handeye's solvers), to the compressed NPZ `path`; return the saved fields.
 
-    Uses ``kinhec.benchmark._keyframe_data``: KinHEC's own keyframe selection, so the fixture holds
+    sync: for an asynchronous sequence, pair the streams at the true clock offset (``oracle``) or
+    at the one KinHEC estimates from them (``estimated``, its ``estimate_time_offset``), as the
+    protocol's two modes; a synchronous sequence is paired row by row either way. Uses
+    ``kinhec.benchmark._keyframe_data``: KinHEC's own keyframe selection, so the fixture holds
     exactly what `adaptor` gets.
     """
     benchmark = import_kinhec()
     from kinhec.io import load_sequence
     from kinhec.metrics import calibration_errors
 
-    from ..api import solve
-
+    if sync not in ("oracle", "estimated"):
+        raise InputError(f"sync must be 'oracle' or 'estimated', got {sync!r}")
     root = Path(data_dir)
     seq = load_sequence(root, sequence_id)
-    data = benchmark._keyframe_data(seq, None if seq.synchronous else seq.time_offset)
+    offset = None
+    if not seq.synchronous:
+        offset = seq.time_offset
+        if sync == "estimated":
+            from kinhec.solvers import estimate_time_offset
+
+            offset, _ = estimate_time_offset(seq.robot.t, seq.robot.T_base_ee_meas, seq.camera.t,
+                                             seq.camera.T_cam_target_meas)
+    else:
+        sync = "oracle"
+    data = benchmark._keyframe_data(seq, offset)
     if data is None:
         raise InputError(f"{sequence_id}: fewer than 3 paired frames; KinHEC's protocol solves nothing on it")
-    A_abs, B_abs = data[0], data[1]
     ref = calibration_errors(benchmark.SOLVERS[REFERENCE](data, np.random.default_rng(0))["X"], seq.X)
-    try:
-        sol = solve("axyb", A=A_abs, B=B_abs)
-        auto = calibration_errors(np.array(sol.X), seq.X)
-        auto_status = sol.status.value
-    except HandEyeError as exc:
-        auto, auto_status = {"X_rot_err_deg": math.nan, "X_trans_err_mm": math.nan}, f"raised: {_one_line(exc)}"
     info = json.loads((root / "generation_info.json").read_text(encoding="utf-8"))
     m = seq.manifest
     fields: dict[str, Any] = {
-        "A": A_abs, "B": B_abs, "X_true": seq.X, "Y_true": seq.Y, "units": "m",
+        "A": data[0], "B": data[1], "X_true": seq.X, "Y_true": seq.Y, "units": "m",
         "setup": "eye-in-hand" if seq.eye_in_hand else "eye-to-hand",
         "sequence_id": sequence_id, "track": m["track"], "level": m["level"], "robot": m["robot"],
         "configuration": m["configuration"], "family": m["family"],
-        "eval_sync": "oracle", "time_offset_s": float(m["time_offset_s"]),
+        "eval_sync": sync, "time_offset_s": float(m["time_offset_s"]),
+        "time_offset_used_s": math.nan if offset is None else float(offset),
         "kinhec_version": str(info.get("generator_version", "")), "tier": str(info.get("tier", "")),
         "global_seed": int(info.get("global_seed", -1)), "seed": int(seq.config.seed) if seq.config else -1,
         "ref_solver": REFERENCE, "ref_X_rot_deg": ref["X_rot_err_deg"], "ref_X_trans_mm": ref["X_trans_err_mm"],
-        "auto_X_rot_deg": auto["X_rot_err_deg"], "auto_X_trans_mm": auto["X_trans_err_mm"], "auto_status": auto_status,
+        **dict(extra or {}),
     }
     np.savez_compressed(path, **{k: np.asarray(v) for k, v in fields.items()})
     return fields
@@ -715,7 +758,7 @@ def run(args: argparse.Namespace) -> int:
                         force=args.force)
     n_seq = len({r.get("sequence_id") for r in result.rows})
     print(f"handeye bench --kinhec {args.kinhec}: {n_seq} sequences, {len(result.solvers)} solvers "
-          f"({len(result.references)} KinHEC references), {result.seconds:.0f} s; {machine_line(result.kinhec_version)}")
+          f"({len(result.references)} KinHEC references), {result.seconds:.0f} s; started {result.machine}")
     print()
     print(f"{AUTO} against the best KinHEC reference of each track (medians; X rot [deg], X trans [mm]):")
     print(auto_vs_best_table(result.auto_vs_best))
