@@ -189,21 +189,24 @@ def assess(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], diagnost
     warnings: list[str] = []
     figures: dict[str, Any] = {}
     spec = problem.check_model(data, unknowns)
+    rotation = None
     if spec is not None:
-        _local_fit(problem, data, spec, diagnostics, failures, warnings, figures)
-    _rotation_residual(problem, data, unknowns, failures, figures)
+        rotation = _local_fit(problem, data, spec, diagnostics, failures, warnings, figures)
+    _rotation_residual(problem, data, unknowns, failures, figures, rotation)
     _rotation_blocks(diagnostics, failures, figures)
     failures.sort(key=lambda f: not f.startswith("the answer leaves"))  # check 1 first: it says the most
     return Assessment(not failures, tuple(failures), tuple(warnings), figures)
 
 
 def _rotation_residual(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], failures: list[str],
-                       figures: dict[str, Any]) -> None:
-    """Check 1 (`expected_from_invariants`)."""
+                       figures: dict[str, Any], rotation: np.ndarray | None = None) -> None:
+    """Check 1 (`expected_from_invariants`); `rotation`: the pairs' rotation residuals at the
+    answer when the local fit already has them (the angle of the rotation residual of its model
+    is the problem's residual rotation), else they are computed."""
     expected = problem.expected_rotation_residual(data)
     if expected is None:
         return
-    typical = median(problem.residuals(data, unknowns)["rotation"])
+    typical = median(rotation if rotation is not None else problem.residuals(data, unknowns)["rotation"])
     ratio = typical / max(expected, NUMERICAL_FLOOR)
     figures["rotation_residual"] = {"median_deg": math.degrees(typical), "expected_deg": math.degrees(expected),
                                     "ratio": ratio}
@@ -231,15 +234,16 @@ def _rotation_blocks(diagnostics: Mapping[str, Any], failures: list[str], figure
 
 def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...], tuple[str, ...]],
                diagnostics: Mapping[str, Any], failures: list[str], warnings: list[str],
-               figures: dict[str, Any]) -> None:
-    """Checks 2 and 3, and the observability warnings."""
+               figures: dict[str, Any]) -> np.ndarray | None:
+    """Checks 2, 3 and 5, and the observability warnings; returns the rotation residuals of the
+    data's pairs at the answer (for check 1) when the model is on those pairs, else None."""
     model, poses, interest = spec
     try:
-        fit, cov, flagged, res = _best_fit(model, poses)
+        fit, cov, flagged, res, at_answer = _best_fit(model, poses)
     except DegenerateDataError:
         failures.append("the data do not determine the unknowns near this answer (the least-squares fit from it "
                         "is singular)")
-        return
+        return None
     if not flagged.any():
         _camera_scale(model, res, cov, failures, warnings, figures)
     names = model.unknowns
@@ -269,20 +273,23 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
                         f"({gap_text}), so the data support it far less than that fit{why}; solver 'auto' returns "
                         "the best fit")
     figures["std"] = _precision(problem, data, model, fit, cov, interest, warnings, figures)
+    # the rotation residuals of the data's own pairs at the answer, when the model is on them
+    return np.linalg.norm(at_answer[:, :3], axis=1) if model.m == problem_pairs(data) else None
 
 
-def _best_fit(model: Any, poses: tuple[np.ndarray, ...]) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray]:
+def _best_fit(model: Any, poses: tuple[np.ndarray, ...]) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray, Any, np.ndarray]:
     """The best fit near the answer `poses`: (fit, its covariance (6k, 6k), the pairs flagged far
-    off at it). The local least-squares fit with estimated weights (`nlls`, refine's engine, to
+    off at it, the engine's result there, the residuals at the answer itself). The local least-squares fit with estimated weights (`nlls`, refine's engine, to
     FIT_TOL), and a robust (Cauchy) one from it when pairs are far off."""
     loss = "linear"
     res = nlls.levenberg_marquardt(model, poses, None, loss, DEFAULT_LOSS_SCALE, MAX_ITER, FIT_TOL)
+    at_answer = res.e0
     flagged = _beyond(res.e, model.scale)
     if flagged.any():
         loss = "cauchy"
         res = nlls.levenberg_marquardt(model, res.poses, None, loss, DEFAULT_LOSS_SCALE, MAX_ITER, FIT_TOL)
         flagged = _beyond(res.e, model.scale)
-    return res.poses, nlls.covariance(res, loss, DEFAULT_LOSS_SCALE, estimated=True)[0], flagged, res
+    return res.poses, nlls.covariance(res, loss, DEFAULT_LOSS_SCALE, estimated=True)[0], flagged, res, at_answer
 
 
 def camera_scale_verdict(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray]) -> dict[str, Any] | None:
@@ -295,7 +302,7 @@ def camera_scale_verdict(problem: Any, data: Any, unknowns: Mapping[str, np.ndar
         return None
     model, poses, _ = spec
     try:
-        _, cov, flagged, res = _best_fit(model, poses)
+        _, cov, flagged, res, _ = _best_fit(model, poses)
     except DegenerateDataError:
         return None
     if flagged.any():
