@@ -48,7 +48,15 @@ import dataclasses
 from typing import Any
 
 import numpy as np
-from handeye import SolverOutput, SolverSpec, Status, camera_scale, hookimpl, nlls
+from handeye import (
+    SolverOutput,
+    SolverSpec,
+    Status,
+    camera_scale,
+    hookimpl,
+    nlls,
+    noise_sources,
+)
 from handeye.errors import DegenerateDataError, InputError
 from handeye.options import check_choice
 from handeye.plugins import refine as _refine
@@ -84,6 +92,8 @@ class Options:
     ``init`` to force the starting solver (default: the first registered and available of
     refine's STARTS for the problem: so3-sdp, then kron-lstsq (then park for axxb); for axbycz
     wang, fu-dq, kron-lstsq, wu), and
+    ``noise``: refine's noise model, "groups" (default) or "sources" (A_i X = Y B_i: the noise of
+    each measured pose in its own frame, estimated with the unknowns; `handeye.noise_sources`), and
     ``outliers``: "reject" (default; with least squares, pairs far off the others are left out
     and listed, see the module docstring) or "keep" (least squares on every pair). With a robust
     ``loss`` the loss handles outliers and nothing is left out."""
@@ -97,6 +107,7 @@ class Options:
     loss_scale: float = DEFAULT_LOSS_SCALE
     max_iter: int = 200
     tol: float = 1e-14
+    noise: str = "groups"
     outliers: str = "reject"
 
     def __post_init__(self) -> None:
@@ -113,6 +124,8 @@ class Options:
         """refine's options for `problem` with these values (the covariance given as its
         Cholesky factor, as refine keeps it after validation)."""
         values = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "outliers"}
+        if problem != "axyb":  # the noise-source model is A_i X = Y B_i's (A X = X B on stations solves that)
+            values["noise"] = "groups"
         values.update(overrides)
         return _refine.OPTIONS[problem](**values)
 
@@ -167,7 +180,7 @@ def _estimate_scale_if_needed(data: Any, options: Options, backend: str, output:
     if verdict is None or verdict["verdict"] != "fail":
         return data, output
     data = dataclasses.replace(data, camera_scale_unknown=True)
-    scaled = _run(data, options, backend)
+    scaled = _run(data, dataclasses.replace(options, noise="groups"), backend)  # the scale is fitted per group
     s, std = scaled.diagnostics.get("camera_scale", verdict["scale"]), scaled.diagnostics.get("camera_scale_std")
     sigma = "" if std is None else f" (1-sigma {std:.2g})"
     note = (f"auto: the camera's translations fit the robot's only when multiplied by {verdict['scale']:.4g} (the "
@@ -373,7 +386,10 @@ def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, d
     subset = dataclasses.replace(data, **{f: getattr(data, f)[inliers] for f in stacks})  # keeps the planar mode
     try:
         sub_model = _refine.model_of(subset)
-        new_poses, new_status, new_diag = nlls.refine(sub_model, fit, sub_settings)
+        if ropts.noise == "sources":  # the noise model the user chose, on the pairs that are left
+            new_poses, new_status, new_diag = noise_sources.fit(sub_model, subset, fit, sub_settings)
+        else:
+            new_poses, new_status, new_diag = nlls.refine(sub_model, fit, sub_settings)
         if isinstance(sub_model, camera_scale.ScaledCameraModel):  # the scale of the camera, as refine reports it
             new_diag.update(camera_scale.scale_figures(sub_model, new_poses, new_diag["sigma_rot"], new_diag["sigma_trans"],
                                                        new_diag["variance_factor"]))

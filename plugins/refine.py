@@ -52,7 +52,15 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
-from handeye import SolverOutput, SolverSpec, Status, camera_scale, hookimpl, nlls
+from handeye import (
+    SolverOutput,
+    SolverSpec,
+    Status,
+    camera_scale,
+    hookimpl,
+    nlls,
+    noise_sources,
+)
 from handeye.errors import BackendUnavailableError, InputError, SolverError
 from handeye.options import check_choice, check_positive
 from handeye.problems.axbycz import AXBYCZData
@@ -81,6 +89,10 @@ STARTS: dict[str, tuple[str, ...]] = {"axyb": ("so3-sdp", "kron-lstsq"), "axxb":
 FALLBACK_ERRORS: dict[str, tuple[type[Exception], ...]] = {
     "axyb": (SolverError, BackendUnavailableError), "axxb": (SolverError, BackendUnavailableError),
     "axbycz": (SolverError, BackendUnavailableError, InputError)}
+#: values of option `noise`: "groups", one noise level per residual group (rotation,
+#: translation) for every pair; "sources" (A_i X = Y B_i, noise estimated, least squares), the
+#: noise of each measured pose in its own frame, pair by pair (`handeye.noise_sources`)
+NOISE_MODELS = ("groups", "sources")
 #: solvers that cannot serve as `init` because they call `refine` themselves.
 RECURSIVE = ("refine", "auto")
 
@@ -101,6 +113,7 @@ class _Options:
     loss_scale: float = DEFAULT_LOSS_SCALE
     max_iter: int = 200
     tol: float = 1e-14
+    noise: str = "groups"
 
     def __post_init__(self) -> None:
         from handeye.errors import shown
@@ -108,6 +121,7 @@ class _Options:
         from handeye.validation import float_array
 
         check_choice("loss", self.loss, LOSSES)
+        check_choice("noise", self.noise, NOISE_MODELS)
         check_choice("estimate", self.estimate, nlls.ESTIMATES)
         check_positive("loss_scale", self.loss_scale)
         check_positive("tol", self.tol)
@@ -174,6 +188,9 @@ class Options(_Options):
         of that norm (default sqrt(chi2_6 quantile 0.95) = 3.55).
     max_iter: total Levenberg-Marquardt iterations; tol: stop when the cost decrease predicted by a
         Gauss-Newton step is below tol * cost.
+    noise: "groups" (default: one noise level per residual group, the same for every pair) or
+        "sources" (the noise of each measured pose in its own frame, estimated with the unknowns,
+        pair by pair: `handeye.noise_sources`; A_i X = Y B_i with the noise estimated).
     """
 
     UNKNOWNS: ClassVar[tuple[str, ...]] = ("X", "Y")
@@ -356,6 +373,11 @@ def refine(data: Any, poses0: tuple[np.ndarray, ...], options: _Options) -> tupl
     if isinstance(model, camera_scale.ScaledCameraModel) and settings.W is not None and settings.W.L is not None:
         raise InputError("with camera_scale='unknown' give the noise as sigma_rot/sigma_trans (or let it be estimated), "
                          "not as a covariance: the camera's scale is fitted under one sigma per residual group")
+    if options.noise == "sources":
+        if not sources_apply(data, options):
+            raise InputError("noise='sources' takes A_i X = Y B_i data with the camera's scale known, the noise "
+                             "estimated (no sigma_rot, sigma_trans or covariance) and loss='linear'; use noise='groups'")
+        return noise_sources.fit(model, data, poses0, settings)
     poses, status, diagnostics = nlls.refine(model, poses0, settings)
     if isinstance(model, camera_scale.ScaledCameraModel):
         W = settings.W
@@ -363,6 +385,13 @@ def refine(data: Any, poses0: tuple[np.ndarray, ...], options: _Options) -> tupl
         factor = diagnostics["variance_factor"] if settings.weights == "estimated" else 1.0
         diagnostics.update(camera_scale.scale_figures(model, poses, sigma_rot, sigma_trans, factor))
     return poses, status, diagnostics
+
+
+def sources_apply(data: Any, options: _Options) -> bool:
+    """Whether the noise-source model (`handeye.noise_sources`) applies: A_i X = Y B_i, the
+    camera's scale known, the noise estimated, least squares."""
+    return (problem_of(data) == "axyb" and not getattr(data, "camera_scale_unknown", False)
+            and options.sigma_rot is None and options.covariance is None and options.loss == "linear")
 
 
 def run(data: Any, options: _Options, backend: str) -> SolverOutput:
