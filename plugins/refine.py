@@ -263,7 +263,8 @@ def problem_of(data: Any) -> str:
 def model_of(data: Any) -> nlls.PoseModel:
     """The engine's model of the problem on these validated data (the camera's scale profiled out
     when the data say it is unknown, `handeye.camera_scale`)."""
-    return camera_scale.model_for(data, _served(data)[1](data))
+    model = getattr(data, "pose_model", None)  # built once per data set where the data keep it
+    return camera_scale.model_for(data, model if model is not None else _served(data)[1](data))
 
 
 def _available(name: str, problem: str, planar: bool = False) -> bool:

@@ -82,6 +82,13 @@ class AXXBData(PosePairs):
         return out if self.planar is None else dataclasses.replace(out, planar=self.planar.scaled(s))
 
     @functools.cached_property
+    def pose_model(self) -> Any:
+        """The engine's model of these motions (`axxb_geometry.AXXBModel`), built once (read-only)."""
+        from handeye.problems import axxb_geometry
+
+        return axxb_geometry.AXXBModel(self)
+
+    @functools.cached_property
     def _quaternions(self) -> np.ndarray:
         """Unit quaternions (scalar first, >= 0) of R_A1 .. R_Am, R_B1 .. R_Bm: (2m, 4), from one
         vectorised Shepperd pass over both stacks (`handeye.so3_fast.quat`)."""

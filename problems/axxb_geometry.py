@@ -122,4 +122,4 @@ def check_model(data: AXXBData, unknowns: dict[str, np.ndarray]) -> tuple[AXYBMo
         A, B = data.stations
         stations = AXYBData(A, B, planar=data.planar, camera_scale_unknown=data.camera_scale_unknown)
         return camera_scale.model_for(stations, AXYBModel(stations)), (X, fitted_Y(A, B, X)), ("X",)
-    return camera_scale.model_for(data, AXXBModel(data)), (X,), ("X",)
+    return camera_scale.model_for(data, data.pose_model), (X,), ("X",)

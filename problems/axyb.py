@@ -94,6 +94,14 @@ class AXYBData(PosePairs):
         return float(max(0.0, 1.0 - sigma[1] / self.m))
 
     @functools.cached_property
+    def pose_model(self) -> Any:
+        """The engine's model of these data (`axyb_geometry.AXYBModel`), built once: the solver's
+        refinement, its outlier step and the host's self-check all use it (read-only)."""
+        from handeye.problems import axyb_geometry
+
+        return axyb_geometry.AXYBModel(self)
+
+    @functools.cached_property
     def consecutive_motions(self) -> tuple[np.ndarray, ...]:
         """`axyb_geometry.consecutive_motions` of the stations, computed once (the self-check's
         noise estimate and its naming of directions both use them)."""

@@ -218,7 +218,7 @@ def rotation_axes(data: AXYBData) -> dict[str, np.ndarray]:
 
 def check_model(data: AXYBData, unknowns: dict[str, np.ndarray]) -> tuple[AXYBModel, tuple[np.ndarray, ...], tuple[str, ...]]:
     """`Problem.check_model` for A_i X = Y B_i: this model at the answer (X, Y)."""
-    return (camera_scale.model_for(data, AXYBModel(data)),
+    return (camera_scale.model_for(data, data.pose_model),
             (np.asarray(unknowns["X"], dtype=float), np.asarray(unknowns["Y"], dtype=float)), ("X", "Y"))
 
 

@@ -196,7 +196,9 @@ def test_refine_from_given_poses_keeps_the_value_and_reports_zero_variance():
     assert abs(sol.X[:3, 3] @ axis - 60.0) < 1e-9 and sol.diagnostics["init"] == "given"
     cov = np.array(sol.diagnostics["covariance"]["X"])
     along = sol.X[:3, :3].T @ axis  # the axis in X's own frame (v of the covariance)
-    assert along @ cov[3:, 3:] @ along < 1e-20 * np.trace(cov[3:, 3:])
+    # zero to rounding (the projected inverse leaves ~1e-18 of the trace there; the free
+    # directions carry ~1/3 of it each)
+    assert abs(along @ cov[3:, 3:] @ along) < 1e-12 * np.trace(cov[3:, 3:])
     assert np.all(np.linalg.eigvalsh(cov[3:, 3:])[1:] > 0)
 
 
