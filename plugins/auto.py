@@ -59,19 +59,15 @@ from handeye import (
 )
 from handeye.errors import DegenerateDataError, InputError
 from handeye.options import check_choice
+from handeye.plugins import _auto_steps as steps
 from handeye.plugins import refine as _refine
+from handeye.plugins._auto_steps import DRIFT_AUTOCORRELATION, DRIFT_MIN_PAIRS  # noqa: F401 (auto's constants)
 from handeye.robust import DEFAULT_LOSS_SCALE
 from handeye.solution import jsonable
 from handeye.whitening import Whitening, estimate_sigmas
 
 #: keys of an init solver's diagnostics that make up its certificate
 CERTIFICATE_KEYS = ("certified", "eigenvalue_ratio", "relative_gap", "duality_gap", "lower_bound", "cost", "thresholds")
-#: camera poses that drift (`_drift`): lag-1 autocorrelation of the A X = Y B translation
-#: residuals beyond this (and beyond 3 / sqrt(m)), from DRIFT_MIN_PAIRS stations on. Measured
-#: (kinhec smoke tier, docs/solvers/auto.md): drifting (visual-odometry) camera poses 0.79-0.98,
-#: every other noise model of the tier -0.40..0.20
-DRIFT_AUTOCORRELATION = 0.6
-DRIFT_MIN_PAIRS = 20
 #: values of option `outliers`
 OUTLIER_CHOICES = ("reject", "keep")
 #: problems without a certifiable start: the safeguard's second start always runs
@@ -135,116 +131,13 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
     robot's only at another scale (the host's check 5, `handeye.self_check`: a factor beyond 1.5
     that explains the translation misfit), the pipeline again with that scale unknown
     (`handeye.camera_scale`), with a warning; then, for A X = Y B whose camera poses drift, X
-    from the consecutive motions (`_drift`)."""
+    from the consecutive motions (`handeye.plugins._auto_steps`)."""
     output = _run(data, options, backend)
-    at = _residuals_at(data, output)  # (model, residuals) at the answer, shared by the two steps
-    if _scale_may_be_estimated(data, options):
-        data, scaled = _estimate_scale_if_needed(data, options, backend, output, at)
+    at = steps.residuals_at(data, output)  # (model, residuals) at the answer, shared by the two steps
+    if steps.scale_may_be_estimated(data, options):
+        data, scaled = steps.estimate_scale_if_needed(data, options, backend, output, at, _run)
         at, output = (at if scaled is output else None), scaled
-    return _drift(data, options, backend, output, at)
-
-
-def _residuals_at(data: Any, output: SolverOutput) -> tuple[Any, np.ndarray] | None:
-    """(model, residuals) of A X = Y B at auto's answer, or None for other problems."""
-    if _refine.problem_of(data) != "axyb" or _refine.is_planar(data):
-        return None
-    model = _refine.model_of(data)
-    return model, model.residuals((output.unknowns["X"], output.unknowns["Y"]))
-
-
-def _estimate_scale_if_needed(data: Any, options: Options, backend: str, output: SolverOutput,
-                              at: tuple[Any, np.ndarray] | None = None) -> tuple[Any, SolverOutput]:
-    """(data, output) as they are, or with the camera's scale unknown and solved again when check
-    5 fails on `output` (`run`)."""
-    from handeye.problems.axxb import PROBLEM as AXXB
-    from handeye.problems.axyb import PROBLEM as AXYB
-    from handeye.self_check import (
-        camera_scale_screen,
-        camera_scale_verdict,
-        scale_suspect,
-    )
-
-    name = _refine.problem_of(data)
-    fitted = output.diagnostics.get("refine", {})
-    if at is not None and "formulation" not in output.diagnostics and "covariance_XY" in fitted \
-            and not fitted.get("outliers_left_out") and "sigma_rot" in fitted:
-        # screened from refine's own fit (one residual evaluation): most data end here
-        model, residuals = at
-        screen = camera_scale_screen(model, (output.unknowns["X"], output.unknowns["Y"]), residuals,
-                                     Whitening(fitted["sigma_rot"], fitted["sigma_trans"]),
-                                     np.asarray(fitted["covariance_XY"], dtype=float))
-        if screen is None or not scale_suspect(*screen):
-            return data, output
-    problem = {"axyb": AXYB, "axxb": AXXB}[name]
-    verdict = camera_scale_verdict(problem, data, output.unknowns)
-    if verdict is None or verdict["verdict"] != "fail":
-        return data, output
-    data = dataclasses.replace(data, camera_scale_unknown=True)
-    scaled = _run(data, dataclasses.replace(options, noise="groups"), backend)  # the scale is fitted per group
-    s, std = scaled.diagnostics.get("camera_scale", verdict["scale"]), scaled.diagnostics.get("camera_scale_std")
-    sigma = "" if std is None else f" (1-sigma {std:.2g})"
-    note = (f"auto: the camera's translations fit the robot's only when multiplied by {verdict['scale']:.4g} (the "
-            f"translation residuals {verdict['translation_fit_gain']:.3g} times smaller), so auto estimated that "
-            f"factor, as camera_scale='unknown' does: {s:.6g}{sigma}. A monocular camera, or the two in "
-            "different length units: if they should be in one, fix the data; camera_scale='known' would keep the "
-            "scale at 1 (and the answer would be unreliable)")
-    diagnostics = {**scaled.diagnostics, "camera_scale_test": jsonable(verdict),
-                   "warnings": [note, *scaled.diagnostics.get("warnings", [])]}
-    return data, SolverOutput(unknowns=scaled.unknowns, status=scaled.status, diagnostics=diagnostics)
-
-
-def _drift(data: Any, options: Options, backend: str, output: SolverOutput,
-           at: tuple[Any, np.ndarray] | None = None) -> SolverOutput:
-    """A X = Y B whose camera poses drift (visual odometry, SLAM: each pose's error carries the
-    earlier ones'): the residuals of A_k X = Y B_k at the answer are correlated from one station
-    to the next (lag-1 autocorrelation of the translation residuals, in the order of the data,
-    above DRIFT_AUTOCORRELATION and 3 / sqrt(m), from DRIFT_MIN_PAIRS stations on), while the
-    errors of consecutive motions do not accumulate. X then comes from A_k^-1 A_k+1 X =
-    X B_k^-1 B_k+1 (`auto` for A X = X B on those motions) and Y is the fit of the stations to
-    it (`fitted_Y`: the average over the drift), with a warning; the A X = Y B answer is kept in
-    the diagnostics. Anything else: `output` as it is, with the autocorrelation reported."""
-    if (_refine.problem_of(data) != "axyb" or data.m < DRIFT_MIN_PAIRS or _refine.is_planar(data)
-            or options.init is not None or options.covariance is not None):
-        return output
-    from handeye.problems.axxb import PROBLEM as AXXB
-    from handeye.problems.axyb_geometry import fitted_Y
-
-    scale_unknown = bool(data.camera_scale_unknown)
-    e = (at or _residuals_at(data, output))[1][:, 3:]
-    e = e - e.mean(axis=0)
-    acf = float(np.sum(e[1:] * e[:-1]) / max(float(np.sum(e * e)), 1e-300))
-    if acf <= max(DRIFT_AUTOCORRELATION, 3.0 / np.sqrt(data.m)):
-        return SolverOutput(output.unknowns, output.status, {**output.diagnostics, "drift_autocorrelation": acf})
-    A, B = data.A, data.B
-    try:
-        motions = AXXB.validate(A=np.linalg.inv(A[:-1]) @ A[1:], B=np.linalg.inv(B[:-1]) @ B[1:],
-                                camera_scale="unknown" if scale_unknown else "known")
-        sub = _run(motions, options, backend)
-    except (DegenerateDataError, InputError):
-        return SolverOutput(output.unknowns, output.status, {**output.diagnostics, "drift_autocorrelation": acf})
-    X = sub.unknowns["X"]
-    metric_B = np.array(B)
-    metric_B[:, :3, 3] *= sub.diagnostics.get("camera_scale", 1.0)
-    note = (f"auto: the camera's poses drift over the recording (the residuals of A_k X = Y B_k are correlated from "
-            f"one station to the next: lag-1 autocorrelation {acf:.2f}), as visual odometry's do; X comes from the "
-            f"{motions.m} consecutive motions (A X = X B), whose errors do not accumulate, and Y is the stations' "
-            "average fit to it")
-    earlier = [w for w in output.diagnostics.get("warnings", []) if w.startswith("auto: the camera's translations")]
-    diagnostics = {**sub.diagnostics, "drift_autocorrelation": acf,
-                   "formulation": f"A_k X = X B_k on the {motions.m} consecutive motions (the camera's poses drift)",
-                   "axyb_answer": jsonable(output.unknowns),
-                   "warnings": [*earlier, note, *sub.diagnostics.get("warnings", [])]}
-    if "camera_scale_test" in output.diagnostics:
-        diagnostics["camera_scale_test"] = output.diagnostics["camera_scale_test"]
-    return SolverOutput({"X": X, "Y": fitted_Y(A, metric_B, X)}, sub.status, diagnostics)
-
-
-def _scale_may_be_estimated(data: Any, options: Options) -> bool:
-    """auto may estimate the camera's scale where the data demand it: A X = Y B or A X = X B, the
-    scale not already unknown, not planar (unsupported there), no start and no covariance
-    stated (the scale is fitted under per-group weights)."""
-    return (_refine.problem_of(data) in ("axyb", "axxb") and not getattr(data, "camera_scale_unknown", False)
-            and not _refine.is_planar(data) and options.init is None and options.covariance is None)
+    return steps.drift(data, options, backend, output, at, _run)
 
 
 def _run(data: Any, options: Options, backend: str) -> SolverOutput:
