@@ -279,8 +279,9 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
 
 def _best_fit(model: Any, poses: tuple[np.ndarray, ...]) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray, Any, np.ndarray]:
     """The best fit near the answer `poses`: (fit, its covariance (6k, 6k), the pairs flagged far
-    off at it, the engine's result there, the residuals at the answer itself). The local least-squares fit with estimated weights (`nlls`, refine's engine, to
-    FIT_TOL), and a robust (Cauchy) one from it when pairs are far off."""
+    off at it, the engine's result there, the residuals at the answer itself). The local
+    least-squares fit with estimated weights (`nlls`, refine's engine, to FIT_TOL), and a robust
+    (Cauchy) one from it when pairs are far off."""
     loss = "linear"
     res = nlls.levenberg_marquardt(model, poses, None, loss, DEFAULT_LOSS_SCALE, MAX_ITER, FIT_TOL)
     at_answer = res.e0
@@ -383,6 +384,7 @@ def _camera_scale(model: Any, res: Any, cov: np.ndarray, failures: list[str], wa
     elif abs(s - 1.0) > SCALE_WARN and abs(z) > SCALE_SIGMAS and gain > SCALE_GAIN_WARN:
         warnings.append(f"self-check: {text}: check the board's size and the camera's focal length (a PnP pose's "
                         "distance scales with both); camera_scale='unknown' fits the factor")
+
 
 def problem_pairs(data: Any) -> int | None:
     """The number of pairs of the problem's own data (to tell when the check's model is on

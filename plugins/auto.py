@@ -52,10 +52,8 @@ from handeye import (
     SolverOutput,
     SolverSpec,
     Status,
-    camera_scale,
     hookimpl,
     nlls,
-    noise_sources,
 )
 from handeye.errors import DegenerateDataError, InputError
 from handeye.options import check_choice
@@ -278,14 +276,8 @@ def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, d
     stacks = [f.name for f in dataclasses.fields(data) if f.name in ("A", "B", "C")]
     subset = dataclasses.replace(data, **{f: getattr(data, f)[inliers] for f in stacks})  # keeps the planar mode
     try:
-        sub_model = _refine.model_of(subset)
-        if ropts.noise == "sources":  # the noise model the user chose, on the pairs that are left
-            new_poses, new_status, new_diag = noise_sources.fit(sub_model, subset, fit, sub_settings)
-        else:
-            new_poses, new_status, new_diag = nlls.refine(sub_model, fit, sub_settings)
-        if isinstance(sub_model, camera_scale.ScaledCameraModel):  # the scale of the camera, as refine reports it
-            new_diag.update(camera_scale.scale_figures(sub_model, new_poses, new_diag["sigma_rot"], new_diag["sigma_trans"],
-                                                       new_diag["variance_factor"]))
+        # refine's fit (its noise model, the camera's scale) on the pairs that are left
+        new_poses, new_status, new_diag = _refine.fit(_refine.model_of(subset), subset, fit, sub_settings, ropts.noise)
     except DegenerateDataError:
         return poses, status, diag, [], (
             f"{what} {_listing(np.flatnonzero(flagged))} are far off the others, but the rest do not determine "

@@ -374,10 +374,19 @@ def refine(data: Any, poses0: tuple[np.ndarray, ...], options: _Options) -> tupl
     if isinstance(model, camera_scale.ScaledCameraModel) and settings.W is not None and settings.W.L is not None:
         raise InputError("with camera_scale='unknown' give the noise as sigma_rot/sigma_trans (or let it be estimated), "
                          "not as a covariance: the camera's scale is fitted under one sigma per residual group")
-    if options.noise == "sources":
-        if not sources_apply(data, options):
-            raise InputError("noise='sources' takes A_i X = Y B_i data with the camera's scale known, the noise "
+    if options.noise == "sources" and not sources_apply(data, options):
+        raise InputError("noise='sources' takes A_i X = Y B_i data with the camera's scale known, the noise "
                              "estimated (no sigma_rot, sigma_trans or covariance) and loss='linear'; use noise='groups'")
+    return fit(model, data, poses0, settings, options.noise)
+
+
+def fit(model: nlls.PoseModel, data: Any, poses0: tuple[np.ndarray, ...], settings: nlls.Settings,
+        noise: str = "groups") -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
+    """The engine's fit of `model` (of `data`) from `poses0` with `settings`: `handeye.nlls`, or
+    with noise="sources" `handeye.noise_sources`; with the camera's scale profiled out
+    (`handeye.camera_scale`) that scale and its standard deviation added to the diagnostics.
+    Shared by `refine` and `auto`'s refit without the pairs it leaves out."""
+    if noise == "sources":
         return noise_sources.fit(model, data, poses0, settings)
     poses, status, diagnostics = nlls.refine(model, poses0, settings)
     if isinstance(model, camera_scale.ScaledCameraModel):

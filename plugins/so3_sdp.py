@@ -63,9 +63,7 @@ from handeye.plugins._cvxpy_solvers import (
     resolve_cvxpy_solver,
 )
 from handeye.problems.axxb import AXXBData
-from handeye.problems.axxb_geometry import AXXBModel
 from handeye.problems.axyb import AXYBData
-from handeye.problems.axyb_geometry import AXYBModel
 from handeye.rotation_cost import RotationCost, eliminate_translations, rotations_vector
 from handeye.se3 import make_pose, rotation_angle
 from handeye.so3_relaxation import (
@@ -370,7 +368,7 @@ def _certificate_figures(cert: Mapping[str, float], ratio: float, rest: float, n
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     """``axyb``: eq. 8 over SO(3) x SO(3) (module docstring)."""
     if data.camera_scale_unknown:
-        return _unknown_scale(data, options, backend, run, AXYBModel)
+        return _unknown_scale(data, options, backend, run)
     scale = data.translation_scale if options.normalize else 1.0
     try:
         cost = eliminate_translations(data.kronecker(scale))
@@ -387,7 +385,7 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
 def run_axxb(data: AXXBData, options: Options, backend: str) -> SolverOutput:
     """``axxb``: the Kronecker cost of A_i X = X B_i over SO(3) (module docstring)."""
     if data.camera_scale_unknown:
-        return _unknown_scale(data, options, backend, run_axxb, AXXBModel)
+        return _unknown_scale(data, options, backend, run_axxb)
     scale = data.translation_scale if options.normalize else 1.0
     cost = RotationCost.from_normal_equations(*data.normal_equations(scale), rotations=1)
     (RX,), (tX,), status, diagnostics = solve_relaxation(cost, options, backend)
@@ -395,12 +393,12 @@ def run_axxb(data: AXXBData, options: Options, backend: str) -> SolverOutput:
                         diagnostics={**diagnostics, "translation_scale": scale})
 
 
-def _unknown_scale(data: Any, options: Options, backend: str, solve: Any, model: type) -> SolverOutput:
+def _unknown_scale(data: Any, options: Options, backend: str, solve: Any) -> SolverOutput:
     """Camera translations known only up to scale (`handeye.camera_scale`): the rotations
     certified on the rotation rows alone (the data with every translation zero), then the
     translations and the camera's scale by linear least squares given them."""
     rotations = solve(camera_scale.rotation_only(data), options, backend)
-    poses, s = camera_scale.translations_and_scale(model(data), tuple(rotations.unknowns.values()))
+    poses, s = camera_scale.translations_and_scale(data.pose_model, tuple(rotations.unknowns.values()))
     if not s > 0.0:
         raise DegenerateDataError(f"the camera's scale fitted to these poses is {s:.3g}, not positive: the camera's "
                                   "translations do not match the robot's motion (check the pairing and the setup)")
