@@ -28,6 +28,7 @@ import numpy as np
 from handeye.examples import list_examples, load_example
 from handeye.harness import accuracy_study
 from handeye.harness.runner import simulate
+from handeye.problems.axxb import relative_motions
 from handeye.se3 import rotation_angle
 
 LEVELS = (1.0, 10.0, 30.0, 100.0)
@@ -78,9 +79,9 @@ def main() -> None:
     for name in list_examples():
         data, _, _ = load_example(name)
         report(f"example {name} (axyb)", [compare("axyb", data)])
-        # A_k X = Y B_k gives A_k^-1 A_k+1 X = X B_k^-1 B_k+1 whatever the setup
+        # A_k X = Y B_k gives A_k+1^-1 A_k X = X B_k+1^-1 B_k whatever the setup
         A, B = data["A"], data["B"]
-        relative = {"A": np.linalg.inv(A[:-1]) @ A[1:], "B": np.linalg.inv(B[:-1]) @ B[1:]}
+        relative = dict(zip("AB", relative_motions(A, B, "consecutive")))
         report(f"example {name} (axxb, consecutive)", [compare("axxb", relative)])
     print(f"\naccuracy studies: {totals[0]} of {totals[1]} data sets certified without the SDP "
           f"({100.0 * totals[0] / totals[1]:.1f}%)")

@@ -83,14 +83,15 @@ def drift(data: Any, options: Any, backend: str, output: SolverOutput,
     earlier ones'): the residuals of A_k X = Y B_k at the answer are correlated from one station
     to the next (lag-1 autocorrelation of the translation residuals, in the order of the data,
     above DRIFT_AUTOCORRELATION and 3 / sqrt(m), from DRIFT_MIN_PAIRS stations on), while the
-    errors of consecutive motions do not accumulate. X then comes from A_k^-1 A_k+1 X =
-    X B_k^-1 B_k+1 (`auto` for A X = X B on those motions) and Y is the fit of the stations to
-    it (`fitted_Y`: the average over the drift), with a warning; the A X = Y B answer is kept in
+    errors of consecutive motions do not accumulate. X then comes from A_k+1^-1 A_k X =
+    X B_k+1^-1 B_k (`relative_motions`, consecutive; `auto` for A X = X B on those motions) and
+    Y is the fit of the stations to it (`fitted_Y`: the average over the drift), with a warning; the A X = Y B answer is kept in
     the diagnostics. Anything else: `output` as it is, with the autocorrelation reported."""
     if (_refine.problem_of(data) != "axyb" or data.m < DRIFT_MIN_PAIRS or _refine.is_planar(data)
             or options.init is not None or options.covariance is not None):
         return output
     from handeye.problems.axxb import PROBLEM as AXXB
+    from handeye.problems.axxb import relative_motions
     from handeye.problems.axyb_geometry import fitted_Y
 
     scale_unknown = bool(data.camera_scale_unknown)
@@ -101,7 +102,8 @@ def drift(data: Any, options: Any, backend: str, output: SolverOutput,
         return SolverOutput(output.unknowns, output.status, {**output.diagnostics, "drift_autocorrelation": acf})
     A, B = data.A, data.B
     try:
-        motions = AXXB.validate(A=np.linalg.inv(A[:-1]) @ A[1:], B=np.linalg.inv(B[:-1]) @ B[1:],
+        Am, Bm = relative_motions(A, B, "consecutive")
+        motions = AXXB.validate(A=Am, B=Bm,
                                 camera_scale="unknown" if scale_unknown else "known")
         sub = solve(motions, options, backend)
     except (DegenerateDataError, InputError):
