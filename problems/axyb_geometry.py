@@ -103,15 +103,17 @@ class AXYBModel(PoseModel):
         g[:, 3:] = -self.tB @ poses[1][:3, :3].T
         return g
 
-    def translation_gradient(self, poses: Poses, t: np.ndarray) -> np.ndarray:
+    def translation_gradient(self, poses: Poses, t: np.ndarray, q: np.ndarray | None = None) -> np.ndarray:
         """sum_i J_t,i^T t_i: (12,) for vectors t: (m, 3) on the translation rows (J_t the
         translation rows of `jacobian`, which do not depend on the residual), in O(m) without
-        forming J (the g_trans of `normal_equations` with unit weights)."""
+        forming J (`normal_equations` takes its translation gradient from here); q: R_Y t_B
+        when the caller has it."""
         X, Y = poses
         RX, RY = X[:3, :3], Y[:3, :3]
+        q = self.tB @ RY.T if q is None else q
         g = np.zeros(12)
         g[3:6] = RX.T @ np.einsum("nji,nj->i", self.RA9.reshape(self.m, 3, 3), t)
-        g[6:9] = RY.T @ np.cross(t, self.tB @ RY.T).sum(axis=0)
+        g[6:9] = RY.T @ np.cross(t, q).sum(axis=0)
         g[9:12] = -(RY.T @ t.sum(axis=0))
         return g
 
@@ -146,13 +148,11 @@ class AXYBModel(PoseModel):
         u = np.einsum("nji,nj->ni", RA, r)  # R_A^T r
         sum_d = float(np.sum(d))
         # gradient
-        g_rot, g_trans = np.zeros(12), np.zeros(12)
+        g_rot = np.zeros(12)
         g_rot[0:3] = wr * (RX.T @ np.einsum("nji,nj->i", RA, dr))
         g_rot[6:9] = -wr * (RY.T @ dr.sum(axis=0))
         q = self.tB @ RY.T  # R_Y t_B
-        g_trans[3:6] = wt * (RX.T @ np.einsum("nji,nj->i", RA, dt))
-        g_trans[6:9] = wt * (RY.T @ np.cross(dt, q).sum(axis=0))
-        g_trans[9:12] = -wt * (RY.T @ dt.sum(axis=0))
+        g_trans = wt * AXYBModel.translation_gradient(self, poses, dt, q)  # (X, Y) even when a subclass folds
         # information matrix
         H = np.zeros((12, 12))
         db = d * beta
