@@ -11,7 +11,8 @@ of one pose, in one frame) maps to pair i's residual e_i = [r_i; t_i] of `AXYBMo
 
     Cov(e_i) = Sigma_i(theta) = sum_k theta_k G_ik G_ik^T + theta_t diag(0, I3),   theta = s^2 >= 0,
 
-with the sources (`SOURCES`, derivations in docs/solvers/auto.md, "Noise sources"):
+with the sources (`SOURCES`; each map is the first-order change of `AXYBModel`'s residual when
+that pose is perturbed in that frame):
 
 - camera rotation in the target frame (B <- exp(w) B):    [-R_Y; R_Y [t_B]x]
 - camera rotation in the camera frame (B <- B exp(w)):    [-R_Y R_B; 0]
@@ -23,9 +24,10 @@ with the sources (`SOURCES`, derivations in docs/solvers/auto.md, "Noise sources
 `fit` alternates: the variances by maximum likelihood at the current residuals (`variances`: the
 fixed point of the EM update for variance components, which keeps them >= 0 and never lowers
 the likelihood), then the unknowns by `handeye.nlls` with every pair whitened by its Sigma_i,
-until the unknowns stop moving. Measured on the KinHEC small tier (docs/kinhec.md): PnP noise
-0.37 -> 0.13 mm median X translation, Gaussian noise 2.15 -> 1.90 mm, clock offsets 0.92 ->
-0.86 mm, all below the best reference solver's.
+until the unknowns stop moving. Measured on the KinHEC small tier (docs/kinhec.md, against the
+default noise model): median X translation with PnP noise 0.37 -> 0.14 mm, Gaussian noise 2.15 ->
+1.90 mm, clock offsets 0.92 -> 0.85 mm; every track within 2% of the best reference solver or
+below; 30-150 ms a sequence, hence opt-in (docs/solvers/auto.md, "Noise sources").
 """
 
 from __future__ import annotations
