@@ -1,5 +1,5 @@
 """`auto`'s steps after its pipeline, which choose the model the data demand (plugins/auto.py,
-docs/solvers/auto.md, steps 5 and 6): the camera's scale, where the camera's translations fit
+docs/solvers/auto.md, steps 6 and 7): the camera's scale, where the camera's translations fit
 the robot's only at another scale (`estimate_scale_if_needed`), and the formulation, where the
 camera's poses drift (`drift`). Each runs auto's pipeline again (`solve`) on the data as they
 then are.

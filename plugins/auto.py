@@ -16,6 +16,10 @@ Pipeline (the measurements behind it are in docs/solvers/auto.md):
    next start (kron-lstsq) and the answer with the lower objective is kept.
 4. outliers: pairs far off the others at a robust fit are left out and least squares refitted
    (`_reject_outliers`).
+5. noise sources (A_i X = Y B_i with the noise estimated and least squares, from
+   SOURCES_MIN_PAIRS pairs on): where the noise lives -- each measured pose's rotation in its
+   two frames, the translation along the camera's and the target's axes -- estimated by maximum
+   likelihood with X and Y on the pairs kept (`handeye.noise_sources`, `_noise_step`).
 
 A_i X B_i = Y C_i Z (`MULTI_START`) has no certifiable method: the start is `wang` (grid of
 rotation starts, any data protocol), and the safeguard always runs, from the next of refine's
@@ -78,6 +82,13 @@ MULTI_START = ("axbycz",)
 #: 64 flagged none of 100 in each cell, while gross pairs (>= 5 deg) sit at norms of ~40 and beyond
 #: (bench/outliers.py, docs/solvers/auto.md).
 OUTLIER_CHI2 = 64.0
+#: the noise-source model (10 variances) is fitted by default from this many pairs on (60
+#: residual degrees of freedom and more); below it the two per-group variances. Measured on the
+#: KinHEC small tier (docs/solvers/auto.md): at 3-12 pairs it was 1.1x less accurate than the
+#: per-group model in X translation (geometric mean), at 17-20 pairs 0.84x, from 60 pairs 0.74x.
+SOURCES_MIN_PAIRS = 15
+#: values of option `noise` (None: "sources" where it applies, see `_noise_step`)
+NOISE_CHOICES = (None, "groups", "sources")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,8 +97,10 @@ class Options:
     ``init`` to force the starting solver (default: the first registered and available of
     refine's STARTS for the problem: so3-sdp, then kron-lstsq (then park for axxb); for axbycz
     wang, fu-dq, kron-lstsq, wu), and
-    ``noise``: refine's noise model, "groups" (default) or "sources" (A_i X = Y B_i: the noise of
-    each measured pose in its own frame, estimated with the unknowns; `handeye.noise_sources`), and
+    ``noise``: None (default: "sources" on A_i X = Y B_i data of SOURCES_MIN_PAIRS pairs or more
+    with the noise estimated and least squares, else "groups"), "groups" (refine's one noise level
+    per residual group) or "sources" (the noise of each measured pose in its own frame,
+    estimated with the unknowns, `handeye.noise_sources`; fitted last, on the pairs kept), and
     ``outliers``: "reject" (default; with least squares, pairs far off the others are left out
     and listed, see the module docstring) or "keep" (least squares on every pair). With a robust
     ``loss`` the loss handles outliers and nothing is left out."""
@@ -101,11 +114,15 @@ class Options:
     loss_scale: float = DEFAULT_LOSS_SCALE
     max_iter: int = 200
     tol: float = 1e-14
-    noise: str = "groups"
+    noise: str | None = None
     outliers: str = "reject"
 
     def __post_init__(self) -> None:
         check_choice("outliers", self.outliers, OUTLIER_CHOICES)
+        check_choice("noise", self.noise, NOISE_CHOICES)
+        if self.noise == "sources" and not self._noise_estimated():
+            raise InputError("noise='sources' takes the noise estimated (no sigma_rot, sigma_trans or covariance) "
+                             "and loss='linear'; use noise='groups'")
         if self.init is not None and not isinstance(self.init, str):
             raise InputError(
                 f"option init of auto must be a solver name, got {type(self.init).__name__}; to "
@@ -118,10 +135,12 @@ class Options:
         """refine's options for `problem` with these values (the covariance given as its
         Cholesky factor, as refine keeps it after validation)."""
         values = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "outliers"}
-        if problem != "axyb":  # the noise-source model is A_i X = Y B_i's (A X = X B on stations solves that)
-            values["noise"] = "groups"
+        values["noise"] = "groups"  # the noise sources are auto's last step (`_noise_step`)
         values.update(overrides)
         return _refine.OPTIONS[problem](**values)
+
+    def _noise_estimated(self) -> bool:
+        return self.sigma_rot is None and self.sigma_trans is None and self.covariance is None and self.loss == "linear"
 
 
 def run(data: Any, options: Options, backend: str) -> SolverOutput:
@@ -185,6 +204,7 @@ def _run(data: Any, options: Options, backend: str) -> SolverOutput:
 
     what = "triples" if problem == "axbycz" else "pairs"
     poses, status, diag, report = _outlier_step(data, poses, status, diag, ropts, options, what)
+    poses, status, diag = _noise_step(data, poses, status, diag, ropts, options, report)
     diagnostics = _diagnostics(pipeline, start, init_status, init_diag, starts, diag, warnings)
     diagnostics.update(report)
     if _refine.is_planar(data):
@@ -221,7 +241,43 @@ def _outlier_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag
     }
     if note:
         diag = {**diag, "warnings": diag.get("warnings", []) + [f"auto: {note}"]}
+    if note and not outliers:  # far-off pairs, but too many (or too important) to leave out
+        report["outliers_left_in"] = True
     return poses, status, diag, report
+
+
+def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
+                ropts: _refine._Options, options: Options, report: dict[str, Any]
+                ) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
+    """Pipeline step 5: the noise-source model (`handeye.noise_sources`) fitted from the answer
+    `poses` on the pairs kept (those not in the outlier step's `report`), where it applies
+    (refine's `sources_apply`: A_i X = Y B_i with the camera's scale known, the noise estimated,
+    least squares) and the option asks for it (None: from SOURCES_MIN_PAIRS pairs on). Returns
+    the new (poses, status, refine's diagnostics), their warnings after the earlier ones; or the
+    inputs where it does not apply, where the per-group fit did not end `optimal`, where far-off
+    pairs had to be left in (no noise model describes such data), or where the pairs kept do not
+    determine the fit."""
+    wanted = options.noise == "sources" or (options.noise is None and data.m >= SOURCES_MIN_PAIRS)
+    if (not wanted or status is not Status.OPTIMAL or report.get("outliers_left_in")
+            or not _refine.sources_apply(data, ropts)):
+        return poses, status, diag
+    flagged = np.zeros(data.m, dtype=bool)
+    flagged[[o["index"] for o in report.get("outliers", [])]] = True
+    kept = _kept(data, ~flagged)
+    try:
+        new, new_status, new_diag = _refine.fit(_refine.model_of(kept), kept, poses, _refine.settings_of(ropts, kept.m),
+                                                "sources")
+    except DegenerateDataError:
+        return poses, status, diag
+    carried = {k: diag[k] for k in ("outliers_left_out", "init") if k in diag}
+    warnings = diag.get("warnings", []) + new_diag.get("warnings", [])
+    return new, new_status, {**new_diag, **carried, **({"warnings": warnings} if warnings else {})}
+
+
+def _kept(data: Any, inliers: np.ndarray) -> Any:
+    """The validated data restricted to the pairs (triples) `inliers` (keeps the planar mode)."""
+    stacks = [f.name for f in dataclasses.fields(data) if f.name in ("A", "B", "C")]
+    return dataclasses.replace(data, **{f: getattr(data, f)[inliers] for f in stacks})
 
 
 def _beyond(e: np.ndarray, W: Whitening | None, scale: float) -> np.ndarray:
@@ -273,8 +329,7 @@ def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, d
     sub_settings = settings
     if W is not None and W.L is not None and W.L.ndim == 3:
         sub_settings = dataclasses.replace(settings, W=Whitening(L=W.L[inliers]))
-    stacks = [f.name for f in dataclasses.fields(data) if f.name in ("A", "B", "C")]
-    subset = dataclasses.replace(data, **{f: getattr(data, f)[inliers] for f in stacks})  # keeps the planar mode
+    subset = _kept(data, inliers)
     try:
         # refine's fit (its noise model, the camera's scale) on the pairs that are left
         new_poses, new_status, new_diag = _refine.fit(_refine.model_of(subset), subset, fit, sub_settings, ropts.noise)
@@ -368,7 +423,8 @@ def _run_on_stations(data: Any, options: Options, backend: str) -> SolverOutput:
         ropts = options.refine_options("axyb")
         fitted, status, diag = _refine.refine(stations, (poses[0], poses[0]), ropts)
         starts = [{"init": f"{start} (motions)", "init_status": str(init_status), "final_cost": diag["final_cost"]}]
-        (X, _), status, diag, report = _outlier_step(stations, fitted, status, diag, ropts, options, "stations")
+        fitted, status, diag, report = _outlier_step(stations, fitted, status, diag, ropts, options, "stations")
+        (X, _), status, diag = _noise_step(stations, fitted, status, diag, ropts, options, report)
         diagnostics = _diagnostics([f"{start} (motions)", "refine"], start, init_status, init_diag, starts, diag,
                                    [f"auto: {w}" for w in warnings])
         diagnostics.update(report)

@@ -38,12 +38,20 @@ def test_auto_is_the_default_solver(noisy):
     assert err["Y"]["rotation"] < kron["Y"]["rotation"]
 
 
-def test_auto_equals_refine_from_its_start(noisy):
+def test_auto_is_refine_from_its_start_then_the_noise_sources(noisy):
+    """With one noise level per group auto is refine from its start; by default it then fits
+    the noise sources from that answer (16 pairs >= SOURCES_MIN_PAIRS), which gains likelihood."""
     data, _ = noisy
+    groups = handeye.solve("axyb", noise="groups", **data)
+    r = handeye.solve("axyb", solver="refine", init=groups.diagnostics["init"], **data)
+    np.testing.assert_allclose(groups.X, r.X, atol=1e-12)
+    np.testing.assert_allclose(groups.Y, r.Y, atol=1e-9)
     a = handeye.solve("axyb", **data)
-    r = handeye.solve("axyb", solver="refine", init=a.diagnostics["init"], **data)
-    np.testing.assert_allclose(a.X, r.X, atol=1e-12)
-    np.testing.assert_allclose(a.Y, r.Y, atol=1e-9)
+    s = handeye.solve("axyb", solver="refine", noise="sources", init_X=groups.X, init_Y=groups.Y, **data)
+    np.testing.assert_allclose(a.X, s.X, atol=1e-12)
+    np.testing.assert_allclose(a.Y, s.Y, atol=1e-9)
+    assert a.diagnostics["refine"]["noise_model"] == "sources" and a.diagnostics["refine"]["loglik_gain"] > 0
+    assert a.diagnostics["init"] == groups.diagnostics["init"]
 
 
 def test_auto_falls_back_to_kron_lstsq_when_so3_sdp_is_unavailable(noisy, monkeypatch):
@@ -80,7 +88,7 @@ def test_uncertified_start_triggers_a_second_start(noisy, monkeypatch):
     monkeypatch.setattr(refine, "run_init", uncertified)
     monkeypatch.setattr(refine, "refine", truncated)
     monkeypatch.setattr(refine, "default_init", lambda problem: "so3-sdp")
-    sol = handeye.solve("axyb", **data)
+    sol = handeye.solve("axyb", noise="groups", **data)
     d = sol.diagnostics
     assert d["pipeline"] == ["so3-sdp | kron-lstsq", "refine", "best"]
     assert [s["init"] for s in d["starts"]] == ["so3-sdp", "kron-lstsq"]
@@ -124,7 +132,7 @@ def test_a_failing_default_start_falls_back_to_kron_lstsq(noisy, monkeypatch, so
 
     monkeypatch.setattr(refine, "run_init", failing)
     monkeypatch.setattr(refine, "default_init", lambda problem: "so3-sdp")
-    sol = handeye.solve("axyb", solver=solver, **data)
+    sol = handeye.solve("axyb", solver=solver, noise="groups", **data)
     assert sol.diagnostics["init"] == "kron-lstsq" and sol.status == Status.OPTIMAL
     if solver == "auto":
         assert sol.diagnostics["pipeline"] == ["kron-lstsq", "refine"]
@@ -298,7 +306,7 @@ def test_auto_flags_and_leaves_out_one_gross_pair(noisy):
     without = handeye.solve("axyb", outliers="keep", A=np.delete(data["A"], 3, axis=0), B=np.delete(B, 3, axis=0))
     np.testing.assert_allclose(sol.X[:3, :3], without.X[:3, :3], rtol=0, atol=1e-9)
     np.testing.assert_allclose(sol.X[:3, 3], without.X[:3, 3], rtol=0, atol=1e-6)
-    keep = handeye.solve("axyb", outliers="keep", A=data["A"], B=B)
+    keep = handeye.solve("axyb", outliers="keep", noise="groups", A=data["A"], B=B)  # least squares on every pair
     assert PROBLEM.errors(keep.unknowns, truth)["X"]["rotation"] > 5 * PROBLEM.errors(sol.unknowns, truth)["X"]["rotation"]
     robust = handeye.solve("axyb", loss="cauchy", A=data["A"], B=B)  # a robust loss: as before, nothing left out
     assert "outliers" not in robust.diagnostics and robust.diagnostics["refine"]["loss"] == "cauchy"

@@ -39,13 +39,13 @@ def test_a_lever_arm_noise_is_found_and_weighed():
     for seed in range(12):
         data, truth = PROBLEM.simulate(pairs=30, seed=seed)
         B = camera_noise_in_the_target_frame(data["B"], seed)
-        plain = handeye.solve("axyb", A=data["A"], B=B)
-        sol = handeye.solve("axyb", A=data["A"], B=B, noise="sources")
+        plain = handeye.solve("axyb", A=data["A"], B=B, noise="groups")
+        sol = handeye.solve("axyb", A=data["A"], B=B)  # auto's default at 30 pairs
         assert sol.status is Status.OPTIMAL
         groups.append(PROBLEM.errors(plain.unknowns, truth)["X"]["translation"])
         sources.append(PROBLEM.errors(sol.unknowns, truth)["X"]["translation"])
     found = sol.diagnostics["refine"]["noise_sources"]
-    assert set(found) == set(SOURCES)
+    assert set(found) == set(SOURCES) and sol.diagnostics["refine"]["noise_model"] == "sources"
     assert found["camera rotation (target frame)"] == pytest.approx(0.002, rel=0.25)
     assert found["camera rotation (camera frame)"] < 0.0005 and found["robot rotation (flange frame)"] < 0.0005
     assert np.median(sources) < 0.3 * np.median(groups)
@@ -55,18 +55,20 @@ def test_noise_in_each_poses_own_frame_is_found():
     """The simulator's noise (each pose perturbed in its own frame): camera rotation 0.002 rad and
     0.5 mm, robot 0.0002 rad and 0.05 mm. Rotation errors without a lever look alike in every
     frame, so the model finds their total (within 25%) rather than its split, and no lever-arm
-    noise; X is as accurate as with the per-group model (within 15%), which fits this case."""
+    noise; X is as accurate as with the per-group model, which is the true one here: the geometric
+    mean of the ratio of X's translation errors over 20 data sets within 1.08 (measured 1.01 over
+    30; a median over 12 sets moves by 30% from one set of seeds to the next)."""
     groups, sources = [], []
-    for seed in range(12):
+    for seed in range(20):
         data, truth = PROBLEM.simulate(pairs=30, seed=seed, noise=NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)}))
-        groups.append(PROBLEM.errors(handeye.solve("axyb", **data).unknowns, truth)["X"]["translation"])
+        groups.append(PROBLEM.errors(handeye.solve("axyb", noise="groups", **data).unknowns, truth)["X"]["translation"])
         sol = handeye.solve("axyb", noise="sources", **data)
         sources.append(PROBLEM.errors(sol.unknowns, truth)["X"]["translation"])
     found = sol.diagnostics["refine"]["noise_sources"]
     total = np.sqrt(sum(found[name] ** 2 for name in SOURCES[1:4]))
     assert total == pytest.approx(np.hypot(0.002, 0.0002), rel=0.25)
     assert found["camera rotation (target frame)"] < 0.0005
-    assert np.median(sources) < 1.15 * np.median(groups)
+    assert np.exp(np.mean(np.log(np.array(sources) / np.array(groups)))) < 1.08
 
 
 def test_it_says_where_it_does_not_apply():
