@@ -82,11 +82,20 @@ MULTI_START = ("axbycz",)
 #: 64 flagged none of 100 in each cell, while gross pairs (>= 5 deg) sit at norms of ~40 and beyond
 #: (bench/outliers.py, docs/solvers/auto.md).
 OUTLIER_CHI2 = 64.0
-#: the noise-source model (10 variances) is fitted by default from this many pairs on (60
-#: residual degrees of freedom and more); below it the two per-group variances. Measured on the
-#: KinHEC small tier (docs/solvers/auto.md): at 3-12 pairs it was 1.1x less accurate than the
-#: per-group model in X translation (geometric mean), at 17-20 pairs 0.84x, from 60 pairs 0.74x.
-SOURCES_MIN_PAIRS = 15
+#: the noise-source model (8 variances) is fitted by default from this many pairs on (120
+#: residuals, 15 per variance); below it the two per-group variances. Measured on the KinHEC
+#: small tier (docs/solvers/auto.md): at 3-12 pairs it was 1.1x less accurate than the
+#: per-group model in X translation (geometric mean), at 17-20 pairs 0.84x, from 60 pairs 0.74x;
+#: it costs ~8 ms at 16 pairs (the per-group model: 3 ms).
+SOURCES_MIN_PAIRS = 20
+#: by default the noise sources replace the per-group model only where they explain the
+#: residuals better by this many nats of log-likelihood: the 1% point of chi^2 with 6 degrees of
+#: freedom (8 variances against 2), halved. Where the per-group model is the true one (the
+#: simulator's noise) a fit on 8 variances costs 2-5% of accuracy (bench/accuracy.py, m = 50), and
+#: there the gain stayed below it in 200 of 200 data sets at m = 50 (99th percentile 7.4 nats); on
+#: the KinHEC small tier it was below it on 42 of 452 sequences of 20 pairs or more (median gain
+#: 24-101 nats per track).
+SOURCES_MIN_GAIN = 8.4
 #: values of option `noise` (None: "sources" where it applies, see `_noise_step`)
 NOISE_CHOICES = (None, "groups", "sources")
 
@@ -252,7 +261,8 @@ def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: 
     """Pipeline step 5: the noise-source model (`handeye.noise_sources`) fitted from the answer
     `poses` on the pairs kept (those not in the outlier step's `report`), where it applies
     (refine's `sources_apply`: A_i X = Y B_i with the camera's scale known, the noise estimated,
-    least squares) and the option asks for it (None: from SOURCES_MIN_PAIRS pairs on). Returns
+    least squares) and the option asks for it (None: from SOURCES_MIN_PAIRS pairs on, and kept
+    only where it gains SOURCES_MIN_GAIN nats over the per-group model). Returns
     the new (poses, status, refine's diagnostics), their warnings after the earlier ones; or the
     inputs where it does not apply, where the per-group fit did not end `optimal`, where far-off
     pairs had to be left in (no noise model describes such data), or where the pairs kept do not
@@ -269,6 +279,8 @@ def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: 
                                                 "sources")
     except DegenerateDataError:
         return poses, status, diag
+    if options.noise is None and new_diag["loglik_gain"] < SOURCES_MIN_GAIN:  # no better than one level per group
+        return poses, status, {**diag, "noise_sources_gain": new_diag["loglik_gain"]}
     carried = {k: diag[k] for k in ("outliers_left_out", "init") if k in diag}
     warnings = diag.get("warnings", []) + new_diag.get("warnings", [])
     return new, new_status, {**new_diag, **carried, **({"warnings": warnings} if warnings else {})}

@@ -39,14 +39,16 @@ def test_auto_is_the_default_solver(noisy):
 
 
 def test_auto_is_refine_from_its_start_then_the_noise_sources(noisy):
-    """With one noise level per group auto is refine from its start; by default it then fits
-    the noise sources from that answer (16 pairs >= SOURCES_MIN_PAIRS), which gains likelihood."""
+    """With one noise level per group auto is refine from its start (the default below
+    SOURCES_MIN_PAIRS); with the noise sources it then fits them from that answer, which gains
+    likelihood."""
     data, _ = noisy
     groups = handeye.solve("axyb", noise="groups", **data)
     r = handeye.solve("axyb", solver="refine", init=groups.diagnostics["init"], **data)
     np.testing.assert_allclose(groups.X, r.X, atol=1e-12)
     np.testing.assert_allclose(groups.Y, r.Y, atol=1e-9)
-    a = handeye.solve("axyb", **data)
+    np.testing.assert_array_equal(handeye.solve("axyb", **data).X, groups.X)  # 16 pairs
+    a = handeye.solve("axyb", noise="sources", **data)
     s = handeye.solve("axyb", solver="refine", noise="sources", init_X=groups.X, init_Y=groups.Y, **data)
     np.testing.assert_allclose(a.X, s.X, atol=1e-12)
     np.testing.assert_allclose(a.Y, s.Y, atol=1e-9)
