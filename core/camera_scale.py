@@ -20,6 +20,11 @@ with g_i = d e_i / d s = [0; -R_Y t_Bi] (`AXYBModel.camera_direction`), exactly.
   engine's per-group weights (one sigma for every translation residual); with a stated per-pair
   covariance s would need that metric too, which the refinement refuses.
 - **Scale figures** (`scale_figures`): s and its standard deviation at the answer.
+- **Noise bias** (`noise_bias`): s multiplies the camera's measured translations, so noise in them
+  is noise in a regressor and biases the fitted s toward zero (errors in variables: regression
+  dilution), by a relative amount up to kappa = n (std / s)^2 (n the translation residuals'
+  degrees of freedom), reached when all the translation misfit is the camera's noise. The stated
+  standard deviation does not include it; the host's self-check flags it (docs/camera-scale.md).
 """
 
 from __future__ import annotations
@@ -151,3 +156,24 @@ def scale_figures(model: ScaledCameraModel, poses: Poses, sigma_rot: float, sigm
     information = float(gf @ (gf - Jf @ coef))
     std = math.sqrt(variance_factor / information) if information > 0 else math.inf
     return {"camera_scale": s, "camera_scale_std": std}
+
+
+def noise_bias(model: ScaledCameraModel, poses: Poses, sigma_rot: float, sigma_trans: float,
+               variance_factor: float = 1.0) -> dict[str, float]:
+    """`scale_figures` and the bias that noise in the camera's translations puts on s (module
+    docstring): "bias", the relative amount kappa = n (std / s)^2 by which s falls short of the
+    truth when all the translation misfit is the camera's noise, and "bias_sigmas", the same in
+    standard deviations of s, n std / s (infinite when s <= 0: the data do not fix its sign).
+
+    Why: s is fitted against the camera's translations R_Y t_Bi after the poses are fitted (the
+    projection of g off the poses' Jacobian, (I - P) g). Noise of variance sigma_B^2 in each
+    component of t_B adds about n sigma_B^2 to |(I - P) g|^2 and nothing to the covariance of g
+    with the robot's side, so s shrinks by the factor 1 - n sigma_B^2 / |(I - P) g|^2. The
+    translation residuals bound sigma_B: sigma_t^2 = sigma_A^2 + s^2 sigma_B^2 >= s^2 sigma_B^2,
+    and std^2 = sigma_t^2 / |(I - P) g|^2, hence kappa. n = 3 (pairs - unknowns): the translation
+    residuals less the unknowns' translations."""
+    figures = scale_figures(model, poses, sigma_rot, sigma_trans, variance_factor)
+    s, std = figures["camera_scale"], figures["camera_scale_std"]
+    n = 3.0 * (model.m - len(model.unknowns))
+    rel = std / s if s > 0 else math.inf
+    return {**figures, "bias": n * rel * rel, "bias_sigmas": n * rel}
