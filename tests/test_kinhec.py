@@ -219,6 +219,30 @@ def test_adaptor_passes_poses_or_motions_and_keeps_the_status():
     _kinhec._OUTCOMES.clear()
 
 
+def test_scale_aware_variants_solve_a_camera_known_up_to_scale():
+    """Every solver that takes camera_scale='unknown' is registered twice, the second time as
+    NAME+scale with the scale unknown (like KinHEC's andreff_scale): on poses whose camera
+    translations are 3x too large it finds X (the data's noise: 0.001 rad / 0.1 mm)."""
+    from handeye.registry import get_registry
+
+    entries, _ = _kinhec.handeye_entries(probe=False)
+    by = {e.name: e for e in entries}
+    registry = get_registry()
+    for problem, prefix in (("axyb", "handeye:"), ("axxb", "handeye-axxb:")):
+        scale_aware = {n for n in registry.solver_names(problem) if registry.solver(n, problem).camera_scale_mode}
+        assert scale_aware and {f"{prefix}{n}+scale" for n in scale_aware} <= set(by)
+        assert all(by[f"{prefix}{n}+scale"].camera_scale == "unknown" for n in scale_aware)
+    seq = _sequence("good")
+    A, B, A_rel, B_rel = (np.array(x) for x in seq["data"])
+    for T in (B, B_rel):
+        T[:, :3, 3] *= 3.0
+    for name in ("handeye:auto+scale", "handeye-axxb:auto+scale"):
+        X = _kinhec.adaptor(by[name])((A, B, A_rel, B_rel), None)["X"]
+        assert _angle_deg(X[:3, :3], seq["X"][:3, :3]) < 0.2, name
+        assert np.linalg.norm(X[:3, 3] - seq["X"][:3, 3]) < 0.02 * np.linalg.norm(seq["X"][:3, 3]), name
+    _kinhec._OUTCOMES.clear()
+
+
 @pytest.mark.skipif(importlib.util.find_spec("kinhec") is None, reason='kinhec not installed (pip install "handeye[kinhec]")')
 def test_real_kinhec_protocol_on_two_smoke_sequences(capsys, tmp_path):
     import kinhec

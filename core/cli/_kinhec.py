@@ -67,6 +67,7 @@ from ._kinhec_report import (
     AXYB_PREFIX,
     HANDEYE_FILES,
     REFERENCE,
+    SCALE_SUFFIX,
     auto_vs_best,
     auto_vs_best_table,
     head_to_head,
@@ -122,9 +123,11 @@ def _version_tuple(text: str) -> tuple[int, ...]:
 class Entry:
     """One handeye solver as KinHEC sees it.
 
-    name: the KinHEC solver name (``handeye:auto``, ``handeye-axxb:park``). problem: ``axyb``
-    (given the absolute keyframe poses) or ``axxb`` (given the consecutive motions). solver,
-    backend: what `handeye.solve` is called with. doc: the line of KinHEC's protocol.json.
+    name: the KinHEC solver name (``handeye:auto``, ``handeye-axxb:park``, ``handeye:auto+scale``).
+    problem: ``axyb`` (given the absolute keyframe poses) or ``axxb`` (given the consecutive
+    motions). solver, backend, camera_scale: what `handeye.solve` is called with ("unknown": the
+    scale-aware variant, ``+scale``, like KinHEC's ``andreff_scale``). doc: the line of KinHEC's
+    protocol.json.
     """
 
     name: str
@@ -132,6 +135,7 @@ class Entry:
     solver: str
     backend: str
     doc: str
+    camera_scale: str = "known"
 
 
 def handeye_entries(probe: bool = True) -> tuple[list[Entry], list[str]]:
@@ -174,6 +178,9 @@ def handeye_entries(probe: bool = True) -> tuple[list[Entry], list[str]]:
             what = "absolute keyframe poses (AX=YB)" if problem == "axyb" else "consecutive keyframe motions (AX=XB)"
             doc = f"handeye {name} ({backend}) on the {what}: {spec.summary}"
             entries.append(Entry(prefix + name, problem, name, backend, doc))
+            if spec.camera_scale_mode:  # its scale-aware variant, for cameras known up to scale
+                entries.append(Entry(f"{prefix}{name}{SCALE_SUFFIX}", problem, name, backend,
+                                     f"{doc}; the camera's scale unknown (camera_scale='unknown')", "unknown"))
     return entries, skipped
 
 
@@ -197,7 +204,8 @@ def adaptor(entry: Entry) -> Callable[[Sequence[np.ndarray], Any], dict[str, Any
         A_abs, B_abs, A_rel, B_rel = data
         A, B = (A_abs, B_abs) if entry.problem == "axyb" else (A_rel, B_rel)
         try:
-            sol = solve(entry.problem, solver=entry.solver, backend=entry.backend, A=A, B=B)
+            sol = solve(entry.problem, solver=entry.solver, backend=entry.backend, A=A, B=B,
+                        camera_scale=entry.camera_scale)
         except Exception as exc:
             _OUTCOMES[entry.name] = {"handeye_status": "raised", "handeye_seconds": math.nan,
                                      "handeye_note": f"{type(exc).__name__}: {_one_line(exc)}"[:300]}

@@ -35,6 +35,8 @@ if TYPE_CHECKING:
 
 #: KinHEC names of handeye's solvers: AX=YB on the absolute keyframe poses, AX=XB on the motions
 AXYB_PREFIX, AXXB_PREFIX = "handeye:", "handeye-axxb:"
+#: the suffix of a solver's scale-aware variant (camera_scale="unknown"), e.g. handeye:auto+scale
+SCALE_SUFFIX = "+scale"
 AUTO = AXYB_PREFIX + "auto"
 #: KinHEC's best AX=YB method (Shah's closed form + joint LM refinement), the head-to-head reference
 REFERENCE = "shah+lm"
