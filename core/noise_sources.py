@@ -33,18 +33,15 @@ frames (6) or a robot translation along its flange axes made the answers no bett
 and up to 9% worse on the simulator at 16 pairs; these 8 sources cost 1-3% there (geometric
 mean of X's translation error, 30 data sets at 16, 30 and 60 pairs).
 
-`fit` alternates: the variances by maximum likelihood at the current residuals (`variances`:
-Fisher scoring from a moment estimate, non-negative, with an EM step wherever scoring would
-lower the likelihood), then a step of the unknowns by `handeye.nlls` with every pair whitened by
-its Sigma_i, until a round gains less than ROUND_GAIN nats; then the unknowns are converged at
-the last covariances. Measured on the KinHEC small tier (docs/solvers/auto.md, "Noise
-sources"): median X translation 0.69x the per-group model's on the noise track and 0.36x on the
-PnP track.
-
-The alternation converges linearly: stopped at ROUND_GAIN, two starts a tenth of the error
-apart end up to ~10% of the error apart (measured at 16 pairs: 0.049 mm against an error of 0.55
-mm; run to 1e-12 they agree to 7e-4 mm, after 114 rounds). auto always starts it from the
-per-group answer, so its answer does not depend on anything else.
+`fit` takes two steps (feasible generalised least squares): the per-group least squares, the
+variances by maximum likelihood at its residuals (`variances`: Fisher scoring from a moment
+estimate, non-negative, with an EM step wherever scoring would lower the likelihood), then the
+unknowns by `handeye.nlls` with every pair whitened by its Sigma_i. The first step's answer is
+consistent, so the second is as efficient as the joint maximum likelihood to first order.
+Measured on the KinHEC small tier (docs/solvers/auto.md, "Noise sources"): median X translation
+0.68x the per-group model's on the noise track and 0.36x on the PnP track; alternating the two
+steps to convergence (3-4 rounds) moved the track medians by 1-9% (better on motion, 9%, and
+PnP, 2%; worse on the other five) at 1.5x the time.
 """
 
 from __future__ import annotations
@@ -63,24 +60,10 @@ from .whitening import Whitening
 SOURCES = ("camera rotation (target frame)", "camera rotation (camera frame)", "robot rotation (flange frame)",
            "robot rotation (base frame)", "translation (camera x)", "translation (camera y)", "translation (camera z)",
            "translation (target z)")
-#: the alternation stops when a round gains less than ROUND_GAIN nats of log-likelihood, or no
-#: unknown moves by more than ROUND_TOL (rad, and relative to the data's length scale), or after
-#: MAX_ROUNDS; a fraction of a nat moves no estimate by a statistically meaningful amount
-#: (measured on the KinHEC small tier: the same medians to 3 digits as with ROUND_TOL 1e-8 alone,
-#: in 2-3 rounds instead of 4-8)
-ROUND_GAIN = 0.05
-ROUND_TOL = 1e-8
-MAX_ROUNDS = 8
-#: Levenberg-Marquardt steps of the unknowns per round; at the last round's covariances they are
-#: then converged to the engine's tolerance (measured on the KinHEC small tier: the same medians
-#: to 3 digits as converging them every round, 1 ms less at 25 pairs)
-STEPS_PER_ROUND = 1
 #: the variances' iterations stop when the log-likelihood gains less than this (nats) or after
-#: VARIANCE_ITER (the first round, from an even split) or VARIANCE_ITER_AGAIN (the later rounds,
-#: each from the last round's variances)
+#: VARIANCE_ITER
 LOGLIK_TOL = 0.01
 VARIANCE_ITER = 20
-VARIANCE_ITER_AGAIN = 3
 #: relative floor of Sigma_i's diagonal (of the mean trace of its rotation block, and of its
 #: translation block): keeps it positive definite where every source that reaches a direction
 #: went to zero
@@ -198,38 +181,26 @@ def moment_start(G: list[np.ndarray], e: np.ndarray, rotation_var: float, transl
 
 def fit(model: Any, data: Any, poses: tuple[np.ndarray, ...], settings: nlls.Settings
         ) -> tuple[tuple[np.ndarray, ...], Any, dict[str, Any]]:
-    """The unknowns (X, Y) and the noise sources' variances of A_i X = Y B_i by maximum
-    likelihood from `poses`, alternating (module docstring); `settings` give the loss, tol and
-    max_iter of each refinement. Returns (poses, status, diagnostics of the last refinement with
-    ``noise_sources``: each source's standard deviation, rad or data units, and ``rounds``)."""
+    """The unknowns (X, Y) of A_i X = Y B_i weighted by the noise sources, in two steps (feasible
+    generalised least squares; module docstring): the per-group fit from `poses` with
+    `settings` (estimated weights, least squares), the sources' variances by maximum likelihood
+    at its residuals, then the unknowns converged with every pair whitened by its Sigma_i.
+    Returns (poses, status, diagnostics of the last fit with ``noise_sources``: each source's
+    standard deviation, rad or data units, and ``loglik_gain``: the log-likelihood at the end over
+    the per-group model's at its fit, nats)."""
+    poses, _, _ = nlls.refine(model, poses, settings)
     e = model.residuals(poses)
     m = len(e)
     G = factors(data.A, data.B, poses[0], poses[1])
     rotation_var = max(float(np.sum(e[:, :3] ** 2)) / (3 * m), 1e-300)
     translation_var = max(float(np.sum(e[:, 3:] ** 2)) / (3 * m), 1e-300 * model.scale**2)
     floor = VARIANCE_FLOOR * np.array([rotation_var] * 4 + [translation_var] * (len(G) - 4))
-    theta = np.maximum(moment_start(G, e, rotation_var, translation_var), floor)
-    rounds, loglik = 0, -math.inf
-    for rounds in range(1, MAX_ROUNDS + 1):
-        if rounds > 1:
-            G = factors(data.A, data.B, poses[0], poses[1])
-        theta, S = variances(G, e, theta, floor, VARIANCE_ITER if rounds == 1 else VARIANCE_ITER_AGAIN)
-        W = Whitening(L=np.linalg.cholesky(S))
-        new = nlls.levenberg_marquardt(model, poses, W, settings.loss, settings.loss_scale, STEPS_PER_ROUND,
-                                       settings.tol).poses
-        moved = max(max(float(np.max(np.abs(a[:3, :3] - b[:3, :3]))),
-                        float(np.max(np.abs(a[:3, 3] - b[:3, 3]))) / model.scale) for a, b in zip(new, poses))
-        poses, e = new, model.residuals(new)
-        gain, loglik = log_likelihood(S, e) - loglik, log_likelihood(S, e)
-        if moved <= ROUND_TOL or gain < ROUND_GAIN:
-            break
-    # the poses converged under the last round's covariances, with the engine's figures there
-    stated = nlls.Settings(W=W, weights="covariance", loss=settings.loss, loss_scale=settings.loss_scale,
-                           max_iter=settings.max_iter, tol=settings.tol)
+    theta, S = variances(G, e, np.maximum(moment_start(G, e, rotation_var, translation_var), floor), floor)
+    stated = nlls.Settings(W=Whitening(L=np.linalg.cholesky(S)), weights="covariance", loss=settings.loss,
+                           loss_scale=settings.loss_scale, max_iter=settings.max_iter, tol=settings.tol)
     poses, status, diag = nlls.refine(model, poses, stated)
-    loglik = log_likelihood(S, model.residuals(poses))
-    # the per-group model's log-likelihood at its own fit (the start), for comparison
     groups_loglik = -1.5 * m * (math.log(rotation_var) + math.log(translation_var) + 2.0)
-    diag = {**diag, "weights": "estimated", "noise_model": "sources", "rounds": rounds, "loglik_gain": loglik - groups_loglik,
+    diag = {**diag, "weights": "estimated", "noise_model": "sources",
+            "loglik_gain": log_likelihood(S, model.residuals(poses)) - groups_loglik,
             "noise_sources": {name: math.sqrt(max(float(t), 0.0)) for name, t in zip(SOURCES, theta)}}
     return poses, status, diag

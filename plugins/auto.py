@@ -92,9 +92,9 @@ SOURCES_MIN_PAIRS = 20
 #: residuals better by this many nats of log-likelihood: the 1% point of chi^2 with 6 degrees of
 #: freedom (8 variances against 2), halved. Where the per-group model is the true one (the
 #: simulator's noise) a fit on 8 variances costs 2-5% of accuracy (bench/accuracy.py, m = 50), and
-#: there the gain stayed below it in 200 of 200 data sets at m = 50 (99th percentile 7.4 nats); on
-#: the KinHEC small tier it was below it on 42 of 452 sequences of 20 pairs or more (median gain
-#: 24-101 nats per track).
+#: there the gain stayed below it in 200 of 200 data sets at m = 50 (99th percentile 7.3 nats); on
+#: the KinHEC small tier it was below it on 43 of 452 sequences of 20 pairs or more (median gain
+#: 24-97 nats per track).
 SOURCES_MIN_GAIN = 8.4
 #: values of option `noise` (None: "sources" where it applies, see `_noise_step`)
 NOISE_CHOICES = (None, "groups", "sources")
