@@ -188,7 +188,8 @@ def fit(model: Any, data: Any, poses: tuple[np.ndarray, ...], settings: nlls.Set
     Returns (poses, status, diagnostics of the last fit with ``noise_sources``: each source's
     standard deviation, rad or data units, and ``loglik_gain``: the log-likelihood at the end over
     the per-group model's at its fit, nats)."""
-    poses, _, _ = nlls.refine(model, poses, settings)
+    poses = nlls.levenberg_marquardt(model, poses, settings.W, settings.loss, settings.loss_scale, settings.max_iter,
+                                     settings.tol, settings.estimate).poses  # the per-group fit (auto's answer already)
     e = model.residuals(poses)
     m = len(e)
     G = factors(data.A, data.B, poses[0], poses[1])
