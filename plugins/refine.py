@@ -189,7 +189,7 @@ class Options(_Options):
     max_iter: total Levenberg-Marquardt iterations; tol: stop when the cost decrease predicted by a
         Gauss-Newton step is below tol * cost.
     noise: "groups" (default: one noise level per residual group, the same for every pair) or
-        "sources" (the noise of each measured pose in its own frame, estimated with the unknowns,
+        "sources" (the noise of each measured pose in its own frame, estimated at the per-group fit,
         pair by pair: `handeye.noise_sources`; A_i X = Y B_i with the noise estimated).
     """
 
