@@ -13,19 +13,20 @@ through a 6 x r_k matrix G_ik (its first-order change when that pose is perturbe
 
     Cov(e_i) = Sigma_i(theta) = sum_k theta_k G_ik G_ik^T,   theta = s^2 >= 0.
 
-The sources (`SOURCES`, in axyb's terms: B = T_target_cam, so the camera pose's own frame is the
-camera and its reference frame the target; A = T_base_flange eye-in-hand, T_flange_base
-eye-to-hand):
+The sources (`SOURCES`), named by the side of A or B the error multiplies: its reference frame
+(left: P <- exp(w) P) or its own frame (right: P <- P exp(w)). In axyb's terms (docs/conventions.md)
+A = T_base_flange in both setups (own frame: the flange; reference: the base); B = T_target_cam
+eye-in-hand (own frame: the camera; reference: the target) and T_cam_target eye-to-hand (own
+frame: the target; reference: the camera, whose z is the optical axis):
 
-- camera rotation in the target frame (B <- exp(w) B):      G = [-R_Y; R_Y [t_B]x]
-- camera rotation in the camera frame (B <- B exp(w)):      G = [-R_Y R_B; 0]
-- robot rotation in A's own frame (A <- A exp(w)):          G = [R_A; -R_A [t_X]x]
-- robot rotation in A's reference frame (A <- exp(w) A):    G = [I; -[R_A t_X + t_A]x]
-- translation along the camera's x, y and z (one source each): G = [0; R_Y R_B e_j]. Together
+- rotation of B, reference frame (B <- exp(w) B):   G = [-R_Y; R_Y [t_B]x] (a lever of |t_B|)
+- rotation of B, own frame (B <- B exp(w)):         G = [-R_Y R_B; 0]
+- rotation of A, own frame (A <- A exp(w)):         G = [R_A; -R_A [t_X]x]
+- rotation of A, reference frame (A <- exp(w) A):   G = [I; -[R_A t_X + t_A]x]
+- translation of B along its own x, y and z (one source each): G = [0; R_Y R_B e_j]. Together
   they hold any isotropic translation error (either pose, any frame: the robot's too), and
-  the extra depth error of a camera along its optical axis z.
-- translation along the target's z: G = [0; R_Y e_3]: the optical axis again where camera poses
-  come as T_cam_target rather than T_target_cam (as KinHEC's eye-to-hand A X = Y B has them).
+  eye-in-hand the extra depth error of a camera along its optical axis z.
+- translation of B along its reference frame's z: G = [0; R_Y e_3]: the optical axis eye-to-hand.
 
 Chosen by measurement (KinHEC small tier, and the simulator's isotropic noise, where the
 per-group model is the true one): per-axis translation sources in both of the camera pose's
@@ -57,9 +58,9 @@ from .so3_fast import skew
 from .whitening import Whitening
 
 #: the noise sources, in the order of the variances
-SOURCES = ("camera rotation (target frame)", "camera rotation (camera frame)", "robot rotation (flange frame)",
-           "robot rotation (base frame)", "translation (camera x)", "translation (camera y)", "translation (camera z)",
-           "translation (target z)")
+SOURCES = ("rotation of B, reference frame", "rotation of B, own frame", "rotation of A, own frame",
+           "rotation of A, reference frame", "translation of B, own x", "translation of B, own y",
+           "translation of B, own z", "translation of B, reference z")
 #: the variances' iterations stop when the log-likelihood gains less than this (nats) or after
 #: VARIANCE_ITER
 LOGLIK_TOL = 0.01
@@ -226,5 +227,6 @@ def fit(model: Any, data: Any, poses: tuple[np.ndarray, ...], settings: nlls.Set
     loglik = -float(np.sum(np.log(np.diagonal(W.L, axis1=1, axis2=2)))) - 0.5 * float(np.sum(z * z))
     groups_loglik = -1.5 * m * (math.log(rotation_var) + math.log(translation_var) + 2.0)
     diag = {**diag, "weights": "estimated", "noise_model": "sources", "loglik_gain": loglik - groups_loglik,
-            "noise_sources": {name: math.sqrt(max(float(t), 0.0)) for name, t in zip(SOURCES, theta)}}
+            "noise_sources": {name: math.sqrt(float(t)) if t > 2.0 * f else 0.0  # at its floor: gone
+                              for name, t, f in zip(SOURCES, theta, floor)}}
     return poses, status, diag

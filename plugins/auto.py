@@ -166,7 +166,9 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
     return steps.drift(data, options, backend, output, at, _run)
 
 
-def _run(data: Any, options: Options, backend: str) -> SolverOutput:
+def _run(data: Any, options: Options, backend: str, stations: bool = False) -> SolverOutput:
+    """The pipeline of the module docstring on `data` (`stations`: A X = X B's stations rebuilt
+    from its motions, where step 5 does not apply)."""
     problem = _refine.problem_of(data)
     if problem == "axxb" and data.stations is not None and _weights_are_estimated(options):
         return _run_on_stations(data, options, backend)
@@ -213,7 +215,7 @@ def _run(data: Any, options: Options, backend: str) -> SolverOutput:
 
     what = "triples" if problem == "axbycz" else "pairs"
     poses, status, diag, report = _outlier_step(data, poses, status, diag, ropts, options, what)
-    poses, status, diag = _noise_step(data, poses, status, diag, ropts, options, report)
+    poses, status, diag = _noise_step(data, poses, status, diag, ropts, options, report, stations)
     diagnostics = _diagnostics(pipeline, start, init_status, init_diag, starts, diag, warnings)
     diagnostics.update(report)
     if _refine.is_planar(data):
@@ -256,34 +258,57 @@ def _outlier_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag
 
 
 def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
-                ropts: _refine._Options, options: Options, report: dict[str, Any]
+                ropts: _refine._Options, options: Options, report: dict[str, Any], stations: bool = False
                 ) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """Pipeline step 5: the noise-source model (`handeye.noise_sources`) fitted from the answer
-    `poses` on the pairs kept (those not in the outlier step's `report`), where it applies
-    (refine's `sources_apply`: A_i X = Y B_i with the camera's scale known, the noise estimated,
-    least squares) and the option asks for it (None: from SOURCES_MIN_PAIRS pairs on, and kept
-    only where it gains SOURCES_MIN_GAIN nats over the per-group model). Returns
-    the new (poses, status, refine's diagnostics), their warnings after the earlier ones; or the
-    inputs where it does not apply, where the per-group fit did not end `optimal`, where far-off
-    pairs had to be left in (no noise model describes such data), or where the pairs kept do not
-    determine the fit."""
-    wanted = options.noise == "sources" or (options.noise is None and data.m >= SOURCES_MIN_PAIRS)
-    if (not wanted or status is not Status.OPTIMAL or report.get("outliers_left_in")
-            or not _refine.sources_apply(data, ropts)):
+    `poses` on the pairs kept (those not in the outlier step's `report`), where the option asks
+    for it (None: from SOURCES_MIN_PAIRS pairs kept on, and kept only where it gains
+    SOURCES_MIN_GAIN nats over the per-group model) and `_sources_skipped` finds no reason
+    against it. Returns the new (poses, status, refine's diagnostics), their warnings after the
+    earlier ones; else the inputs, with the reason in the diagnostics (and, where the user asked
+    for the sources, a warning)."""
+    if options.noise == "groups":
         return poses, status, diag
     flagged = np.zeros(data.m, dtype=bool)
     flagged[[o["index"] for o in report.get("outliers", [])]] = True
     kept = _kept(data, ~flagged)
-    try:
-        new, new_status, new_diag = _refine.fit(_refine.model_of(kept), kept, poses, _refine.settings_of(ropts, kept.m),
-                                                "sources")
-    except DegenerateDataError:
+    if options.noise is None and kept.m < SOURCES_MIN_PAIRS:
         return poses, status, diag
+    reason = _sources_skipped(data, status, ropts, report, stations)
+    if reason is None:
+        try:
+            new, new_status, new_diag = _refine.fit(_refine.model_of(kept), kept, poses,
+                                                    _refine.settings_of(ropts, kept.m), "sources")
+        except DegenerateDataError:
+            reason = "the pairs kept do not determine the fit with the noise sources"
+    if reason is not None:
+        note = {"noise_sources_skipped": reason}
+        if options.noise == "sources":
+            note["warnings"] = diag.get("warnings", []) + [f"auto: noise='sources' was not applied: {reason}"]
+        return poses, status, {**diag, **note}
     if options.noise is None and new_diag["loglik_gain"] < SOURCES_MIN_GAIN:  # no better than one level per group
         return poses, status, {**diag, "noise_sources_gain": new_diag["loglik_gain"]}
     carried = {k: diag[k] for k in ("outliers_left_out", "init") if k in diag}
     warnings = diag.get("warnings", []) + new_diag.get("warnings", [])
     return new, new_status, {**new_diag, **carried, **({"warnings": warnings} if warnings else {})}
+
+
+def _sources_skipped(data: Any, status: Status, ropts: _refine._Options, report: dict[str, Any],
+                     stations: bool) -> str | None:
+    """Why the noise sources do not apply here, in the user's words, or None."""
+    if stations:
+        # A X = X B's stations are rebuilt with the first one as the origin, which moves the
+        # centre of each rotation error: the sources' lever arms would be wrong (measured: 0.41-1.64
+        # mm against 0.07-0.28 mm for axyb on the same stations)
+        return "the stations were rebuilt from motions (solve them as axyb to estimate the noise sources)"
+    if status is not Status.OPTIMAL:
+        return f"the per-group fit ended {status.value}"
+    if report.get("outliers_left_in"):
+        return "far-off pairs had to be kept, and no noise model describes them"
+    if not _refine.sources_apply(data, ropts):
+        return ("they take A_i X = Y B_i data with the camera's scale known, the noise estimated and "
+                "loss='linear'")
+    return None
 
 
 def _kept(data: Any, inliers: np.ndarray) -> Any:
@@ -436,13 +461,13 @@ def _run_on_stations(data: Any, options: Options, backend: str) -> SolverOutput:
         fitted, status, diag = _refine.refine(stations, (poses[0], poses[0]), ropts)
         starts = [{"init": f"{start} (motions)", "init_status": str(init_status), "final_cost": diag["final_cost"]}]
         fitted, status, diag, report = _outlier_step(stations, fitted, status, diag, ropts, options, "stations")
-        (X, _), status, diag = _noise_step(stations, fitted, status, diag, ropts, options, report)
+        (X, _), status, diag = _noise_step(stations, fitted, status, diag, ropts, options, report, stations=True)
         diagnostics = _diagnostics([f"{start} (motions)", "refine"], start, init_status, init_diag, starts, diag,
                                    [f"auto: {w}" for w in warnings])
         diagnostics.update(report)
         output = SolverOutput(unknowns={"X": X}, status=status, diagnostics=diagnostics)
     else:
-        output = _run(stations, options, backend)
+        output = _run(stations, options, backend, stations=True)
     diagnostics = dict(output.diagnostics)
     diagnostics["formulation"] = (f"A_k X = Y B_k on the {len(A_abs)} stations the {data.m} motions were made "
                                   "from (maximum likelihood for independent noise on each station)")
