@@ -154,6 +154,10 @@ def test_default_solver_is_explicit(capsys, tmp_path):
     code, out, err = run_cli(capsys, "solve", "--example", "--json")
     assert code == 0, err
     assert json.loads(out)["solver"] == expected
+    if expected == "auto":  # 50 real pairs: auto weighs them by where the noise lives, and says so
+        gain = json.loads(out)["diagnostics"]["refine"]["loglik_gain"]
+        code, out, err = run_cli(capsys, "solve", "--example")
+        assert code == 0 and f"noise per source, 1-sigma ({gain:.0f} nats" in out and "rotation of B, reference frame" in out
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -84,7 +84,7 @@ from ._common import (
     format_pose,
     parse_key_values,
 )
-from .solve_cmd import EQUATIONS, FRAMES, UNUSABLE, _setup_note, default_solver
+from .solve_cmd import EQUATIONS, FRAMES, UNUSABLE, _setup_note, default_solver, noise_lines
 
 NAME = "calibrate"
 #: what the camera file holds: board-in-camera = T_cam_target (as solvePnP), camera-in-board = T_target_cam
@@ -436,6 +436,7 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
               "  " + " " * 18 + "".join(f"{s:>12}" for s in ("median", "rms", "max"))]
     for label, key in (("rotation [deg]", "rotation_deg"), (f"translation [{unit}]", "translation")):
         lines.append(f"  {label:<18}" + "".join(f"{res[key][s]:12.4g}" for s in ("median", "rms", "max")))
+    lines += noise_lines(diagnostics, unit)
     ros = r["ros"]
     lines += ["", f"ROS 2 ({ros['unknown']}: {ros['child_frame_id']} in {ros['frame_id']}, metres):",
               "  " + ros["command"]]

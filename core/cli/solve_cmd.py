@@ -279,6 +279,7 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
     for kind, s in r["residuals"].items():
         lines.append(f"  {kind:<12}" + "   ".join(f"{stat} {_value(kind, s[stat], unit)}" for stat in ("median", "rms", "max")))
     lines += _per_pair(r, item, unit)
+    lines += noise_lines(r["diagnostics"], unit)
     if r["errors"]:
         lines += ["", "errors against the file's truth (angle and distance):"]
         for name, e in r["errors"].items():
@@ -320,6 +321,18 @@ def _per_pair(r: dict[str, Any], item: str, unit: str) -> list[str]:
         name = f"{i}" + (f" ({joined[i][0]}->{joined[i][1]})" if joined else "")
         lines.append(f"  {name:>14}   {np.degrees(rot[i]):14.4g}   {trans[i]:18.4g}")
     return lines
+
+
+def noise_lines(diagnostics: dict[str, Any], unit: str) -> list[str]:
+    """Where the answer's fit found the noise (`handeye.noise_sources`), when it weighed the pairs
+    by it: each source's 1-sigma that did not vanish."""
+    fit = diagnostics.get("refine", diagnostics)
+    if fit.get("noise_model") != "sources":
+        return []
+    found = ", ".join(f"{name} {v:.2g} {'rad' if name.startswith('rotation') else unit}"
+                      for name, v in fit["noise_sources"].items() if v > 0)
+    return ["", (f"noise per source, 1-sigma ({fit['loglik_gain']:.0f} nats of log-likelihood better than one level "
+                 f"per residual group; docs/solvers/auto.md): {found}")]
 
 
 def _value(kind: str, v: float, unit: str) -> str:
