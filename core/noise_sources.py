@@ -104,13 +104,6 @@ def factors(A: np.ndarray, B: np.ndarray, X: np.ndarray, Y: np.ndarray) -> list[
             axis(camera_axes, 0), axis(camera_axes, 1), axis(camera_axes, 2), axis(np.broadcast_to(RY, (m, 3, 3)), 2)]
 
 
-def covariances(G: list[np.ndarray], theta: np.ndarray) -> np.ndarray:
-    """Sigma_i(theta) = sum_k theta_k G_ik G_ik^T: (m, 6, 6), source by source (no stack of the
-    factors: at m = 1e5 that copy cost more than the sum), with `_Stack.sigma`'s floor."""
-    S = sum(t * (g @ np.swapaxes(g, 1, 2)) for t, g in zip(theta, G))
-    return _floored(S)
-
-
 def _floored(S: np.ndarray) -> np.ndarray:
     """S with COVARIANCE_FLOOR added to the diagonal of its rotation and translation blocks."""
     for block in (np.arange(3), np.arange(3, 6)):  # rotation, translation
@@ -135,13 +128,9 @@ class _Stack:
         return np.add.reduceat(values, self.starts, axis=axis)
 
 
-def log_likelihood(S: np.ndarray, e: np.ndarray) -> float:
-    """Gaussian log-likelihood of residuals e: (m, 6) under covariances S: (m, 6, 6), up to its
-    constant."""
-    return _inverse_and_log_likelihood(S, e)[1]
-
-
 def _inverse_and_log_likelihood(S: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, float]:
+    """(S^-1, the Gaussian log-likelihood of residuals e: (m, 6) under covariances S, up to its
+    constant)."""
     Si = np.linalg.inv(S)
     logdet = np.linalg.slogdet(S)[1]
     return Si, -0.5 * float(np.sum(logdet) + np.einsum("mi,mij,mj->", e, Si, e))
@@ -218,7 +207,7 @@ def fit(model: Any, data: Any, poses: tuple[np.ndarray, ...], settings: nlls.Set
     start = np.maximum(moment_start(G_some, e[some], rotation_var, translation_var), floor)
     theta, S = variances(G_some, e[some], start, floor)
     if len(some) < m:
-        S = covariances(G, theta)
+        S = _Stack(G).sigma(theta)
     W = Whitening(L=np.linalg.cholesky(S))
     stated = nlls.Settings(W=W, weights="covariance", loss=settings.loss, loss_scale=settings.loss_scale,
                            max_iter=settings.max_iter, tol=settings.tol)

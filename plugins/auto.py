@@ -18,8 +18,9 @@ Pipeline (the measurements behind it are in docs/solvers/auto.md):
    (`_reject_outliers`).
 5. noise sources (A_i X = Y B_i with the noise estimated and least squares, from
    SOURCES_MIN_PAIRS pairs on): where the noise lives -- each measured pose's rotation in its
-   two frames, the translation along the camera's and the target's axes -- estimated by maximum
-   likelihood with X and Y on the pairs kept (`handeye.noise_sources`, `_noise_step`).
+   two frames, the translation along the camera pose's axes -- estimated by maximum likelihood at
+   the per-group answer, then X and Y refitted with it, on the pairs kept (`handeye.noise_sources`,
+   `_noise_step`).
 
 A_i X B_i = Y C_i Z (`MULTI_START`) has no certifiable method: the start is `wang` (grid of
 rotation starts, any data protocol), and the safeguard always runs, from the next of refine's
@@ -86,7 +87,7 @@ OUTLIER_CHI2 = 64.0
 #: residuals, 15 per variance); below it the two per-group variances. Measured on the KinHEC
 #: small tier (docs/solvers/auto.md): at 3-12 pairs it was 1.1x less accurate than the
 #: per-group model in X translation (geometric mean), at 17-20 pairs 0.84x, from 60 pairs 0.74x;
-#: it costs ~8 ms at 16 pairs (the per-group model: 3 ms).
+#: it costs 6.7 ms at 16 pairs (the per-group model: 3.3 ms).
 SOURCES_MIN_PAIRS = 20
 #: by default the noise sources replace the per-group model only where they explain the
 #: residuals better by this many nats of log-likelihood: the 1% point of chi^2 with 6 degrees of
@@ -109,7 +110,7 @@ class Options:
     ``noise``: None (default: "sources" on A_i X = Y B_i data of SOURCES_MIN_PAIRS pairs or more
     with the noise estimated and least squares, else "groups"), "groups" (refine's one noise level
     per residual group) or "sources" (the noise of each measured pose in its own frame,
-    estimated with the unknowns, `handeye.noise_sources`; fitted last, on the pairs kept), and
+    estimated at the per-group answer, `handeye.noise_sources`; fitted last, on the pairs kept), and
     ``outliers``: "reject" (default; with least squares, pairs far off the others are left out
     and listed, see the module docstring) or "keep" (least squares on every pair). With a robust
     ``loss`` the loss handles outliers and nothing is left out."""
