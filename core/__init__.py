@@ -28,6 +28,7 @@ from .errors import (
     PluginLoadWarning,
     PluginRegistrationError,
     SolverError,
+    SolverTimeoutError,
     UnknownPluginError,
 )
 from .hookspecs import hookimpl
@@ -59,6 +60,7 @@ __all__ = [
     "SolverError",
     "SolverOutput",
     "SolverSpec",
+    "SolverTimeoutError",
     "Status",
     "UnknownPluginError",
     "examples",

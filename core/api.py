@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from .errors import BackendUnavailableError, InputError, SolverError, UnknownPluginError
+from .errors import BackendUnavailableError, HandEyeError, InputError, SolverError, UnknownPluginError, shown
+from .isolation import call_with_time_limit
 from .options import parse_options
 from .registry import get_registry
 from .se3 import orthonormality_error
@@ -16,12 +19,13 @@ from .self_check import assess
 from .solution import Solution, SolverOutput, Status
 
 DEFAULT_SOLVER = "auto"
-#: largest |R^T R - I| accepted in an unknown a solver returns (it is then re-orthonormalised
-#: exactly by the host only in its last row; rotations must already be rotations).
+#: largest |R^T R - I|, and largest deviation of the last row from [0, 0, 0, 1], accepted in an
+#: unknown a solver returns (the last row is then set exactly; rotations must already be rotations)
 OUTPUT_ORTHONORMALITY_TOL = 1e-9
 
 
-def solve(problem: str, *, solver: str | None = None, backend: str | None = None, **data_and_options: Any) -> Solution:
+def solve(problem: str, *, solver: str | None = None, backend: str | None = None, time_limit: float | None = None,
+          **data_and_options: Any) -> Solution:
     """Solve a calibration problem with one registered solver.
 
     Parameters
@@ -31,6 +35,9 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
     solver : registered solver name (see `handeye.list_solvers`); default ``"auto"`` where
         registered.
     backend : one of the solver's backends; default the solver's own default.
+    time_limit : seconds the solver may take, or None (default: no limit). The solver then runs
+        in a forked worker process that is killed at the limit (`handeye.isolation`), which a
+        plugin cannot catch or outlast; the fork costs a few milliseconds. POSIX only.
     **data_and_options : the problem's data fields (for ``axyb``: absolute poses ``A``, ``B``;
         for ``axxb``: relative motions ``A``, ``B``, e.g. from `handeye.problems.axxb.motions`;
         each as (m, 4, 4) arrays or sequences of 4x4) and the solver's options.
@@ -44,11 +51,16 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
     InputError, DegenerateDataError : bad or insufficient data (nothing is modified).
     UnknownPluginError : unknown problem, solver, backend or option (lists the known ones).
     BackendUnavailableError : the backend's package is missing (names it).
-    SolverError : the solver failed numerically.
+    SolverError : the solver failed numerically, or gave no answer within `time_limit`
+        (`SolverTimeoutError`); also any fault of a third-party solver (an exception that is not
+        handeye's, an answer that is not one), named with its plugin.
     """
     for what, name in (("problem", problem), ("solver", solver), ("backend", backend)):
         if name is not None and not isinstance(name, str):
             raise InputError(f"{what} must be a name (str), got {type(name).__name__} {name!r}")
+    if time_limit is not None and (isinstance(time_limit, bool) or not isinstance(time_limit, (int, float))
+                                   or not 0 < time_limit < math.inf):
+        raise InputError(f"time_limit must be a number of seconds > 0 (or None), got {time_limit!r}")
     registry = get_registry()
     spec_problem = registry.problem(problem)
     if solver is None:
@@ -82,16 +94,12 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
                          f"use one of {', '.join(able) or '(none registered)'}")
     options = parse_options(spec.options, {k: v for k, v in data_and_options.items() if k not in given}, solver)
 
+    builtin = registry.is_builtin(solver, problem)
     start = time.perf_counter()
-    output = spec.run(data, options, backend)
+    output = _run(spec, data, options, backend, time_limit, builtin, _who(registry, solver, problem, builtin))
     seconds = time.perf_counter() - start
-    if not isinstance(output, SolverOutput):
-        raise SolverError(f"solver {solver!r} returned {type(output).__name__}, not SolverOutput")
-
-    unknowns = {name: _checked_pose(output.unknowns, name, solver) for name in spec_problem.unknowns}
-    diagnostics = dict(output.diagnostics)
+    unknowns, status, diagnostics = _checked_output(output, spec_problem.unknowns, solver)
     weak = spec_problem.diagnose(data)
-    status = Status(output.status)
     # an answer that comes with the camera's scale (auto estimates it where the data demand it)
     # is judged with that scale free, as its solver fitted it (handeye.camera_scale)
     check_data = data
@@ -105,6 +113,7 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
                    "check the data (handeye calibrate checks files for the usual setup mistakes)")
         message = f"self-check failed, do not use this answer: {'; '.join(check.failures)}; {instead}"
         if status in (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED):
+            diagnostics["status_before_checks"] = status.value  # the solver's own, kept for the record
             status = Status.UNRELIABLE
             warnings.insert(0, message)  # the reason for the status comes first
         else:
@@ -122,13 +131,80 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
     )
 
 
+def _who(registry: Any, solver: str, problem: str, builtin: bool) -> str:
+    """How messages name a solver: with its plugin and distribution when it is a third party's."""
+    if builtin:
+        return f"solver {solver!r}"
+    info = registry.provider(solver, problem)
+    source = f"from {info.distribution} {info.version}" if info.version else info.distribution.strip("()")
+    return f"solver {solver!r} (plugin {info.name!r}, {source})"
+
+
+def _run(spec: Any, data: Any, options: Any, backend: str, time_limit: float | None, builtin: bool,
+         who: str) -> Any:
+    """spec.run, within `time_limit` if given. A handeye error keeps its type, on one line; any
+    other way out of a third-party plugin (an exception of its own, SystemExit) becomes a
+    `SolverError` naming the plugin. A built-in's other exceptions are handeye's bugs: raised."""
+    try:
+        if time_limit is not None:
+            return call_with_time_limit(lambda: spec.run(data, options, backend), float(time_limit), who)
+        return spec.run(data, options, backend)
+    except HandEyeError as exc:
+        message = " ".join(str(exc).split())
+        if message == str(exc):
+            raise
+        try:
+            flat = type(exc)(message)
+        except Exception:  # noqa: BLE001 - a subclass with another constructor
+            flat = SolverError(message)
+        raise flat from exc
+    except (Exception, SystemExit) as exc:
+        if builtin and not isinstance(exc, SystemExit):
+            raise
+        message = " ".join(str(exc).split()) or "(no message)"
+        raise SolverError(f"{who} failed: {type(exc).__name__}: {message}") from exc
+
+
+def _checked_output(output: Any, names: tuple[str, ...], solver: str) -> tuple[dict[str, np.ndarray], Status,
+                                                                              dict[str, Any]]:
+    """(unknowns, status, diagnostics) of what a solver returned, or SolverError when it is not
+    an answer: not a SolverOutput, an unknown that is not a pose, an unknown status."""
+    if not isinstance(output, SolverOutput):
+        raise SolverError(f"solver {solver!r} returned {type(output).__name__}, not SolverOutput")
+    if not isinstance(output.unknowns, Mapping):
+        raise SolverError(f"solver {solver!r} returned unknowns as a {type(output.unknowns).__name__}, not a "
+                          "mapping from names to poses")
+    unknowns = {name: _checked_pose(output.unknowns, name, solver) for name in names}
+    try:
+        status = Status(output.status)
+    except ValueError:
+        raise SolverError(f"solver {solver!r} returned status {shown(output.status)}, which is not one of "
+                          f"{', '.join(s.value for s in Status)}") from None
+    if not isinstance(output.diagnostics, Mapping):
+        raise SolverError(f"solver {solver!r} returned diagnostics as a {type(output.diagnostics).__name__}, not a "
+                          "mapping")
+    diagnostics = dict(output.diagnostics)
+    found = diagnostics.get("warnings", [])
+    if isinstance(found, str) or not isinstance(found, (list, tuple)):
+        raise SolverError(f"solver {solver!r} returned diagnostics['warnings'] as a {type(found).__name__}, not a "
+                          "list of strings")
+    diagnostics["warnings"] = [" ".join(str(w).split()) for w in found]
+    return unknowns, status, diagnostics
+
+
 def _checked_pose(unknowns: Any, name: str, solver: str) -> np.ndarray:
-    """A read-only float64 copy of unknown `name`, with an exact last row; raise if not SE(3)."""
+    """A read-only float64 copy of unknown `name`; raise if it is not a 4x4 pose in SE(3) (a
+    complex array, a last row other than [0, 0, 0, 1], a rotation off SO(3))."""
     if name not in unknowns:
         raise SolverError(f"solver {solver!r} did not return unknown {name!r}")
     try:
-        T = np.array(unknowns[name], dtype=float)
-    except (TypeError, ValueError):
+        raw = np.asarray(unknowns[name])
+        if np.iscomplexobj(raw):
+            raise SolverError(f"solver {solver!r} returned {name} with complex entries; a pose is real")
+        T = np.array(raw, dtype=float)
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, SolverError):
+            raise
         raise SolverError(f"solver {solver!r} returned {name} as a {type(unknowns[name]).__name__} that is "
                           "not an array of numbers") from None
     if T.shape != (4, 4):
@@ -142,6 +218,9 @@ def _checked_pose(unknowns: Any, name: str, solver: str) -> np.ndarray:
             f"solver {solver!r} returned {name} whose rotation is not in SO(3) "
             f"(|R^T R - I| = {orthonormality_error(R):.2e}, det = {np.linalg.det(R):+.6f})"
         )
+    if np.abs(T[3] - (0.0, 0.0, 0.0, 1.0)).max() > OUTPUT_ORTHONORMALITY_TOL:
+        raise SolverError(f"solver {solver!r} returned {name} whose last row {np.round(T[3], 9).tolist()} is not "
+                          "[0, 0, 0, 1]")
     T[3] = (0.0, 0.0, 0.0, 1.0)
     T.setflags(write=False)
     return T

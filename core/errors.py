@@ -33,6 +33,10 @@ class SolverError(HandEyeError):
     """A solver could not produce an answer it can stand behind (numerical failure, infeasible)."""
 
 
+class SolverTimeoutError(SolverError):
+    """A solver gave no answer within its time limit and was stopped (`handeye.isolation`)."""
+
+
 class UnknownPluginError(HandEyeError):
     """A problem, solver, backend or option name that nothing registered knows.
 

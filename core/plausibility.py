@@ -68,6 +68,8 @@ HYPOTHESIS_SOLVER = "kron-lstsq"
 #: this fraction of the cell size
 DUPLICATE_DEG = 0.1
 DUPLICATE_FRACTION = 1e-3
+#: the duplicated stations a warning lists (then "...")
+DUPLICATES_LISTED = 5
 #: below this many stations the covariance-based 1-sigma is not meaningful
 MIN_STATIONS_FOR_SIGMA = 5
 #: the Tait-Bryan sequences (scipy: lower case extrinsic, upper case intrinsic)
@@ -323,18 +325,46 @@ def station_warnings(robot: np.ndarray, unit: str) -> list[str]:
     n = len(robot)
     out = []
     size = cell_size(robot)
-    if n >= 2:
-        i, j = np.triu_indices(n, k=1)
-        angle = np.degrees(rotation_angle(robot[i, :3, :3] @ np.swapaxes(robot[j, :3, :3], 1, 2)))
-        dist = np.linalg.norm(robot[i, :3, 3] - robot[j, :3, 3], axis=1)
-        dup = np.flatnonzero((angle < DUPLICATE_DEG) & (dist <= DUPLICATE_FRACTION * max(size, 1e-12)))
-        if len(dup):
-            rows = ", ".join(f"{i[k] + 1} and {j[k] + 1}" for k in dup[:5])
-            out.append(f"duplicated stations: the robot poses of rows {rows}{' ...' if len(dup) > 5 else ''} are "
-                       f"nearly the same (< {DUPLICATE_DEG:g} deg, < {DUPLICATE_FRACTION * size:.2g} {unit}); a "
-                       "repeated station adds no information and makes the 1-sigma too small: move the robot "
-                       "between stations")
+    dup = duplicate_stations(robot, DUPLICATE_FRACTION * max(size, 1e-12), math.radians(DUPLICATE_DEG),
+                             limit=DUPLICATES_LISTED + 1)
+    if dup:
+        rows = ", ".join(f"{i + 1} and {j + 1}" for i, j in dup[:DUPLICATES_LISTED])
+        more = " ..." if len(dup) > DUPLICATES_LISTED else ""
+        out.append(f"duplicated stations: the robot poses of rows {rows}{more} are "
+                   f"nearly the same (< {DUPLICATE_DEG:g} deg, < {DUPLICATE_FRACTION * size:.2g} {unit}); a "
+                   "repeated station adds no information and makes the 1-sigma too small: move the robot "
+                   "between stations")
     if n < MIN_STATIONS_FOR_SIGMA:
         out.append(f"only {n} stations: the reported 1-sigma is not meaningful (the noise is estimated from "
                    f"the residuals, which needs at least {MIN_STATIONS_FOR_SIGMA} stations; 10-20 are usual)")
     return out
+
+
+def duplicate_stations(poses: np.ndarray, distance: float, angle: float, limit: int) -> list[tuple[int, int]]:
+    """The first `limit` pairs (i, j), i < j in row order (i, then j), of poses (n, 4, 4) whose
+    positions are within `distance` and whose rotations differ by less than `angle` (rad).
+
+    Memory and time grow with n (not n^2, which 15,000 stations of a recording matched by time
+    would make 9.8 GB): a k-d tree on the positions proposes the neighbours of each station
+    within `distance`, the rotation angle decides, and the search stops at `limit` pairs."""
+    from scipy.spatial import cKDTree
+
+    n = len(poses)
+    if n < 2:
+        return []
+    t = poses[:, :3, 3]
+    tree = cKDTree(t)
+    crowded = np.flatnonzero(tree.query_ball_point(t, distance, return_length=True) > 1)  # counts only: O(n) memory
+    found: list[tuple[int, int]] = []
+    for i in crowded:
+        near = tree.query_ball_point(t[i], distance, return_sorted=True)
+        near = np.asarray(near, dtype=np.intp)
+        near = near[near > i]
+        if not len(near):
+            continue
+        turn = rotation_angle(poses[i, :3, :3].T @ poses[near, :3, :3])
+        for j in near[turn < angle][: limit - len(found)]:
+            found.append((int(i), int(j)))
+        if len(found) >= limit:
+            break
+    return found

@@ -26,6 +26,8 @@ from __future__ import annotations
 import base64
 import html
 import math
+import re
+import urllib.parse
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -33,10 +35,14 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
+from .output_files import write_bytes, write_text
+from .se3 import largest_relative_angle
 from .solution import jsonable, standard_deviations
 
 #: extension -> report format
 FORMATS = {".html": "html", ".htm": "html", ".md": "markdown"}
+#: the plots a markdown report writes next to it, as <stem>_<plot>.png (`handeye.report_plots.draw_all`)
+PLOTS = ("residuals", "poses")
 #: fewer stations than this: a warning advising to record at least this many
 RECOMMENDED_STATIONS = 10
 #: the residual table lists every pair up to this many; beyond, it still does (the file has room),
@@ -62,6 +68,27 @@ def check_report_path(path: str | Path) -> str:
     if p.is_dir():
         raise InputError(f"--report {str(path)!r} is a folder; name a file")
     return fmt
+
+
+def report_files(path: str | Path) -> list[Path]:
+    """Every file a report at `path` may write: the report, and for markdown its PNG plots next
+    to it (``<stem>_residuals.png``, ``<stem>_poses.png``)."""
+    path = Path(path)
+    if check_report_path(path) == "html":
+        return [path]
+    return [path, *(path.with_name(f"{path.stem}_{name}.png") for name in PLOTS)]
+
+
+def check_new_report(path: str | Path, force: bool) -> None:
+    """InputError, before anything is solved, for a report path `check_report_path` refuses or,
+    without `force`, when the report or one of its plots exists."""
+    if force:
+        check_report_path(path)
+        return
+    for target in report_files(path):
+        if target.exists():
+            raise InputError(f"--report {str(path)!r}: {str(target)!r} exists; pass --force to overwrite it, or "
+                             "name another report")
 
 
 def _std_of(diagnostics: Mapping[str, Any]) -> dict[str, dict[str, float]] | None:
@@ -112,10 +139,7 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
             outliers = idx
     data = dict(diagnostics.get("data") or {})
     if robot_poses is not None and problem == "axyb" and len(robot_poses) > 1:
-        R = np.asarray(robot_poses, dtype=float)[:, :3, :3]
-        rel = np.einsum("iab,jac->ijbc", R, R)  # R_i^T R_j
-        cos = np.clip((np.trace(rel, axis1=2, axis2=3) - 1.0) / 2.0, -1.0, 1.0)
-        data.setdefault("largest_rotation", float(np.arccos(cos).max()))
+        data.setdefault("largest_rotation", largest_relative_angle(np.asarray(robot_poses, dtype=float)[:, :3, :3]))
     return jsonable({
         "command": command,
         "version": __version__,
@@ -410,9 +434,22 @@ def _img(png: bytes, alt: str) -> str:
 # ----------------------------------------------------------------------------- markdown
 
 
+def _md_text(text: Any) -> str:
+    """`text` (a file name, a warning, the command line: anything from the user's data) as
+    markdown that renders as that text: no HTML tag, entity, link, image or code span can form
+    (``<img src=x onerror=...>`` in a file name stays text), and on one line."""
+    text = html.escape(" ".join(str(text).split()), quote=False)  # < > & as entities
+    return re.sub(r"([\\`\[\]|])", r"\\\1", text)
+
+
+def _md_link(name: str) -> str:
+    """A file name as a markdown link target (percent-encoded: spaces, parentheses)."""
+    return urllib.parse.quote(name)
+
+
 def _md_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
     def cell(c: Any) -> str:
-        return str(c).replace("|", "\\|").replace("\n", " ")
+        return _md_text(c)
 
     lines = ["| " + " | ".join(cell(h) for h in header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(cell(c) for c in row) + " |" for row in rows]
@@ -424,29 +461,30 @@ def build_markdown(r: Mapping[str, Any], image_names: Mapping[str, str]) -> str:
     are the PNGs written next to it."""
     unit = r["unit"] or "data units"
     item = r["item"]
-    out = ["# Hand-eye calibration report", "", f"**{_status_line(r)}**", "", "## Answer", ""]
+    out = ["# Hand-eye calibration report", "", f"**{_md_text(_status_line(r))}**", "", "## Answer", ""]
     if r["unit"]:
         out += [f"Lengths in {unit}, rotations in degrees; quaternion (x, y, z, w), w >= 0.", ""]
     for title, what, T, xq, sigma in _unknown_blocks(r):
-        out += [f"### {title}", ""] + ([what, ""] if what else [])
+        out += [f"### {_md_text(title)}", ""] + ([_md_text(what), ""] if what else [])
         out += ["```", *("".join(f"{v:14.6f}" for v in row) for row in T), "```", ""]
         out += [_md_table(["x", "y", "z", "qx", "qy", "qz", "qw"],
-                          [[f"{v:.6g}" for v in xq[:3]] + [f"{v:.8f}" for v in xq[3:]]]), "", sigma, ""]
+                          [[f"{v:.6g}" for v in xq[:3]] + [f"{v:.8f}" for v in xq[3:]]]), "", _md_text(sigma), ""]
     out += ["## Warnings and what to do", ""]
     rows = advice(r)
     out += [_md_table(["found", "what to do"], rows) if rows else "Nothing to act on.", ""]
     if r["warnings"]:
-        out += ["Messages of the run:", "", *(f"- {w}" for w in r["warnings"]), ""]
+        out += ["Messages of the run:", "", *(f"- {_md_text(w)}" for w in r["warnings"]), ""]
     rot, trans = r["residuals"]["rotation_deg"], r["residuals"]["translation"]
     out += [f"## Residuals per {item}", "",
             _md_table(["", "median", "RMS", "max"],
                       [["rotation [deg]", *(f"{v:.4g}" for v in _stats(rot))],
                        [f"translation [{unit}]", *(f"{v:.4g}" for v in _stats(trans))]]), ""]
     if "residuals" in image_names:
-        out += [f"![residuals per {item}]({image_names['residuals']})", ""]
+        out += [f"![residuals per {item}]({_md_link(image_names['residuals'])})", ""]
     outliers = set(r.get("outliers") or [])
     if r.get("outliers") is not None:
-        out += [f"Outliers (auto: {r.get('outlier_test') or ''}): {', '.join(map(str, sorted(outliers))) or 'none'}.",
+        out += [f"Outliers (auto: {_md_text(r.get('outlier_test') or '')}): "
+                f"{', '.join(map(str, sorted(outliers))) or 'none'}.",
                 ""]
     out += [_md_table([item, "file rows" if r.get("joined") else "file row", "rotation [deg]",
                        f"translation [{unit}]", ""],
@@ -458,7 +496,7 @@ def build_markdown(r: Mapping[str, Any], image_names: Mapping[str, str]) -> str:
         out += ["Usual setup mistakes tried by the plausibility check (score below 1 is plausible):", "",
                 _md_table(["hypothesis", "rotation [deg]", f"translation [{unit}]", "score"], hyps), ""]
     if "poses" in image_names:
-        out += ["## Poses and solved frames", "", f"![poses and solved frames]({image_names['poses']})", ""]
+        out += ["## Poses and solved frames", "", f"![poses and solved frames]({_md_link(image_names['poses'])})", ""]
     out += ["## Run", "", _md_table(["", ""], _run_rows(r)), ""]
     return "\n".join(out)
 
@@ -466,22 +504,19 @@ def build_markdown(r: Mapping[str, Any], image_names: Mapping[str, str]) -> str:
 # ----------------------------------------------------------------------------- writing
 
 
-def write_report(path: str | Path, r: Mapping[str, Any]) -> list[Path]:
+def write_report(path: str | Path, r: Mapping[str, Any], force: bool = False) -> list[Path]:
     """Write the report of `r` (from `collect`) to `path`, HTML or markdown by its extension
-    (markdown: its PNGs as ``<stem>_<plot>.png`` next to it); return the files written."""
+    (markdown: its PNGs as ``<stem>_<plot>.png`` next to it); return the files written. Each
+    file appears complete or not at all, and an existing one is replaced only with `force`
+    (`handeye.output_files`)."""
     from .report_plots import draw_all
 
     fmt = check_report_path(path)
     path = Path(path)
     images = draw_all(r)
     if fmt == "html":
-        path.write_text(build_html(r, images), encoding="utf-8")
-        return [path]
+        return [write_text(path, build_html(r, images), force=force, flag="--report")]
     names = {name: f"{path.stem}_{name}.png" for name in images}
-    written = []
-    for name, png in images.items():
-        target = path.with_name(names[name])
-        target.write_bytes(png)
-        written.append(target)
-    path.write_text(build_markdown(r, names), encoding="utf-8")
-    return [path, *written]
+    written = [write_bytes(path.with_name(names[name]), png, force=force, flag="--report")
+               for name, png in images.items()]
+    return [write_text(path, build_markdown(r, names), force=force, flag="--report"), *written]

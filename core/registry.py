@@ -4,12 +4,19 @@ Plugins are loaded from the entry-point group ``handeye``. Setting the environme
 ``HANDEYE_DISABLE_PLUGIN_AUTOLOAD`` (to anything non-empty) loads only the entry points of the
 handeye distribution itself, i.e. the built-in problems and solvers.
 
-A third-party plugin whose module raises on import (a missing dependency, a bug) is skipped: the
-other plugins load, a `PluginLoadWarning` names it, its distribution and the error, the registry
-keeps it in `Registry.failed` (shown by ``handeye list``), and an unknown problem or solver name
-mentions it, since the name may be one the broken plugin would have registered. A built-in
-plugin (one of handeye's own entry points) failing to import still raises: that is a bug in
-handeye, not in the user's environment, and hiding it would turn it into a missing solver.
+A third-party plugin that cannot be used is skipped as a whole, so that it breaks no command that
+does not use it: a module that raises on import (a missing dependency, a bug), an entry point
+whose name another distribution already declares, a ``register_problems`` / ``register_solvers``
+hook that raises, or registrations the host refuses (not a Problem / SolverSpec, a solver for an
+unknown problem, a name that a built-in or an earlier plugin already holds, such as ``auto``).
+The other plugins load, a `PluginLoadWarning` names it, its distribution and the error, the
+registry keeps it in `Registry.failed` (shown by ``handeye list``), and an unknown problem or
+solver name mentions it, since the name may be one the broken plugin would have registered.
+
+Built-in plugins (handeye's own entry points) register first, and their faults still raise: that
+is a bug in handeye, not in the user's environment, and hiding it would turn it into a missing
+solver. So do the faults of a plugin registered at run time with `register_plugin`: its caller
+asked for it and gets the error (the registry is rolled back).
 """
 
 from __future__ import annotations
@@ -37,6 +44,8 @@ from .solver import SolverSpec
 ENTRY_POINT_GROUP = "handeye"
 AUTOLOAD_ENV = "HANDEYE_DISABLE_PLUGIN_AUTOLOAD"
 OWN_DISTRIBUTION = "handeye"
+#: the distribution shown for a plugin registered with `register_plugin`
+RUNTIME = "(registered at run time)"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -87,11 +96,46 @@ class Registry:
         self._collect()
 
     def _collect(self) -> None:
+        """Call every plugin's hooks, built-ins first; a third-party plugin whose hook raises or
+        registers what the host refuses is dropped whole (module docstring)."""
         hook = self.plugin_manager.hook
-        for impl in hook.register_problems.get_hookimpls():
-            impl.function(register=lambda p, _owner=impl.plugin_name: self._add_problem(p, _owner))
-        for impl in hook.register_solvers.get_hookimpls():
-            impl.function(register=lambda s, _owner=impl.plugin_name: self._add_solver(s, _owner))
+        for name, add in (("register_problems", self._add_problem), ("register_solvers", self._add_solver)):
+            impls = getattr(hook, name).get_hookimpls()  # in registration order
+            for impl in sorted(impls, key=lambda i: not self._strict(i.plugin_name)):
+                owner = impl.plugin_name
+                if owner in self.failed:
+                    continue
+                staged: list[Any] = []
+                try:
+                    impl.function(register=staged.append)
+                    for item in staged:
+                        add(item, owner)
+                except (Exception, SystemExit) as exc:
+                    if self._strict(owner):
+                        raise
+                    self._drop(owner, exc)
+
+    def _strict(self, owner: str) -> bool:
+        """Whether a fault of plugin `owner` raises (a built-in, or registered at run time)
+        instead of skipping the plugin."""
+        info = self.plugins.get(owner)
+        return info is None or info.distribution == RUNTIME or _normalise(info.distribution) == OWN_DISTRIBUTION
+
+    def _drop(self, owner: str, exc: BaseException) -> None:
+        """Remove everything plugin `owner` registered (and the solvers of its problems) and
+        record it as failed, with a warning."""
+        mine = [name for name, who in self._problem_owner.items() if who == owner]
+        for name in mine:
+            del self.problems[name], self._problem_owner[name]
+        for key, who in list(self._solver_owner.items()):
+            if who == owner or key[1] in mine:
+                del self._solver_owner[key]
+                specs = self.solvers[key[0]]
+                del specs[key[1]]
+                if not specs:
+                    del self.solvers[key[0]]
+        info = self.plugins.pop(owner)
+        self.failed[owner] = _skip_broken(info, exc)
 
     def _add_problem(self, problem: Problem, owner: str) -> None:
         if not isinstance(problem, Problem):
@@ -176,25 +220,37 @@ class Registry:
         first problem it was registered for)."""
         problem = problem if problem is not None else self.solver_problems(solver)[0]
         owner = self._solver_owner[solver, problem]
-        return self.plugins.get(owner, PluginInfo(owner, "(registered at run time)", ""))
+        return self.plugins.get(owner, PluginInfo(owner, RUNTIME, ""))
+
+    def is_builtin(self, solver: str, problem: str) -> bool:
+        """Whether `solver` for `problem` comes from handeye itself (not a third party's plugin,
+        nor one registered at run time)."""
+        return _normalise(self.provider(solver, problem).distribution) == OWN_DISTRIBUTION
 
 
-def _entry_points(include_third_party: bool) -> Iterable[importlib.metadata.EntryPoint]:
+def _entry_points(include_third_party: bool) -> list[tuple[importlib.metadata.EntryPoint, str | None]]:
+    """The entry points of group ``handeye``, handeye's own first, each with None or, for a
+    third party's whose name another distribution already declares, why it is skipped."""
+    out: list[tuple[importlib.metadata.EntryPoint, str | None]] = []
     seen: dict[str, str] = {}  # entry-point name -> distribution declaring it
-    for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
-        dist = ep.dist.name if ep.dist is not None else ""
+    found = importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
+    for ep in sorted(found, key=lambda e: _normalise(_dist_name(e)) != OWN_DISTRIBUTION):
+        dist = _dist_name(ep)
         if not include_third_party and _normalise(dist) != OWN_DISTRIBUTION:
             continue
         if ep.name in seen:
             if _normalise(seen[ep.name]) == _normalise(dist):
                 continue  # the same distribution visible twice on sys.path
-            raise PluginRegistrationError(
-                f"entry point {ep.name!r} of group {ENTRY_POINT_GROUP!r} is declared by both "
-                f"distribution {seen[ep.name]!r} and distribution {dist!r}; plugin names must be "
-                "unique: rename one of them (or uninstall one package)"
-            )
+            out.append((ep, f"its entry point name {ep.name!r} is already declared by distribution "
+                            f"{seen[ep.name]!r}; plugin names must be unique: rename it (or uninstall one package)"))
+            continue
         seen[ep.name] = dist
-        yield ep
+        out.append((ep, None))
+    return out
+
+
+def _dist_name(ep: importlib.metadata.EntryPoint) -> str:
+    return ep.dist.name if ep.dist is not None else ""
 
 
 def _normalise(name: str) -> str:
@@ -207,19 +263,21 @@ def _build(extra_plugins: Iterable[tuple[str, Any]]) -> Registry:
     plugins: dict[str, PluginInfo] = {}
     failed: dict[str, FailedPlugin] = {}
     autoload = not os.environ.get(AUTOLOAD_ENV)
-    for ep in _entry_points(include_third_party=autoload):
-        if pm.get_plugin(ep.name) is not None:
-            continue
+    for ep, clash in _entry_points(include_third_party=autoload):
         dist = ep.dist
         info = PluginInfo(ep.name, dist.name if dist else "?", dist.version if dist else "?")
+        if clash is not None:
+            failed[f"{ep.name} ({info.distribution})"] = _skip_broken(info, PluginRegistrationError(clash))
+            continue
+        if pm.get_plugin(ep.name) is not None:
+            continue
         try:
-            plugin = ep.load()
-        except Exception as exc:
+            pm.register(ep.load(), name=ep.name)
+        except (Exception, SystemExit) as exc:  # SystemExit: a module that exits on import
             if _normalise(info.distribution) == OWN_DISTRIBUTION:
                 raise  # a built-in plugin: our bug, not the user's environment (module docstring)
             failed[ep.name] = _skip_broken(info, exc)
             continue
-        pm.register(plugin, name=ep.name)
         plugins[ep.name] = info
     for name, plugin in extra_plugins:
         if pm.get_plugin(name) is not None:
@@ -228,12 +286,12 @@ def _build(extra_plugins: Iterable[tuple[str, Any]]) -> Registry:
                 "register the run-time plugin under another name"
             )
         pm.register(plugin, name=name)
-        plugins[name] = PluginInfo(name, "(registered at run time)", "")
+        plugins[name] = PluginInfo(name, RUNTIME, "")
     return Registry(pm, plugins, failed)
 
 
-def _skip_broken(info: PluginInfo, exc: Exception) -> FailedPlugin:
-    """Record a third-party plugin whose entry point raised on loading, and warn about it."""
+def _skip_broken(info: PluginInfo, exc: BaseException) -> FailedPlugin:
+    """Record a third-party plugin that cannot be used (module docstring), and warn about it."""
     failed = FailedPlugin(info.name, info.distribution, info.version,
                           f"{type(exc).__name__}: {' '.join(str(exc).split())}")
     warnings.warn(

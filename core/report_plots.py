@@ -7,6 +7,9 @@ Agg backend (imported here, lazily: ``import handeye`` and the solvers never imp
   poses' translations), the base frame and the solved frames as axis triads (x red, y green,
   z blue): the frames A_i X at each station (eye-in-hand: the camera; eye-to-hand axyb: the
   target) and the fixed unknown (Y, or X = T_base_cam for axxb eye-to-hand).
+
+Long recordings are drawn in bounded time and memory: dots instead of bars beyond `BARS_UP_TO`
+pairs, the solved frame's axes at `TRIADS_UP_TO` evenly spread stations.
 """
 
 from __future__ import annotations
@@ -23,6 +26,11 @@ AXIS_COLOURS = ("#d62728", "#2ca02c", "#1f77b4")
 DPI = 100
 #: the stations are numbered (file rows) in the 3D plot up to this many
 LABELS_UP_TO = 25
+#: residuals are bars up to this many pairs, dots beyond (a bar per pair of a 12,000-station
+#: recording took minutes and gigabytes to draw)
+BARS_UP_TO = 200
+#: the 3D plot draws the solved frame's axes at this many stations at most, evenly spread
+TRIADS_UP_TO = 100
 
 
 def _pyplot():
@@ -58,8 +66,15 @@ def residual_plot(r: Mapping[str, Any]) -> bytes:
     colours = [OUTLIER_COLOUR if k in outliers else INLIER_COLOUR for k in range(m)]
     fig, axes = plt.subplots(2, 1, figsize=(max(6.0, min(14.0, 0.25 * m + 3)), 5.0), sharex=True)
     unit = r.get("unit") or "data units"
+    index = np.arange(m)
+    flagged = np.zeros(m, dtype=bool)
+    flagged[[k for k in outliers if 0 <= k < m]] = True
     for ax, values, label in ((axes[0], rot, "rotation [deg]"), (axes[1], trans, f"translation [{unit}]")):
-        ax.bar(np.arange(m), values, color=colours, width=0.8)
+        if m <= BARS_UP_TO:
+            ax.bar(index, values, color=colours, width=0.8)
+        else:
+            ax.plot(index[~flagged], values[~flagged], ".", ms=2, color=INLIER_COLOUR)
+            ax.plot(index[flagged], values[flagged], ".", ms=4, color=OUTLIER_COLOUR)
         ax.axhline(float(np.median(values)), color="#555", lw=0.8, ls="--", label="median")
         ax.set_ylabel(label)
         ax.grid(axis="y", alpha=0.3)
@@ -71,7 +86,7 @@ def residual_plot(r: Mapping[str, Any]) -> bytes:
     handles = [Patch(color=INLIER_COLOUR, label=r["item"])]
     if outliers:
         handles.append(Patch(color=OUTLIER_COLOUR, label="outlier (left out)"))
-    handles.append(axes[0].get_lines()[0])
+    handles.append(next(line for line in axes[0].get_lines() if line.get_label() == "median"))
     axes[0].legend(handles=handles, loc="upper right", fontsize="small")
     axes[0].set_title(f"residuals per {r['item']} ({'A_i X = X B_i' if r['problem'] == 'axxb' else 'A_i X = Y B_i'})")
     fig.tight_layout()
@@ -120,8 +135,9 @@ def pose_plot(r: Mapping[str, Any]) -> bytes:
         for k, p in enumerate(A[:, :3, 3]):
             ax.text(*p, f" {k + 1}", fontsize=7, color="#444")
     _triad(ax, np.eye(4), 1.5 * size, "base", lw=2.5)
+    shown = np.unique(np.linspace(0, len(A) - 1, min(len(A), TRIADS_UP_TO)).round().astype(int))
     for name, stack in per_station.items():
-        for T in stack:
+        for T in stack[shown]:
             _triad(ax, T, 0.6 * size, lw=1.0)
         ax.scatter(*stack[:, :3, 3].T, color="#9467bd", s=8, label=f"{name} at each station (A_i X)",
                    depthshade=False)

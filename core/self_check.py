@@ -112,6 +112,12 @@ MIN_MOTIONS = 3
 #: observability: 1-sigma beyond which the data do not determine an unknown well enough
 PRECISION_ROTATION_DEG = 0.25
 PRECISION_TRANSLATION = 0.01
+#: ... and beyond which the answer is not to be used (a failure: status unreliable): no cell is
+#: calibrated to 2 deg, and a translation known to 10% of the lever arm moves what the camera sees
+#: by as much. Half the pairs gross gave answers 5-52 deg off with a 1-sigma of 4-10 deg, which
+#: is what this catches (docs/reliability.md)
+UNRELIABLE_ROTATION_DEG = 2.0
+UNRELIABLE_TRANSLATION = 0.10
 #: the rotations are "mostly about one axis" when the second eigenvalue of sum phi phi^T is below
 #: this share of the first (axes within ~35 deg of each other)
 AXIS_SHARE = 0.1
@@ -291,6 +297,7 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
                         f"({gap_text}), so the data support it far less than that fit{why}; solver 'auto' returns "
                         "the best fit")
     figures["std"] = _precision(problem, data, model, fit, cov, interest, warnings, figures)
+    _imprecise(figures["std"], model.scale, failures)
     # the rotation residuals of the data's own pairs at the answer, when the model is on them
     return np.linalg.norm(at_answer[:, :3], axis=1) if model.m == problem_pairs(data) else None
 
@@ -490,6 +497,19 @@ def _precision(problem: Any, data: Any, model: Any, fit: tuple[np.ndarray, ...],
                             f"{PRECISION_TRANSLATION:.0%} of the data's lever arm is {limit:.3g}); "
                             f"{_advice(trans_dir, axes.get(name))}")
     return out
+
+
+def _imprecise(std: Mapping[str, Any], lever: float, failures: list[str]) -> None:
+    """A failure for every unknown whose 1-sigma exceeds UNRELIABLE_ROTATION_DEG or
+    UNRELIABLE_TRANSLATION of the lever arm: the data do not determine it well enough to use."""
+    limit = UNRELIABLE_TRANSLATION * lever
+    for name, s in std.items():
+        if s["rotation_deg"] > UNRELIABLE_ROTATION_DEG or s["translation"] > limit:
+            failures.append(
+                f"the data determine {name} only to {s['rotation_deg']:.2g} deg and {s['translation']:.3g} in their "
+                f"length unit (1-sigma), beyond what can be used ({UNRELIABLE_ROTATION_DEG:g} deg, or "
+                f"{UNRELIABLE_TRANSLATION:.0%} of the lever arm: {limit:.3g}): too few consistent stations, too much "
+                "noise, or many gross pairs")
 
 
 def _direction(v: np.ndarray, axis: np.ndarray | None) -> str:

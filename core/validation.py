@@ -170,3 +170,33 @@ def _valid_poses(T: np.ndarray) -> bool:
 
 #: det R = sum_j r_0j (r_1,j+1 r_2,j+2 - r_1,j+2 r_2,j+1) (indices mod 3), as flat indices of R
 _SARRUS = np.array([0, 1, 2, 4, 5, 3, 8, 6, 7, 5, 3, 4, 7, 8, 6])
+
+
+#: data move beyond their noise when some motion's rotation (the smaller of the robot's and the
+#: camera's angle) exceeds this many times the typical disagreement of the two angles, which is
+#: the noise (the angle of a motion is the same for robot and camera: A = X B X^-1) ...
+MOTION_NOISE_FACTOR = 3.0
+#: ... or exceeds this angle (rad; 10 deg): a setup mistake (another Euler order, a shifted
+#: pairing, unrelated files) also makes the angles disagree, by tens of degrees, but its robot
+#: still turns by more than this and the plausibility checks name the mistake
+MOTION_NOISE_MAX_ANGLE = np.deg2rad(10.0)
+
+
+def check_motion_beyond_noise(angle_A: np.ndarray, angle_B: np.ndarray, what: str) -> None:
+    """DegenerateDataError when the motions (rotation angles angle_A of the robot's, angle_B of the
+    camera's, rad) do not rotate beyond the noise: no motion's smaller angle exceeds
+    MOTION_NOISE_FACTOR times the median |angle_A - angle_B|, nor MOTION_NOISE_MAX_ANGLE.
+    Repeated copies of one station with noise look like that (largest turn 0.03-0.07 deg against
+    a disagreement of 0.16-0.26 deg, measured), and any answer from them is noise (53-176 deg
+    off)."""
+    angle_A, angle_B = np.asarray(angle_A, dtype=float), np.asarray(angle_B, dtype=float)
+    if not len(angle_A):
+        return
+    noise = float(np.median(np.abs(angle_A - angle_B)))
+    largest = float(np.max(np.minimum(angle_A, angle_B)))
+    if noise > 0 and largest <= MOTION_NOISE_FACTOR * noise and largest < MOTION_NOISE_MAX_ANGLE:
+        raise DegenerateDataError(
+            f"the {what} do not move beyond their noise: the largest rotation between them is "
+            f"{np.degrees(largest):.2g} deg, while robot and camera disagree by {np.degrees(noise):.2g} deg on a "
+            "typical one (the same station recorded again and again?). Move the robot between stations: "
+            "rotations of 30 deg or more about different axes")

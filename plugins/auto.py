@@ -361,8 +361,10 @@ def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, d
     inliers = ~flagged
     if m - k < max(model.profile_min_pairs, (m + 1) // 2):
         return poses, status, diag, [], (
-            f"{k} of {m} {what} are far off the others at a robust fit, too many to leave out: "
-            "least squares on every pair (check the data, or try loss='cauchy')")
+            f"{k} of {m} {what} are far off the others at a robust fit, too many to leave out: no majority of "
+            f"consistent {what} exists, which a robust fit needs (at least half of the {what} without gross "
+            "errors); least squares on every pair is returned: check the pairing and the detections, and record "
+            "more stations")
     W = settings.W
     sub_settings = settings
     if W is not None and W.L is not None and W.L.ndim == 3:

@@ -35,7 +35,7 @@ from handeye.noise import NoiseModel
 from handeye.problem import Problem, StationReader, pose_discrepancy
 from handeye.problems import planar as planar_mode
 from handeye.se3 import inverse
-from handeye.validation import pose_stack, same_length
+from handeye.validation import check_motion_beyond_noise, pose_stack, same_length
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
 PAIRINGS = ("consecutive", "all")
@@ -59,6 +59,9 @@ MISMATCH_ANGLE_FLOOR = np.deg2rad(1.0)
 #: relative tolerance of `AXXBData.stations`: motions of one set of stations agree to rounding
 #: (~1e-13 of the translations); independent motions miss by their noise.
 STATIONS_TOL = 1e-9
+#: the most motions `motions` forms from stations (pairing "all" makes n (n - 1) / 2: 1,415
+#: stations); beyond, their memory (256 bytes each) and time grow with the square of a recording
+MAX_MOTIONS = 1_000_000
 MISMATCH_SIGMAS = 5.0
 
 
@@ -278,6 +281,13 @@ def motions(robot_poses: Any, camera_poses: Any, setup: str = "eye-in-hand",
     robot = pose_stack(robot_poses, "robot_poses")
     camera = pose_stack(camera_poses, "camera_poses")
     same_length({"robot_poses": robot, "camera_poses": camera}, 2)
+    n = len(robot)
+    if pairing == "all" and n * (n - 1) // 2 > MAX_MOTIONS:
+        raise InputError(
+            f"{n} stations make {n * (n - 1) // 2:,} motions with pairing all, more than the {MAX_MOTIONS:,} "
+            "handeye forms (about 1,400 stations); solve the stations as problem axyb (A_i X = Y B_i: the same "
+            "X, from every station, in linear time), pair consecutive stations only (pairing consecutive), "
+            "or keep fewer, well-spread stations")
     A_abs = robot if setup == "eye-in-hand" else inverse(robot)
     A, B = relative_motions(A_abs, inverse(camera), pairing)
     return {"A": A, "B": B}
@@ -321,6 +331,7 @@ class AXXB(Problem):
                 f"{np.rad2deg(out.axis_spread):.2g} deg). Record motions that rotate about at "
                 "least two different axes"
             )
+        check_motion_beyond_noise(*out.angles, "motions")
         return out
 
     def diagnose(self, data: AXXBData) -> dict[str, Any]:

@@ -38,7 +38,7 @@ from handeye.se3 import (
     make_pose,
     project_to_so3,
 )
-from handeye.validation import pose_stack
+from handeye.validation import check_motion_beyond_noise, pose_stack
 
 #: Ground truth of the paper's simulation (Sec. IV-A), projected onto SO(3): the printed 4-digit
 #: rotation blocks are not exactly orthonormal. Translations in mm.
@@ -196,6 +196,27 @@ def solve_translations(data: AXYBData, RX: np.ndarray, RY: np.ndarray) -> tuple[
     return t[:3], t[3:]
 
 
+#: `station_angles` looks at this many stations at most (enough to see whether they move)
+MOTION_CHECK_STATIONS = 2000
+
+
+def station_angles(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation angles (rad, to ~1e-8) of the robot's and the camera's motions from the first
+    station and between consecutive stations (2m - 3 motions), over at most MOTION_CHECK_STATIONS
+    evenly spread stations: A_j^-1 A_i = X (B_j^-1 B_i) X^-1, so each motion turns by the same
+    angle on both sides."""
+    k = np.unique(np.linspace(0, len(A) - 1, min(len(A), MOTION_CHECK_STATIONS)).astype(int))
+    A, B, m = A[k], B[k], len(k)
+    i = np.r_[np.arange(1, m), np.arange(2, m)]
+    j = np.r_[np.zeros(m - 1, dtype=int), np.arange(1, m - 1)]
+
+    def angles(T: np.ndarray) -> np.ndarray:  # from tr(R_j^T R_i) = sum of R_j * R_i: no matrix products
+        trace = np.einsum("nab,nab->n", T[j, :3, :3], T[i, :3, :3])
+        return np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
+
+    return angles(A), angles(B)
+
+
 def random_truth(rng: np.random.Generator, translation_scale: float = 500.0) -> dict[str, np.ndarray]:
     """Random X, Y: uniform rotations, translations N(0, scale^2) per axis (data units)."""
     return PROBLEM.random_unknowns(rng, translation_scale)
@@ -256,6 +277,7 @@ class AXYB(Problem):
                 f"the rotations of X and Y cannot be determined (rotation excitation {excitation:.1e} "
                 f"< {DEGENERATE_EXCITATION:g}). Record poses that rotate about at least two different axes"
             )
+        check_motion_beyond_noise(*station_angles(out.A, out.B), "stations")
         return out
 
     def diagnose(self, data: AXYBData) -> dict[str, Any]:

@@ -238,10 +238,13 @@ def test_so3_sdp_weak_relaxation_is_not_certified(backend):
     raw, _ = PROBLEM.simulate(pairs=3, seed=9, noise=NoiseModel.on(("A", "B"), 0.2, 20.0), pairing="consecutive",
                               **PROBLEM.random_unknowns(np.random.default_rng(10_009)))
     weak = solve(raw, "so3-sdp", backend, redundant=False, **SDP)
-    assert weak.status is Status.UNCERTIFIED and weak.diagnostics["relative_gap"] > 1e-2
+    # the solver's own status; the host's checks then find the data too weak to use (status unreliable)
+    assert weak.diagnostics.get("status_before_checks", weak.status) == Status.UNCERTIFIED
+    assert weak.diagnostics["relative_gap"] > 1e-2
     assert weak.diagnostics["eigenvalue_ratio"] < 1e-3  # rank one: only the gap shows it
     strong = solve(raw, "so3-sdp", backend, **SDP)
-    assert strong.status is Status.OPTIMAL and strong.diagnostics["cost"] < weak.diagnostics["cost"]
+    assert strong.diagnostics.get("status_before_checks", strong.status) == Status.OPTIMAL
+    assert strong.diagnostics["cost"] < weak.diagnostics["cost"]
 
 
 @pytest.mark.parametrize("seed, pairing", [(1, "consecutive"), (2, "consecutive"), (1, "all"), (3, "all")])

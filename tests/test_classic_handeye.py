@@ -250,7 +250,9 @@ def test_daniilidis_says_when_its_constraints_have_no_exact_solution():
     data, _ = PROBLEM.simulate(pairs=4, seed=0, noise=NoiseModel.on(("A", "B"), 0.2, 50.0))
     sol = handeye.solve("axxb", solver="daniilidis", **data)
     assert sol.diagnostics["discriminant"] < 0
-    assert sol.status is handeye.Status.OPTIMAL_INACCURATE
+    # its own status, which the host's checks then make unreliable: 4 motions this noisy determine nothing
+    assert sol.diagnostics["status_before_checks"] == handeye.Status.OPTIMAL_INACCURATE
+    assert sol.status is handeye.Status.UNRELIABLE
     assert any("too noisy" in w and "'auto'" in w for w in sol.warnings)
     clean, _ = PROBLEM.simulate(pairs=4, seed=0)
     assert handeye.solve("axxb", solver="daniilidis", **clean).status is handeye.Status.OPTIMAL

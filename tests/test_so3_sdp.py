@@ -119,16 +119,22 @@ def unrelated_poses(seed: int, pairs: int = 3) -> dict:
     return {"A": random_poses(pairs, rng, 1.0), "B": random_poses(pairs, rng, 1.0)}
 
 
+def own_status(sol: handeye.Solution) -> Status:
+    """The solver's own status: on data this weak (3 pairs, 1 rad of noise; unrelated poses) the
+    host's checks then make every answer unreliable, which is not what these tests look at."""
+    return Status(sol.diagnostics.get("status_before_checks", sol.status))
+
+
 def test_non_tight_relaxation_is_detected():
     # Seed found by a search (docs/solvers/so3-sdp.md): 3 of 200 such draws are not tight.
     sol = handeye.solve("axyb", solver="so3-sdp", **SDP, **unrelated_poses(15))
     d = sol.diagnostics
-    assert sol.status is Status.UNCERTIFIED and not d["certified"]
+    assert own_status(sol) is Status.UNCERTIFIED and not d["certified"]
     assert d["eigenvalue_ratio"] > 1e-2  # Z is far from rank one
     assert d["relative_gap"] > 1e-4
     assert d["lower_bound"] < d["cost"]
     # a tight draw of the same kind is certified
-    assert handeye.solve("axyb", solver="so3-sdp", **SDP, **unrelated_poses(0)).status is Status.OPTIMAL
+    assert own_status(handeye.solve("axyb", solver="so3-sdp", **SDP, **unrelated_poses(0))) is Status.OPTIMAL
 
 
 @pytest.mark.parametrize("backend", ["clarabel", "cvxpy"])
@@ -138,11 +144,11 @@ def test_weak_relaxation_rank_one_reflection_is_caught_by_the_gap(backend):
     data, _ = PROBLEM.simulate(pairs=3, seed=2, noise=NoiseModel.on("B", 1.0, 100.0),
                                **random_truth(np.random.default_rng(10_002)))
     weak = handeye.solve("axyb", solver="so3-sdp", **SDP, backend=backend, redundant=False, **data)
-    assert weak.status is Status.UNCERTIFIED
+    assert own_status(weak) is Status.UNCERTIFIED
     assert weak.diagnostics["eigenvalue_ratio"] < so3_sdp.RATIO_THRESHOLD
     assert weak.diagnostics["relative_gap"] > 1e-2
     strong = handeye.solve("axyb", solver="so3-sdp", **SDP, backend=backend, **data)
-    assert strong.status is Status.OPTIMAL
+    assert own_status(strong) is Status.OPTIMAL
     assert strong.diagnostics["cost"] < weak.diagnostics["cost"]
 
 

@@ -9,13 +9,17 @@ Exit codes: 0 success; 2 bad input (unknown name, bad file, bad option, bad data
 (`SolverError`, or ``handeye solve`` got a solution of status ``not_converged`` / ``failed``,
 which it still prints), or an internal error (a bug in handeye or a plugin). Errors are one line
 on stderr, ``handeye: error: ...`` (``handeye: internal error: ... (please report)`` for a bug),
-without a traceback; Ctrl-C exits 130.
+without a traceback; Ctrl-C exits 130; running out of memory on the data is bad input (2). The
+``handeye`` command is `console_main`, which also ends the process when a plugin left a thread
+running.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import threading
 from collections.abc import Sequence
 
 from .. import __version__
@@ -59,12 +63,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _fail(exc, EXIT_BAD_INPUT)
     except OSError as exc:  # unreadable / unwritable files
         return _fail(exc, EXIT_BAD_INPUT)
+    except MemoryError:  # data larger than this machine's memory: the input, not a bug
+        return _fail("not enough memory for these data; use a smaller file (fewer stations or pairs) or a machine "
+                     "with more memory", EXIT_BAD_INPUT)
     except KeyboardInterrupt:
         return _fail("interrupted", 130)
     except Exception as exc:  # noqa: BLE001 - a bug (ours or a plugin's): one line, no traceback, exit 1
         message = " ".join(str(exc).split())
         print(f"handeye: internal error: {type(exc).__name__}: {message} (please report)", file=sys.stderr)
         return EXIT_SOLVER_FAILED
+
+
+def console_main() -> None:
+    """The ``handeye`` command: `main`, then exit with its code. A thread that a plugin left
+    running (not a daemon) would keep the process alive after the command is done: the output
+    is flushed and the process ends at once instead."""
+    code = main()
+    if any(t.is_alive() and not t.daemon for t in threading.enumerate() if t is not threading.main_thread()):
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
 
 
 def _fail(exc: BaseException | str, code: int) -> int:

@@ -15,6 +15,8 @@ import numpy as np
 
 from ..errors import InputError
 
+#: seconds a third-party plugin's solver may take in ``handeye solve`` / ``calibrate`` by default
+PLUGIN_TIME_LIMIT = 600.0
 #: option values read as bools, whatever their case (JSON knows only lower-case true/false)
 BOOLEANS = {"true": True, "false": False}
 
@@ -76,11 +78,60 @@ def add_force_flag(parser: argparse.ArgumentParser) -> None:
                         help="overwrite output files that exist (without it they are kept and the command stops)")
 
 
+def add_time_limit_flag(parser: argparse.ArgumentParser) -> None:
+    """The ``--time-limit`` flag of the commands that run one solver."""
+    parser.add_argument("--time-limit", type=float, metavar="SECONDS",
+                        help="stop the solver after SECONDS (it runs in a worker process that is killed then); "
+                             f"default: none for handeye's own solvers, {PLUGIN_TIME_LIMIT:g} s for a third-party "
+                             "plugin's; 0: no limit")
+
+
+def time_limit(args: argparse.Namespace, problem: str, solver: str) -> float | None:
+    """The time limit of a solve, in seconds or None, from ``--time-limit`` and who provides the
+    solver (`PLUGIN_TIME_LIMIT` for a third party's, so that a hanging plugin cannot hang the
+    command). InputError for a negative or non-finite value."""
+    from ..registry import get_registry
+
+    given = getattr(args, "time_limit", None)
+    if given is not None:
+        if not 0 <= given < math.inf:
+            raise InputError(f"--time-limit must be a number of seconds >= 0 (0: no limit), got {given:g}")
+        return given or None
+    registry = get_registry()
+    if solver in registry.solver_names(problem) and not registry.is_builtin(solver, problem):
+        return PLUGIN_TIME_LIMIT
+    return None
+
+
 def check_new_file(flag: str, path: str | Path | None, force: bool) -> None:
     """InputError when output file `path` (given with `flag`, e.g. ``-o``) exists and `force` is
     False; nothing when path is None. Called before any work, so a refused run computes nothing."""
     if path is not None and not force and Path(path).exists():
         raise InputError(f"{flag} {str(path)!r}: the file exists; pass --force to overwrite it, or name another file")
+
+
+def check_outputs_apart(outputs: Sequence[tuple[str, str | Path | None]], inputs: Iterable[str | Path | None]) -> None:
+    """InputError when two outputs (flag, path) name the same file, or an output is one of the
+    `inputs`, by name or as the same file under another name (a link)."""
+    named = [(flag, Path(p)) for flag, p in outputs if p]
+    sources = [Path(p) for p in inputs if p]
+    for k, (flag, path) in enumerate(named):
+        for other_flag, other in named[:k]:
+            if _same_file(path, other):
+                raise InputError(f"{other_flag} and {flag} name the same file {str(path)!r}; give different files")
+        for source in sources:
+            if _same_file(path, source):
+                raise InputError(f"{flag} {str(path)!r} is the input file {str(source)!r} (or a link to it); it "
+                                 "would be overwritten: name another output file")
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    if a.resolve() == b.resolve():
+        return True
+    try:
+        return a.exists() and b.exists() and a.samefile(b)
+    except OSError:
+        return False
 
 
 def check_new_results(flag: str, outdir: str | Path, files: Iterable[str], force: bool) -> None:

@@ -57,6 +57,7 @@ from .. import __version__
 from ..api import solve
 from ..errors import InputError, UnknownPluginError
 from ..noise import NoiseModel
+from ..output_files import check_writable, new_file
 from ..registry import get_registry
 from ..se3 import inverse
 from . import _kinhec
@@ -536,6 +537,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.budget > 0:
         raise InputError(f"--budget must be > 0 seconds, got {args.budget}")
     check_new_file("--json", args.json, args.force)
+    if args.json:
+        check_writable("--json", args.json)  # before the benchmark, not after it
     noise = NoiseModel.on(tuple(problem.data_fields), args.noise_rot, args.noise_trans)
     rows, unavailable = build_rows(args.solvers, bench.problem)
     if not rows:
@@ -595,6 +598,6 @@ def run(args: argparse.Namespace) -> int:
                       for (label, m), c in cells.items()],
             "targets": targets, "same_method": same, "unavailable": unavailable,
         }
-        with open(args.json, "w") as f:
+        with new_file(args.json, force=args.force, flag="--json") as f:
             json.dump(payload, f, indent=1)
     return 0

@@ -57,6 +57,8 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import re
+import shlex
 import sys
 from pathlib import Path
 from typing import Any
@@ -70,7 +72,8 @@ from ..io import PAIRINGS, SETUPS, from_poses
 from ..plausibility import Streams, check
 from ..pose_formats import format_names, parse_format
 from ..pose_readers import UNITS, PoseStack, read_pose_dir, read_poses
-from ..quality_report import check_report_path, collect, write_report
+from ..output_files import write_text
+from ..quality_report import check_new_report, collect, report_files, write_report
 from ..registry import get_registry
 from ..se3 import inverse
 from ..solution import Status, standard_deviations
@@ -79,16 +82,22 @@ from . import _facts, _images, _matching, _streams
 from ._common import (
     _plain,
     add_force_flag,
+    add_time_limit_flag,
     check_new_file,
+    check_outputs_apart,
     dump_json,
     format_pose,
     parse_key_values,
+    time_limit,
 )
 from .solve_cmd import EQUATIONS, FRAMES, UNUSABLE, _setup_note, default_solver, noise_lines
 
 NAME = "calibrate"
 #: what the camera file holds: board-in-camera = T_cam_target (as solvePnP), camera-in-board = T_target_cam
 CAMERA_POSES = ("board-in-camera", "camera-in-board")
+#: a ROS frame id as --frame-ids takes it: ROS graph resource names (letters, digits, underscores,
+#: starting with a letter; '/' separating namespaces), which a shell never interprets
+ROS_FRAME_ID = re.compile(r"[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*")
 #: metres per unit
 METRES = {"mm": 1e-3, "m": 1.0}
 #: (problem, setup) -> (unknown published on ROS, default parent frame id, default child frame id):
@@ -160,6 +169,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                         help="skip the plausibility checks (residuals against the cell's noise, the usual setup "
                              "mistakes, duplicated stations, too few stations; docs/calibrate.md)")
     add_force_flag(parser)
+    add_time_limit_flag(parser)
     parser.set_defaults(run=run)
     return parser
 
@@ -221,15 +231,22 @@ def ros_line(T: np.ndarray, unit: str, parent: str, child: str) -> str:
     t = np.asarray(T, dtype=float)[:3, 3] * METRES[unit]
     q = Rotation.from_matrix(np.asarray(T, dtype=float)[:3, :3]).as_quat(canonical=True)
     values = " ".join(f"--{k} {v:.9g}" for k, v in zip(("x", "y", "z", "qx", "qy", "qz", "qw"), [*t, *q]))
-    return f"ros2 run tf2_ros static_transform_publisher {values} --frame-id {parent} --child-frame-id {child}"
+    return (f"ros2 run tf2_ros static_transform_publisher {values} --frame-id {shlex.quote(parent)} "
+            f"--child-frame-id {shlex.quote(child)}")  # valid ids need no quotes: quoted all the same
 
 
 def _frame_ids(text: str | None, default: tuple[str, str]) -> tuple[str, str]:
+    """(parent, child) of --frame-ids PARENT,CHILD, each a ROS name (`ROS_FRAME_ID`)."""
     if text is None:
         return default
     parts = [p.strip() for p in text.split(",")]
-    if len(parts) != 2 or not all(parts) or any(" " in p for p in parts):
-        raise InputError(f"--frame-ids expects PARENT,CHILD (two frame ids without spaces), got {text!r}")
+    if len(parts) != 2 or not all(parts):
+        raise InputError(f"--frame-ids expects PARENT,CHILD (two frame ids), got {text!r}")
+    for part in parts:
+        if not ROS_FRAME_ID.fullmatch(part):
+            raise InputError(f"--frame-ids: {part!r} is not a ROS frame id (letters, digits and underscores, "
+                             "starting with a letter, '/' between namespaces: e.g. tool0, camera_link, "
+                             "robot1/base_link)")
     return parts[0], parts[1]
 
 
@@ -252,15 +269,13 @@ def run(args: argparse.Namespace) -> int:
             parse_format(fmt)
         except InputError as exc:
             raise InputError(f"{flag}: {exc}") from None
+    outputs = [("-o", args.output), ("--yaml", args.yaml)]
     if args.report:
-        check_report_path(args.report)
-    outputs = [Path(p) for p in (args.output, args.yaml, args.report) if p]
-    inputs = {Path(args.robot).resolve(), Path(args.images if from_images else args.camera).resolve()}
-    if len({p.resolve() for p in outputs}) < len(outputs):
-        raise InputError("two of -o, --yaml, --report name the same file; give different files")
-    if any(p.resolve() in inputs for p in outputs):
-        raise InputError("an output file (-o / --yaml / --report) is one of the input files; it would be overwritten")
-    for flag, path in (("-o", args.output), ("--yaml", args.yaml), ("--report", args.report)):
+        check_new_report(args.report, args.force)
+        outputs += [("--report", p) for p in report_files(args.report)]
+    check_outputs_apart(outputs, [args.robot, args.images if from_images else args.camera,
+                                  getattr(args, "intrinsics", None), getattr(args, "board", None)])
+    for flag, path in (("-o", args.output), ("--yaml", args.yaml)):
         check_new_file(flag, path, args.force)
     if args.pairing is not None and args.problem != "axxb":
         raise InputError("--pairing applies to --problem axxb (motions between stations); with axyb every "
@@ -289,7 +304,8 @@ def run(args: argparse.Namespace) -> int:
     if clash:
         raise InputError(f"--option {clash} clashes with the data field(s) of problem {args.problem!r}")
     solver = args.solver or (images and _images.default_solver(args.problem)) or default_solver(args.problem)
-    solution = solve(args.problem, solver=solver, backend=args.backend, **pose_file.data, **facts, **options,
+    solution = solve(args.problem, solver=solver, backend=args.backend, time_limit=time_limit(args, args.problem, solver),
+                     **pose_file.data, **facts, **options,
                      **_images.solver_data(images, solver, args.problem))
     instead = _images.pose_based_instead(solution, defaulted=args.solver is None)
     if instead:
@@ -360,7 +376,7 @@ def run(args: argparse.Namespace) -> int:
         result["inputs"]["camera"] = _images.inputs_entry(args, images)
         result.update(_images.result_entries(args, images))
     unusable = solution.status in UNUSABLE or solution.status is Status.UNRELIABLE
-    written = [] if unusable else _write(result, args.output, args.yaml)
+    written = [] if unusable else _write(result, args.output, args.yaml, args.force)
     if args.report:
         data = collect(problem=args.problem, setup=args.setup, unit=unit, solution=solution, residuals=residuals,
                        frames=frames, checks=result["checks"], warnings=result["warnings"],
@@ -368,7 +384,7 @@ def run(args: argparse.Namespace) -> int:
                                "camera file": f"{args.camera or args.images} ({camera_read.format}, {camera_read.unit})"},
                        robot_poses=robot.poses, stations=len(robot), pairing=pose_file.metadata.get("pairing"),
                        command="handeye calibrate")
-        written.append(str(write_report(args.report, data)[0]))
+        written.append(str(write_report(args.report, data, force=args.force)[0]))
     if args.json:
         print(dump_json(result))
     else:
@@ -388,15 +404,16 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write(result: dict[str, Any], json_path: str | None, yaml_path: str | None) -> list[str]:
+def _write(result: dict[str, Any], json_path: str | None, yaml_path: str | None, force: bool) -> list[str]:
     written = []
     if json_path:
-        Path(json_path).write_text(dump_json(result) + "\n", encoding="utf-8")
+        write_text(json_path, dump_json(result) + "\n", force=force, flag="-o")
         written.append(json_path)
     if yaml_path:
         import yaml
 
-        Path(yaml_path).write_text(yaml.safe_dump(_plain(result), sort_keys=False, default_flow_style=None), encoding="utf-8")
+        write_text(yaml_path, yaml.safe_dump(_plain(result), sort_keys=False, default_flow_style=None),
+                   force=force, flag="--yaml")
         written.append(yaml_path)
     return written
 

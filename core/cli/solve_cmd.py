@@ -34,7 +34,6 @@ import argparse
 import dataclasses
 import math
 import sys
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -53,17 +52,19 @@ from ..io import (
     supported_extensions,
 )
 from ..plausibility import Streams, check
-from ..quality_report import check_report_path, collect, write_report
+from ..quality_report import check_new_report, collect, report_files, write_report
 from ..registry import get_registry
 from ..se3 import inverse
 from ..solution import Status, standard_deviations
 from . import _facts
 from ._common import (
     add_force_flag,
-    check_new_file,
+    add_time_limit_flag,
+    check_outputs_apart,
     dump_json,
     format_pose,
     parse_key_values,
+    time_limit,
 )
 
 NAME = "solve"
@@ -112,6 +113,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                         help="write a quality report: .html (one self-contained page with plots) or .md (markdown, "
                              "its PNG plots next to it); docs/calibrate.md; an existing file is kept unless --force")
     add_force_flag(parser)
+    add_time_limit_flag(parser)
     parser.add_argument("--no-checks", action="store_true",
                         help="files of absolute poses: skip the plausibility checks (docs/calibrate.md)")
     parser.set_defaults(run=run)
@@ -130,10 +132,8 @@ def run(args: argparse.Namespace) -> int:
     if (args.file is None) == (args.example is None):
         raise InputError("give either a data FILE or --example [NAME] (not both, not neither)")
     if args.report:
-        check_report_path(args.report)
-        if args.file is not None and Path(args.report).resolve() == Path(args.file).resolve():
-            raise InputError("--report names the data file; it would be overwritten")
-        check_new_file("--report", args.report, args.force)
+        check_new_report(args.report, args.force)
+        check_outputs_apart([("--report", p) for p in report_files(args.report)], [args.file])
     if args.example is not None:
         pose_file = example_file(args.example, args.problem, setup=args.setup, pairing=args.pairing)
         source = f"example {args.example!r}"
@@ -148,7 +148,8 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--option {clash} clashes with the data field(s) of problem {args.problem!r}")
     solver = args.solver or default_solver(args.problem)
 
-    solution = solve(args.problem, solver=solver, backend=args.backend, **data, **facts, **options)
+    solution = solve(args.problem, solver=solver, backend=args.backend, time_limit=time_limit(args, args.problem, solver),
+                     **data, **facts, **options)
     problem = get_registry().problem(args.problem)
     measured = _facts.in_robot_unit(data, facts, solution.diagnostics)
     residuals = problem.residuals(problem.validate(**measured, **facts), solution.unknowns)
@@ -182,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
         robot_poses = (pose_file.poses["robot_poses"] if pose_file.poses is not None
                        else data["A"] if args.problem == "axyb" else None)  # axyb: A_i = T_base_flange
         units = metadata.get("units")
-        written = write_report(args.report, collect(
+        written = write_report(args.report, force=args.force, r=collect(
             problem=args.problem, setup=metadata.get("setup"), unit=units, solution=solution, residuals=residuals,
             frames=frames, checks=report["checks"], warnings=report["warnings"],
             inputs={"data": source + (f" ({units})" if units else "")}, robot_poses=robot_poses,
