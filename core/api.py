@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -83,7 +84,9 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
     if missing:
         raise InputError(f"problem {problem!r} needs data {list(fields)}; missing {missing}")
     given = tuple(fields) + tuple(f for f in spec_problem.optional_fields if f in data_and_options)
-    data = spec_problem.validate(**{f: data_and_options[f] for f in given})
+    own_problem = registry.problem_is_builtin(problem)
+    with plugin_faults(f"problem {problem!r}", own_problem, registry.problem_provider(problem)):
+        data = spec_problem.validate(**{f: data_and_options[f] for f in given})
     if getattr(data, "planar", None) is not None and not spec.planar_mode:
         able = [n for n in registry.solver_names(problem) if registry.solver(n, problem).planar_mode]
         raise InputError(f"solver {solver!r} has no planar (4-DOF) mode for data whose robot rotates about one "
@@ -99,13 +102,15 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
     output = _run(spec, data, options, backend, time_limit, builtin, _who(registry, solver, problem, builtin))
     seconds = time.perf_counter() - start
     unknowns, status, diagnostics = _checked_output(output, spec_problem.unknowns, solver)
-    weak = spec_problem.diagnose(data)
+    with plugin_faults(f"problem {problem!r}", own_problem, registry.problem_provider(problem)):
+        weak = spec_problem.diagnose(data)
     # an answer that comes with the camera's scale (auto estimates it where the data demand it)
     # is judged with that scale free, as its solver fitted it (handeye.camera_scale)
     check_data = data
     if "camera_scale" in diagnostics and getattr(data, "camera_scale_unknown", True) is False:
         check_data = dataclasses.replace(data, camera_scale_unknown=True)
-    check = assess(spec_problem, check_data, unknowns, diagnostics)
+    with plugin_faults(f"problem {problem!r}", own_problem, registry.problem_provider(problem)):
+        check = assess(spec_problem, check_data, unknowns, diagnostics)
     diagnostics["self_check"] = {"reliable": check.reliable, "failures": list(check.failures), **check.figures}
     warnings = list(weak.pop("warnings", [])) + list(diagnostics.get("warnings", [])) + list(check.warnings)
     if not check.reliable:
@@ -133,11 +138,28 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
 
 def _who(registry: Any, solver: str, problem: str, builtin: bool) -> str:
     """How messages name a solver: with its plugin and distribution when it is a third party's."""
-    if builtin:
-        return f"solver {solver!r}"
-    info = registry.provider(solver, problem)
+    return f"solver {solver!r}" if builtin else f"solver {solver!r} ({_plugin(registry.provider(solver, problem))})"
+
+
+def _plugin(info: Any) -> str:
     source = f"from {info.distribution} {info.version}" if info.version else info.distribution.strip("()")
-    return f"solver {solver!r} (plugin {info.name!r}, {source})"
+    return f"plugin {info.name!r}, {source}"
+
+
+@contextlib.contextmanager
+def plugin_faults(what: str, builtin: bool, provider: Any) -> Iterator[None]:
+    """Code of a plugin's problem (`what`, e.g. "problem 'p'") run by the host: an exception of
+    a third party's that is not a HandEyeError (a bug in the plugin) becomes a one-line
+    SolverError naming the plugin, not an "internal error" of handeye's."""
+    try:
+        yield
+    except HandEyeError:
+        raise
+    except (Exception, SystemExit) as exc:
+        if builtin:
+            raise
+        message = " ".join(str(exc).split()) or "(no message)"
+        raise SolverError(f"{what} ({_plugin(provider)}) failed: {type(exc).__name__}: {message}") from exc
 
 
 def _run(spec: Any, data: Any, options: Any, backend: str, time_limit: float | None, builtin: bool,

@@ -15,11 +15,18 @@ Why a module of its own: bags are how ROS cells record, and turning one into a t
 stream (types, tf chains, error messages listing what the bag holds) is one job; the streams then
 go through `handeye.streams` like any pose file. Errors are one-line `InputError`s naming what
 the bag has.
+
+A damaged bag is bad input, not a bug: a storage file cut short (an interrupted recording or copy)
+is refused before reading by `_truncation` (a .db3 shorter than its SQLite header says, an .mcap
+without its end marker, a ROS 1 bag shorter than the index position its header records), and
+whatever rosbags or its storage libraries raise on damaged content (`_damaged_bag_errors`) becomes
+an InputError naming the bag.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import struct
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +34,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .errors import InputError
+from .input_files import check_not_looping
 from .pose_readers import PoseStack
 from .se3 import make_pose
 
@@ -39,11 +47,18 @@ POSE_TYPES = {
 }
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+#: the first bytes of an SQLite file, the last 8 bytes of an MCAP file, the first line of a ROS 1 bag
+SQLITE_MAGIC = b"SQLite format 3\x00"
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+ROS1_MAGIC = b"#ROSBAG V2.0\n"
 
 
 def is_bag(path: str | Path) -> bool:
-    """Whether `path` names a ROS bag: a .bag / .db3 / .mcap file or a directory with metadata.yaml."""
+    """Whether `path` names a ROS bag: a .bag / .db3 / .mcap file or a directory with metadata.yaml.
+    InputError when `path` is a symbolic link that loops: it names nothing, and the CLI asks this
+    first of every input path."""
     p = Path(path)
+    check_not_looping(p, "file")
     return p.suffix.lower() in BAG_SUFFIXES or (p.is_dir() and (p / "metadata.yaml").is_file())
 
 
@@ -64,15 +79,19 @@ def parse_topic(spec: str) -> tuple[str, tuple[str, str] | None]:
 def read_bag_poses(path: str | Path, topic: str) -> PoseStack:
     """The poses of `topic` (see the module docstring for the spec) in the bag at `path`, sorted
     by header stamp, metres, format ``xyz-quat-xyzw``."""
-    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
     p = Path(path)
     src = repr(str(p))
+    check_not_looping(p, "bag")
     if not p.exists():
         raise InputError(f"bag not found: {src}")
     name, frames = parse_topic(topic)
     paths = [p.parent] if p.suffix.lower() in (".db3", ".mcap") and (p.parent / "metadata.yaml").is_file() else [p]
+    why = _truncation(p)
+    if why:
+        raise InputError(f"{src} is truncated: {why}; record or copy the bag again")
     try:
         with AnyReader(paths, default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
             available = {c.topic: c.msgtype for c in reader.connections}
@@ -92,8 +111,9 @@ def read_bag_poses(path: str | Path, topic: str) -> PoseStack:
             messages = [(c.topic, reader.deserialize(raw, c.msgtype)) for c, _, raw in reader.messages(connections=conns)]
     except InputError:
         raise
-    except (AnyReaderError, OSError, KeyError, ValueError) as exc:
-        raise InputError(f"{src} could not be read as a ROS bag: {' '.join(str(exc).split())[:200]}") from None
+    except _damaged_bag_errors() as exc:
+        reason = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise InputError(f"{src} could not be read as a ROS bag (damaged?): {reason}") from None
     source = f"{src} {topic}"
     if frames is None:
         stamps, T = _pose_messages([m for _, m in messages], POSE_TYPES[wanted], source)
@@ -106,6 +126,88 @@ def read_bag_poses(path: str | Path, topic: str) -> PoseStack:
     stamps.setflags(write=False)
     T.setflags(write=False)
     return PoseStack(T, "m", "xyz-quat-xyzw", None, stamps, None, source)
+
+
+# ----------------------------------------------------------------------------- damaged bags
+
+
+def _damaged_bag_errors() -> tuple[type[BaseException], ...]:
+    """What reading a damaged bag raises, found by truncating and corrupting bags of each storage:
+    rosbags' own errors (opening, ROS 1 / ROS 2 readers, deserialisation), its sqlite library's
+    (apsw: "database disk image is malformed"), and plain Python errors of its parsers on garbage:
+    struct.error, EOFError, IndexError, KeyError, ValueError (UnicodeDecodeError), TypeError (a
+    garbled QoS profile read as text), OverflowError (a length field beyond ssize_t),
+    AssertionError (its consistency asserts), MemoryError (a damaged 64-bit length field makes it
+    ask for terabytes, refused at once). Only rosbags' calls sit in the try block that catches them."""
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Ros1ReaderError
+    from rosbags.rosbag2 import ReaderError as Ros2ReaderError
+    from rosbags.serde import SerdeError
+
+    errors: list[type[BaseException]] = [
+        AnyReaderError, Ros1ReaderError, Ros2ReaderError, SerdeError, OSError, EOFError, struct.error, IndexError,
+        KeyError, ValueError, TypeError, OverflowError, AssertionError, MemoryError]
+    try:
+        import apsw  # rosbags' sqlite3 storage since 0.10
+        errors.append(apsw.Error)
+    except ImportError:  # pragma: no cover - older rosbags use the standard library's sqlite3
+        import sqlite3
+        errors.append(sqlite3.Error)
+    return tuple(errors)
+
+
+def _truncation(path: Path) -> str | None:
+    """Why a storage file of the bag at `path` (a file, or a ROS 2 bag directory) is cut short,
+    or None when none looks so (what cannot be told here is left to the reader)."""
+    files = sorted(path.glob("*.db3")) + sorted(path.glob("*.mcap")) if path.is_dir() else [path]
+    for file in files:
+        size = file.stat().st_size
+        with open(file, "rb") as fh:
+            head = fh.read(100)
+            fh.seek(max(size - len(MCAP_MAGIC), 0))
+            tail = fh.read()
+        why = None
+        suffix = file.suffix.lower()
+        if suffix == ".db3" and head.startswith(SQLITE_MAGIC):
+            why = _sqlite_truncation(head, size)
+        elif suffix == ".mcap" and tail != MCAP_MAGIC:
+            why = f"{size} bytes that do not end with the MCAP end marker"
+        elif suffix == ".bag" and head.startswith(ROS1_MAGIC):
+            why = _ros1_truncation(head, size)
+        if why:
+            return f"{file.name} holds {why}" if file != path else why
+    return None
+
+
+def _sqlite_truncation(head: bytes, size: int) -> str | None:
+    """The SQLite header (first 100 bytes) records the page size (offset 16) and, when valid
+    (offset 92 equals offset 24), the page count (offset 28): the file holds them all."""
+    page_size = int.from_bytes(head[16:18], "big")
+    page_size = 65536 if page_size == 1 else page_size
+    pages = int.from_bytes(head[28:32], "big")
+    if len(head) < 100 or head[24:28] != head[92:96] or pages == 0 or size >= pages * page_size:
+        return None
+    return f"{size} bytes, but its SQLite header records {pages} pages of {page_size} bytes ({pages * page_size} bytes)"
+
+
+def _ros1_truncation(head: bytes, size: int) -> str | None:
+    """The bag header record after the magic line holds fields ``<len>name=value``; index_pos
+    (8 bytes) is where the index starts, which the file must reach."""
+    try:
+        (length,) = struct.unpack_from("<I", head, len(ROS1_MAGIC))
+        fields, at = {}, len(ROS1_MAGIC) + 4
+        end = at + length
+        while at < min(end, len(head)):
+            (n,) = struct.unpack_from("<I", head, at)
+            name, _, value = head[at + 4:at + 4 + n].partition(b"=")
+            fields[name] = value
+            at += 4 + n
+        (index_pos,) = struct.unpack("<Q", fields[b"index_pos"])
+    except (struct.error, KeyError):
+        return None  # not the header rosbags expects: it will say so
+    if size >= index_pos:
+        return None
+    return f"{size} bytes, but its header records the index at byte {index_pos}"
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -132,8 +234,10 @@ def _pose(obj: Any, source: str, k: int) -> np.ndarray:
     xyz = np.array([t.x, t.y, t.z], dtype=float)
     if not (np.all(np.isfinite(quat)) and np.all(np.isfinite(xyz))):
         raise InputError(f"{source}: message {k + 1} holds NaN or inf")
-    if abs(np.linalg.norm(quat) - 1.0) > 1e-3:
-        raise InputError(f"{source}: message {k + 1} has a quaternion of norm {np.linalg.norm(quat):.3g}, not 1")
+    with np.errstate(over="ignore"):  # components near 1e308 (a damaged message): norm inf, refused below
+        norm = np.linalg.norm(quat)
+    if abs(norm - 1.0) > 1e-3:
+        raise InputError(f"{source}: message {k + 1} has a quaternion of norm {norm:.3g}, not 1")
     return make_pose(Rotation.from_quat(quat).as_matrix(), xyz)
 
 

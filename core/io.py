@@ -14,14 +14,17 @@ data fields on reading by the problem's reader (``axyb``: one pair per station; 
 motions, `handeye.problems.axxb.motions`), so one file of stations can be solved as AX=YB and as AX=XB; `PoseFile.poses` keeps them as read.
 
 Formats are chosen by file extension through `FORMATS`: each entry is a reader
-``(path) -> RawFile`` and a writer ``(path, PoseFile) -> None``. A new format (CSV, YAML,
+``(path) -> RawFile`` and a writer ``(binary file object, PoseFile) -> None`` (`save_data` opens
+the file with `handeye.output_files.new_file`: written whole or not at all). A new format (CSV, YAML,
 xyz + quaternion, Fanuc WPR, ...) is one reader (and optionally one writer) plus one line in
 `FORMATS`; key checking, pose validation and error messages are shared (`_finish`).
 
 Every problem in the file is validated only as far as a file can be: the expected keys are
 present, nothing unexpected is there, every stack is a finite (m, 4, 4) array of rigid motions
 (`handeye.validation.pose_stack`). The problem's own checks (lengths, degeneracy) run when the
-data are solved.
+data are solved. Files are not trusted: NPZ through `handeye.npz.load_npz` (size limits, no
+pickles), JSON through `handeye.input_files.load_json` (duplicate keys refused), and a JSON pose
+holds JSON numbers only (``"303.5"`` or ``true`` is refused, not converted).
 """
 
 from __future__ import annotations
@@ -30,12 +33,14 @@ import dataclasses
 import json
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 
 from .errors import HandEyeError, InputError, shown
+from .input_files import check_not_looping, load_json
 from .npz import load_npz
+from .output_files import new_file
 from .problem import StationReader
 from .registry import get_registry
 from .validation import float_array, pose_stack
@@ -130,27 +135,30 @@ def load_file(path: str | Path, problem: str = "axyb", *, setup: str | None = No
     of absolute poses, the poses as read (`PoseFile.poses`)."""
     path = Path(path)
     reader, _ = _format(path)
+    check_not_looping(path, "data file")
     if not path.is_file():
         raise InputError(f"data file not found: {str(path)!r}")
     return _finish(reader(path), path, problem, setup=setup, pairing=pairing)
 
 
 def save_data(path: str | Path, data: Mapping[str, Any], truth: Mapping[str, Any] | None = None, *,
-              metadata: Mapping[str, str] | None = None, problem: str = "axyb") -> Path:
+              metadata: Mapping[str, str] | None = None, problem: str = "axyb", force: bool = True) -> Path:
     """Write data (and optionally truth and metadata) in the format given by the extension.
 
     data: data field -> (m, 4, 4), or for a problem of `station_readers` the absolute poses
     ``{"robot_poses": (n, 4, 4), "camera_poses": (n, 4, 4)}`` (then metadata must name the
     ``setup``; for ``axxb`` ``pairing`` defaults to `DEFAULT_PAIRING`); truth: unknown -> (4, 4); metadata:
     keys of `METADATA_KEYS`. Everything is validated as `load_data` would, so a file written here
-    always reads back (floats are written with full precision: the round trip is exact).
-    Returns the path written.
+    always reads back (floats are written with full precision: the round trip is exact). The
+    file appears complete or not at all (`handeye.output_files`); force=False refuses to replace
+    an existing file (InputError), atomically. Returns the path written.
     """
     path = Path(path)
     _, writer = _format(path)
     raw = RawFile(dict(data), None if truth is None else dict(truth), dict(metadata or {}))
     pose_file = _finish(raw, path, problem, writing=True)
-    writer(path, pose_file)
+    with new_file(path, force=force, flag="-o", binary=True) as fh:
+        writer(fh, pose_file)
     return path
 
 
@@ -177,7 +185,7 @@ def supported_extensions() -> list[str]:
 # ----------------------------------------------------------------------------- shared checks
 
 
-def _format(path: Path) -> tuple[Callable[[Path], RawFile], Callable[[Path, PoseFile], None]]:
+def _format(path: Path) -> tuple[Callable[[Path], RawFile], Callable[[BinaryIO, PoseFile], None]]:
     ext = path.suffix.lower()
     if ext not in FORMATS:
         raise InputError(
@@ -362,14 +370,13 @@ def _read_npz(path: Path) -> RawFile:
     return RawFile(data, truth or None, metadata, tuple(unexpected))
 
 
-def _write_npz(path: Path, pose_file: PoseFile) -> None:
+def _write_npz(fh: BinaryIO, pose_file: PoseFile) -> None:
     arrays: dict[str, np.ndarray] = dict(pose_file.poses if pose_file.poses is not None else pose_file.data)
     for name, T in (pose_file.truth or {}).items():
         arrays[name + TRUTH_SUFFIX] = T
     for key, value in pose_file.metadata.items():
         arrays[key] = np.array(value)
-    with open(path, "wb") as fh:  # a file object: np.savez would append .npz to other names
-        np.savez(fh, **arrays)
+    np.savez(fh, **arrays)  # a file object: np.savez would append .npz to other names
 
 
 # ----------------------------------------------------------------------------- JSON
@@ -383,22 +390,57 @@ def _read_json(path: Path) -> RawFile:
     except UnicodeDecodeError as exc:
         raise InputError(f"{str(path)!r}: not UTF-8 text ({exc})") from None
     try:
-        obj = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{str(path)!r}: invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
+        obj = load_json(text, repr(str(path)))
     except RecursionError:
         raise InputError(f"{str(path)!r}: JSON nested too deeply to read (a pose is a 4x4 list of lists)") from None
     if not isinstance(obj, dict):
         raise InputError(f"{str(path)!r}: expected a JSON object with keys such as 'A' and 'B', got {type(obj).__name__}")
     truth = obj.pop("truth", None)
     metadata = {k: obj.pop(k) for k in METADATA_KEYS if k in obj}
+    for key, value in obj.items():
+        _json_numbers(value, key, repr(str(path)))
+    if isinstance(truth, dict):
+        for key, value in truth.items():
+            _json_numbers(value, f"truth {key}", repr(str(path)))
     # every other key is data; one whose value is not a list is unexpected unless it names a data
     # field (then `_finish` reports its value, e.g. "A": null, as bad)
     unexpected = tuple(k for k, v in obj.items() if not isinstance(v, list))
     return RawFile(obj, truth, metadata, unexpected)
 
 
-def _write_json(path: Path, pose_file: PoseFile) -> None:
+def _json_numbers(value: Any, name: str, where: str) -> None:
+    """InputError at the first entry of the nested lists `value` (a JSON pose stack or pose) that is
+    text or a bool: np.array(..., dtype=float) would take "303.5" and true as numbers. Values that
+    are not lists (``"A": null``) are left to the shared checks, which say what a value must be."""
+    if not isinstance(value, list):
+        return
+    if set(map(type, np.array(value, dtype=object).ravel())) <= {int, float}:
+        return  # the usual case, checked at C speed: a regular nest of JSON numbers
+    stack: list[tuple[list, int, tuple[int, ...]]] = [(value, 0, ())]
+    while stack:  # in document order, without recursion (json reads any depth its parser can)
+        items, start, at = stack.pop()
+        for i in range(start, len(items)):
+            item = items[i]
+            if isinstance(item, list):
+                stack += [(items, i + 1, at), (item, 0, (*at, i))]
+                break
+            if isinstance(item, (str, bool)):
+                index = "".join(f"[{k}]" for k in (*at, i))
+                written = json.dumps(item)  # as the file spells it: true, "303.5"
+                written = written if len(written) <= 60 else written[:57] + "..."
+                raise InputError(f"{where}: {name}{index} is {written}, not a number{_quoted_hint(item)}")
+
+
+def _quoted_hint(item: Any) -> str:
+    """A hint for a JSON string that holds a number (``"303.5"``)."""
+    try:
+        float(item)
+    except (TypeError, ValueError):
+        return ""
+    return "; write numbers without quotes" if isinstance(item, str) else ""
+
+
+def _write_json(fh: BinaryIO, pose_file: PoseFile) -> None:
     """One pose per line; floats as Python's shortest round-trip repr (exact read-back)."""
 
     def pose(T: np.ndarray) -> str:
@@ -412,11 +454,11 @@ def _write_json(path: Path, pose_file: PoseFile) -> None:
     if pose_file.truth is not None:
         rows = ",\n".join(f"    {json.dumps(k)}: {pose(T)}" for k, T in pose_file.truth.items())
         parts.append(f'  "truth": {{\n{rows}\n  }}')
-    path.write_text("{\n" + ",\n".join(parts) + "\n}\n", encoding="utf-8")
+    fh.write(("{\n" + ",\n".join(parts) + "\n}\n").encode("utf-8"))
 
 
 #: extension -> (reader, writer). Add a format here (one line) after writing its two functions.
-FORMATS: dict[str, tuple[Callable[[Path], RawFile], Callable[[Path, PoseFile], None]]] = {
+FORMATS: dict[str, tuple[Callable[[Path], RawFile], Callable[[BinaryIO, PoseFile], None]]] = {
     ".npz": (_read_npz, _write_npz),
     ".json": (_read_json, _write_json),
 }

@@ -12,6 +12,14 @@ Why a module of its own: the files people have are vendor exports with headers s
 re-orthonormalised only when asked, one-line errors naming the line) is one job, separate from
 `handeye.io`'s files of whole problems.
 
+Numbers are read strictly: a text cell is a plain decimal number (ASCII digits, sign, point,
+exponent; ``nan`` / ``inf`` are read and then refused as not finite), not everything Python's
+float() takes (``1_000``, full-width ``１２３``); a JSON / YAML value must be a number, not text
+(``"303.5"``) nor a bool; YAML is read by `handeye.input_files.load_yaml` (``1:30`` stays text,
+duplicate keys and alias bombs are refused) and JSON by `handeye.input_files.load_json`
+(duplicate keys refused). A pose is a row of numbers or a 4x4 / 3x4 matrix: other nestings and
+NPZ shapes are refused, not flattened.
+
 Nothing passed in is modified; every check raises `handeye.errors.InputError` with a one-line
 message naming the file, the line (text) or pose (JSON / YAML / NPZ) and what to do.
 """
@@ -31,6 +39,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .errors import InputError, shown
+from .input_files import TEXT_NUMBER, check_not_looping, load_json, load_yaml
+from .output_files import new_file, write_text
 from .npz import load_npz
 from .pose_formats import PoseFormat, normalise_header, parse_format
 from .se3 import ORTHONORMALITY_TOL, make_pose, orthonormality_error, project_to_so3
@@ -53,6 +63,8 @@ STAMP_COLUMNS = ("t", "time", "stamp", "timestamp", "time_stamp", "sec", "secs",
 #: key of the pose list in a JSON / YAML object and of the array in an NPZ file
 POSES_KEY = "poses"
 _DELIMITERS = {",": ",", ";": ";", "\t": "\t", "tab": "\t", " ": None, "whitespace": None}
+#: shapes of one pose beside a row of numbers: a 4x4 or 3x4 matrix (format matrix / matrix34)
+MATRIX_SHAPES = ((4, 4), (3, 4))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,6 +114,8 @@ class _Table:
     unit: str | None = None
     names: tuple[str, ...] | None = None
     stamps: Any = None
+    #: cells are the strings of a text file (parsed by `TEXT_NUMBER`), not typed values
+    text: bool = False
 
 
 # ----------------------------------------------------------------------------- public API
@@ -132,6 +146,7 @@ def read_poses(path: str | Path, format: str | PoseFormat, *, unit: str | None =
     ext = path.suffix.lower()
     if ext not in EXTENSIONS:
         raise InputError(f"{src}: unsupported pose file extension {ext or '(none)'!r}; supported: {', '.join(EXTENSIONS)}")
+    check_not_looping(path, "pose file")
     if not path.is_file():
         raise InputError(f"pose file not found: {src}")
     if ext in TEXT_EXTENSIONS:
@@ -143,7 +158,7 @@ def read_poses(path: str | Path, format: str | PoseFormat, *, unit: str | None =
     else:
         try:
             table = _structure(_load_structured(path, src, ext), src)
-        except RecursionError:  # json, yaml and _flatten recurse once per level of nesting
+        except RecursionError:  # json and yaml recurse once per level of nesting
             raise InputError(f"{src}: nested too deeply to read; a pose is a row of numbers or a 4x4 "
                              "list of lists") from None
     return _convert(table, fmt, src, unit=unit, columns=columns, degrees=degrees, orthonormalize=orthonormalize)
@@ -157,8 +172,7 @@ def poses_from_rows(rows: ArrayLike, format: str | PoseFormat, *, unit: str | No
         raise InputError(f"{source}: a masked array with {masked_count(rows)}, and masks are not used; "
                          "remove the rows with masked entries and pass a plain array")
     arr = np.asarray(rows, dtype=object)
-    if arr.ndim < 2 or len(arr) == 0:
-        raise InputError(f"{source}: expected rows of numbers with shape (n, k), got shape {arr.shape}")
+    _check_pose_shape(arr.shape, source)
     table = _Table(None, [list(r) for r in arr.reshape(len(arr), -1)], [f"pose {i + 1}" for i in range(len(arr))])
     return _convert(table, parse_format(format), source, unit=unit, columns=None, degrees=degrees,
                     orthonormalize=orthonormalize)
@@ -204,7 +218,8 @@ def read_pose_dir(directory: str | Path, format: str | PoseFormat, *, unit: str 
 def write_poses(path: str | Path, poses: ArrayLike | PoseStack, format: str | PoseFormat, *,
                 unit: str | None = None, degrees: bool | None = None) -> Path:
     """Write poses (n, 4, 4) (or a `PoseStack`, with its names and stamps) in `format`, the file
-    type chosen by extension, so that `read_poses` reads them back (floats written in full).
+    type chosen by extension, so that `read_poses` reads them back (floats written in full). The
+    file appears complete or not at all, replacing an existing one (`handeye.output_files`).
     unit: required for bare arrays; a `PoseStack`'s own unit by default."""
     path = Path(path)
     fmt = parse_format(format)
@@ -227,20 +242,21 @@ def write_poses(path: str | Path, poses: ArrayLike | PoseStack, format: str | Po
         sep = "\t" if ext == ".tsv" else ","
         lines = [f"# handeye poses: format {fmt.name}, unit {unit}", sep.join(header)]
         lines += [sep.join(repr(v) if isinstance(v, float) else str(v) for v in rec) for rec in records]
-        path.write_text("\n".join(lines) + "\n")
+        write_text(path, "\n".join(lines) + "\n")
     elif ext in (".json", ".yaml", ".yml"):
         doc = {"format": fmt.name, "units": unit, POSES_KEY: [dict(zip(header, rec)) for rec in records]}
         if ext == ".json":
-            path.write_text(json.dumps(doc, indent=1) + "\n")
+            write_text(path, json.dumps(doc, indent=1) + "\n")
         else:
-            path.write_text(_yaml().safe_dump(doc, sort_keys=False))
+            write_text(path, _yaml().safe_dump(doc, sort_keys=False))
     elif ext == ".npz":
         extra = {"units": np.array(unit)}
         if names:
             extra["names"] = np.array(names)
         if stamps is not None:
             extra["stamps"] = stamps
-        np.savez(path, **{POSES_KEY: rows}, **extra)
+        with new_file(path, binary=True) as fh:  # a file object: np.savez would append .npz to other names
+            np.savez(fh, **{POSES_KEY: rows}, **extra)
     else:
         raise InputError(f"{str(path)!r}: unsupported pose file extension {ext or '(none)'!r}; supported: {', '.join(EXTENSIONS)}")
     return path
@@ -249,12 +265,37 @@ def write_poses(path: str | Path, poses: ArrayLike | PoseStack, format: str | Po
 # ----------------------------------------------------------------------------- file readers
 
 
-def _is_number(cell: Any) -> bool:
+def _number(cell: Any, text: bool) -> float | None:
+    """`cell` as a float, or None when it is not a number: a string of a text file (`text`) must
+    match `TEXT_NUMBER`; a typed value (JSON / YAML / NPZ / memory) must be a real number, not a
+    bool and not text."""
+    if text and isinstance(cell, str):
+        return float(cell) if TEXT_NUMBER.fullmatch(cell) else None
+    if isinstance(cell, (bool, np.bool_)) or not isinstance(cell, numbers.Real):
+        return None
+    try:
+        return float(cell)
+    except OverflowError:  # an integer of hundreds of digits: refused as not finite
+        return math.inf if cell > 0 else -math.inf
+
+
+def _looks_numeric(cell: Any) -> bool:
+    """A number, or text that is one (a JSON "1.5", refused later with a hint, not taken as a header)."""
+    return _number(cell, text=isinstance(cell, str)) is not None
+
+
+def _not_a_number(cell: Any) -> str:
+    """Why `cell` is no number, with a hint when it is one written the wrong way."""
+    if isinstance(cell, str) and TEXT_NUMBER.fullmatch(cell.strip()):
+        return f"{shown(cell)} is text, not a number; write numbers without quotes"
     try:
         float(cell)
-        return not isinstance(cell, bool)
-    except (TypeError, ValueError):
-        return False
+    except (TypeError, ValueError, OverflowError):
+        return f"{shown(cell)} is not a number"
+    if isinstance(cell, str):  # Python's float() takes it: 1_000, full-width digits, ...
+        return (f"{shown(cell)} is not a number as written: use ASCII digits 0-9 with an optional sign, decimal "
+                "point and exponent, without digit separators")
+    return f"{shown(cell)} is not a number"
 
 
 def _read_text(path: Path, src: str, delimiter: str | None) -> _Table:
@@ -272,7 +313,7 @@ def _read_text(path: Path, src: str, delimiter: str | None) -> _Table:
     sep = _DELIMITERS[delimiter] if delimiter is not None else (";" if ";" in first else "," if "," in first else None)
     cells = [[c.strip() for c in line.split(sep)] if sep else line.split() for _, line in lines]
     header = None
-    if not any(_is_number(c) for c in cells[0]):
+    if not any(_looks_numeric(c) for c in cells[0]):
         header = tuple(cells[0])
         cells, lines = cells[1:], lines[1:]
         if not cells:
@@ -284,7 +325,7 @@ def _read_text(path: Path, src: str, delimiter: str | None) -> _Table:
             what = "the header has" if header else f"line {lines[0][0]} has"
             raise InputError(f"{src}: line {n} has {len(row)} cells, {what} {width}; "
                              "check the delimiter (delimiter=...) and missing values")
-    return _Table(header, cells, [f"line {n}" for n, _ in lines])
+    return _Table(header, cells, [f"line {n}" for n, _ in lines], text=True)
 
 
 def _yaml():
@@ -296,34 +337,35 @@ def _yaml():
 
 
 def _load_structured(path: Path, src: str, ext: str) -> Any:
-    text = path.read_text(encoding="utf-8-sig")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{src}: not UTF-8 text ({exc.reason} at byte {exc.start}); "
+                         f"a {ext} pose file is text") from None
     if not text.strip():
         raise InputError(f"{src}: no poses (the file is empty)")
-    if ext == ".json":
-        try:
-            return json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise InputError(f"{src}: invalid JSON at line {exc.lineno} column {exc.colno}: {exc.msg}") from None
-    yaml = _yaml()
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        at = f" at line {mark.line + 1} column {mark.column + 1}" if mark else ""
-        raise InputError(f"{src}: invalid YAML{at}: {getattr(exc, 'problem', None) or exc}") from None
+    return load_json(text, src) if ext == ".json" else load_yaml(text, src)
 
 
-def _flatten(value: Any) -> list[Any]:
-    if isinstance(value, (list, tuple)):
-        return [v for item in value for v in _flatten(item)]
-    return [value]
+def _pose_row(value: list | tuple, where: str, src: str) -> list[Any]:
+    """The numbers of one pose of a JSON / YAML list: a row as is, a 4x4 / 3x4 matrix (a list of
+    rows of 4) flattened row by row; any other nesting is refused, not flattened."""
+    if not any(isinstance(v, (list, tuple)) for v in value):
+        return list(value)
+    shape = (len(value), len(value[0])) if all(isinstance(v, (list, tuple)) for v in value) else None
+    if (shape in MATRIX_SHAPES and all(len(v) == shape[1] for v in value)
+            and not any(isinstance(x, (list, tuple)) for v in value for x in v)):
+        return [x for v in value for x in v]
+    raise InputError(f"{src}: {where} is a list of lists that is not a 4x4 or 3x4 matrix; a pose is a row of "
+                     "numbers or a matrix of 4 (or 3) rows of 4 numbers")
 
 
 def _structure(obj: Any, src: str) -> _Table:
     """A JSON / YAML document: a list of rows, of 4x4 (3x4) matrices, or of objects (keys as
     header), or an object holding such a list under `POSES_KEY` (and optionally ``units``)."""
     unit = None
-    if isinstance(obj, dict) and POSES_KEY not in obj and obj and all(_is_number(v) for v in obj.values()):
+    if (isinstance(obj, dict) and POSES_KEY not in obj and any(_looks_numeric(v) for v in obj.values())
+            and not any(isinstance(v, (dict, list)) for v in obj.values())):
         obj = [obj]  # one pose as an object of numbers (ROS-Industrial's poses/N.yaml: x, y, z, qx, ...)
     if isinstance(obj, dict):
         if POSES_KEY not in obj:
@@ -347,7 +389,7 @@ def _structure(obj: Any, src: str) -> _Table:
     for w, r in zip(where, obj):
         if not isinstance(r, (list, tuple)):
             raise InputError(f"{src}: {w} is {shown(r)}, expected a list of numbers or a matrix")
-        rows.append(_flatten(r))
+        rows.append(_pose_row(r, w, src))
     width = len(rows[0])
     for w, r in zip(where, rows):
         if len(r) != width:
@@ -363,9 +405,8 @@ def _read_npz(path: Path, src: str) -> _Table:
         rows = next(iter(arrays.values()))
     else:
         raise InputError(f"{src}: an NPZ of several arrays must hold the poses under {POSES_KEY!r}; found {sorted(arrays)}")
-    if rows.ndim < 2 or len(rows) == 0:
-        raise InputError(f"{src}: expected poses of shape (n, k) or (n, 4, 4), got {rows.shape}")
-    if rows.dtype.kind not in "biuf":
+    _check_pose_shape(rows.shape, src)
+    if rows.dtype.kind not in "iuf":
         raise InputError(f"{src}: the pose array holds {rows.dtype} values, expected numbers")
     unit = names = stamps = None
     if "units" in arrays:
@@ -386,6 +427,15 @@ def _read_npz(path: Path, src: str) -> _Table:
             raise InputError(f"{src}: {key!r} has {len(value)} entries for {len(rows)} poses")
     return _Table(None, rows.reshape(len(rows), -1).tolist(), [f"pose {i + 1}" for i in range(len(rows))],
                   unit=unit, names=names, stamps=stamps)
+
+
+def _check_pose_shape(shape: tuple[int, ...], src: str) -> None:
+    """InputError unless `shape` is rows (n, k) or matrices (n, 4, 4) / (n, 3, 4), n >= 1: other
+    shapes, e.g. (n, 2, 3), would fit a format only by flattening, which guesses the layout."""
+    if len(shape) == 2 and shape[0] > 0 or len(shape) == 3 and shape[0] > 0 and shape[1:] in MATRIX_SHAPES:
+        return
+    raise InputError(f"{src}: poses of shape {shape}; expected rows (n, k) of the format's numbers or matrices "
+                     "(n, 4, 4) / (n, 3, 4); other shapes are not flattened: reshape the array to one of these")
 
 
 # ----------------------------------------------------------------------------- conversion
@@ -445,8 +495,8 @@ def _columns(table: _Table, fmt: PoseFormat, columns: Sequence[str | int] | None
         elif (label in NAME_COLUMNS or label == "" or (norm is None and len(rest) == 1)) and name_i is None:
             name_i = i
     if norm is None and name_i is not None:  # headerless extra column: non-integer numbers are time stamps
-        cells = [r[name_i] for r in table.rows]
-        if all(_is_number(c) for c in cells) and not all(float(c).is_integer() for c in cells):
+        values = [_number(r[name_i], table.text) for r in table.rows]
+        if all(v is not None for v in values) and not all(v.is_integer() for v in values):
             name_i, stamp_i = None, name_i
     return idx, name_i, stamp_i
 
@@ -458,11 +508,11 @@ def _numbers(table: _Table, idx: list[int], src: str) -> Array:
         for k, j in enumerate(idx):
             cell = row[j]
             col = f"column {j + 1}" + (f" ({names[j]})" if names else "")
-            if isinstance(cell, bool) or not _is_number(cell):
-                raise InputError(f"{src}: {where}, {col}: {cell!r} is not a number")
-            v = float(cell)
+            v = _number(cell, table.text)
+            if v is None:
+                raise InputError(f"{src}: {where}, {col}: {_not_a_number(cell)}")
             if not math.isfinite(v):
-                raise InputError(f"{src}: {where}, {col}: {cell!r} is not finite; poses must not hold NaN or inf")
+                raise InputError(f"{src}: {where}, {col}: {shown(cell)} is not finite; poses must not hold NaN or inf")
             out[r, k] = v
     return out
 

@@ -222,6 +222,15 @@ class Registry:
         owner = self._solver_owner[solver, problem]
         return self.plugins.get(owner, PluginInfo(owner, RUNTIME, ""))
 
+    def problem_provider(self, problem: str) -> PluginInfo:
+        """The plugin (and distribution) that registered `problem`."""
+        owner = self._problem_owner[problem]
+        return self.plugins.get(owner, PluginInfo(owner, RUNTIME, ""))
+
+    def problem_is_builtin(self, problem: str) -> bool:
+        """Whether `problem` comes from handeye itself."""
+        return _normalise(self.problem_provider(problem).distribution) == OWN_DISTRIBUTION
+
     def is_builtin(self, solver: str, problem: str) -> bool:
         """Whether `solver` for `problem` comes from handeye itself (not a third party's plugin,
         nor one registered at run time)."""

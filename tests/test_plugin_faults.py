@@ -242,3 +242,35 @@ def test_a_thread_left_running_does_not_keep_the_command_alive(tmp_path):
                           env=env, capture_output=True, text=True, timeout=120)
     assert time.perf_counter() - start < 60
     assert "solver f-thread" in done.stdout and done.returncode in (0, 1), done.stderr
+
+
+PROBLEM_PLUGIN = """
+from handeye.problems.axyb import AXYB
+
+class Broken(AXYB):
+    name = "faulty-problem"
+
+    def validate(self, **data):
+        raise ZeroDivisionError("validate divides by zero")
+
+    def simulate(self, **kwargs):
+        raise IndexError("simulate looks past the end")
+
+@hookimpl
+def register_problems(register):
+    register(Broken())
+
+@hookimpl
+def register_solvers(register):
+    register(SolverSpec("faulty-kron", ("faulty-problem",), lambda data, options, backend: answer()))
+"""
+
+
+def test_a_faulty_problem_plugin_is_a_one_line_solver_error(plugin, capsys, tmp_path):
+    plugin(PROBLEM_PLUGIN)
+    data, _ = PROBLEM.simulate(pairs=8, seed=3)
+    with pytest.raises(handeye.SolverError, match=r"problem 'faulty-problem' \(plugin 'faulty', from "
+                                                  f"{DIST} 0.1.0\\) failed: ZeroDivisionError"):
+        handeye.solve("faulty-problem", solver="faulty-kron", **data)
+    assert main(["simulate", "--problem", "faulty-problem", "-o", str(tmp_path / "x.npz")]) == 1
+    assert "failed: IndexError: simulate looks past the end" in one_line_error(capsys)

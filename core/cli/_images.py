@@ -121,7 +121,8 @@ def load(args: argparse.Namespace, read_robot: Callable[..., PoseStack]) -> Imag
                 "dropped": [dataclasses.asdict(d) for d in images.dropped]}
     _print(args, board, images)
     warnings = [*images.warnings, *[f"dropped {d.describe()}" for d in images.dropped
-                                    if d.image is not None and d.pose is not None]]
+                                    if d.image is not None and d.pose is not None
+                                    and not any(d.reason in w for w in images.warnings)]]  # said once
     return ImageInputs(robot, camera_file, np.asarray(images.robot_rows), rows, matching, warnings, images)
 
 

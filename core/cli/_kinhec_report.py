@@ -30,6 +30,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..output_files import new_file, write_text
+
 if TYPE_CHECKING:
     from ._kinhec import KinhecRun
 
@@ -220,7 +222,7 @@ def auto_vs_best_table(summary: Sequence[Mapping[str, Any]]) -> str:
 
 def _write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:
     fields = list(dict.fromkeys(k for r in rows for k in r))
-    with open(path, "w", newline="", encoding="utf-8") as f:
+    with new_file(path, force=True, newline="") as f:
         writer = csv.DictWriter(f, fieldnames=fields)
         writer.writeheader()
         for row in rows:
@@ -281,7 +283,7 @@ def write_outputs(run: KinhecRun, data_dir: Path) -> list[Path]:
                    "shah+lm X rot", "shah+lm X trans", "rot ratio", "trans ratio", "time ratio", "note"], per_seq),
         "",
     ]
-    (out / "handeye_head_to_head.md").write_text("\n".join(text), encoding="utf-8")
+    write_text(out / "handeye_head_to_head.md", "\n".join(text), force=True)
     blocks = ["# Every solver per KinHEC track", "", head, "",
               "Medians over the sequences a solver answered (`succ.`: KinHEC's success, a finite answer; `usable`: "
               "handeye solvers only, answered with status " + ", ".join(USABLE) + "); sorted by median X "
@@ -295,5 +297,5 @@ def write_outputs(run: KinhecRun, data_dir: Path) -> list[Path]:
               _fmt(s["Y_trans_err_mm_median"]), _fmt(s["runtime_ms_median"], 1), _fmt(s["time_ratio_to_shah_lm"], 2)]
              for s in sorted(group, key=lambda s: (not math.isfinite(s["X_trans_err_mm_median"]),
                                                    s["X_trans_err_mm_median"]))]), ""]
-    (out / "handeye_tracks.md").write_text("\n".join(blocks), encoding="utf-8")
+    write_text(out / "handeye_tracks.md", "\n".join(blocks), force=True)
     return [out / name for name in HANDEYE_FILES]

@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from ..api import plugin_faults
 from ..errors import InputError
 from ..io import (
     DEFAULT_PAIRING,
@@ -109,7 +110,10 @@ def run(args: argparse.Namespace) -> int:
         count, what, size = args.stations, "stations", f"--stations {args.stations}"
     else:
         pairs = 16 if args.pairs is None else args.pairs
-        data, truth = problem.simulate(pairs=pairs, seed=args.seed, noise=noise, **options)
+        registry = get_registry()
+        with plugin_faults(f"problem {args.problem!r}", registry.problem_is_builtin(args.problem),
+                           registry.problem_provider(args.problem)):
+            data, truth = problem.simulate(pairs=pairs, seed=args.seed, noise=noise, **options)
         count, what, size = len(data["A"]), ("motions" if motions else "pairs"), f"--pairs {pairs}"
     if motions:
         metadata["pairing"] = args.pairing or DEFAULT_PAIRING
@@ -120,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
     # a file of stations carries the cell's truth (X, Y of AX=YB) and serves every problem reading
     # absolute poses (docs/formats.md); it is validated as the axyb data it also is
     path = save_data(args.output, data, truth, problem="axyb" if args.stations is not None else args.problem,
-                     metadata=metadata)
+                     metadata=metadata, force=args.force)
     print(f"wrote {count} {args.problem} {what} with truth to {path}")
     return 0
 

@@ -24,7 +24,6 @@ fields. Lengths stay in the board's unit; `in_unit` converts.
 from __future__ import annotations
 
 import dataclasses
-import json
 import re
 from pathlib import Path
 from typing import Any
@@ -32,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..input_files import load_json, load_yaml, number
 
 KINDS = ("chessboard", "charuco", "circles", "circlegrid", "aprilgrid")
 UNITS = {"mm": 1e-3, "m": 1.0}
@@ -256,13 +256,12 @@ def _min_count(kind: str) -> int:
 
 def _positive(board: Board, name: str, syntax: str) -> None:
     value = getattr(board, name)
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"board {name} must be a number, got {value!r}; syntax: {syntax}") from None
-    if isinstance(value, bool) or not np.isfinite(number) or number <= 0:
+    got = number(value)
+    if got is None:
+        raise InputError(f"board {name} must be a number, got {value!r}; syntax: {syntax}")
+    if not np.isfinite(got) or got <= 0:
         raise InputError(f"board {name} must be a positive number, got {value!r}; syntax: {syntax}")
-    object.__setattr__(board, name, number)
+    object.__setattr__(board, name, got)
 
 
 # -- parsing -----------------------------------------------------------------------------------
@@ -333,7 +332,10 @@ def _board_from_file(path: Path) -> Board:
                          f"a spec: {SYNTAX_LINE}")
     try:
         text = path.read_text(encoding="utf-8")
-        data = json.loads(text) if path.suffix.lower() == ".json" else _yaml_load(text)
+        where = f"board file {str(path)!r}"
+        data = load_json(text, where) if path.suffix.lower() == ".json" else load_yaml(text, where)
+    except InputError:  # load_yaml's, naming the file and line
+        raise
     except (OSError, UnicodeDecodeError, ValueError) as error:
         reason = " ".join(str(error).split())[:120]
         raise InputError(f"board file {str(path)!r} cannot be read as YAML/JSON ({reason})") from None
@@ -354,12 +356,3 @@ def _board_from_file(path: Path) -> Board:
     fields["kind"] = str(fields["kind"]).lower()
     fields.setdefault("unit", "mm")
     return Board(**fields)
-
-
-def _yaml_load(text: str) -> Any:
-    import yaml
-
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        raise ValueError(str(error)) from None

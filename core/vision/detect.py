@@ -8,8 +8,9 @@ points) or raises `BoardNotFound` with a one-line reason. One OpenCV detector pe
   ``cornerSubPix``). The order is OpenCV's; on a board with `Board.orientation_ambiguous` two images
   may number it 180 deg apart, which this module reports (the flag) but does not guess away.
 - charuco: ``cv2.aruco.CharucoDetector`` (ids are ChArUco corner ids; sub-pixel by OpenCV).
-- circles / circlegrid: ``cv2.findCirclesGrid`` with a blob detector sized for the image
-  (`handeye.vision.circlegrid`, which also orders a circlegrid from its big dot).
+- circles / circlegrid: ``cv2.findCirclesGrid`` on the blobs of a detector sized for the image, at
+  most `handeye.vision.circlegrid.blob_limit` of them (more: "too cluttered"), which also orders a
+  circlegrid from its big dot.
 - aprilgrid: ``cv2.aruco.ArucoDetector`` with tag36h11 and Kalibr's 2-bit border, corners refined
   by ``cornerSubPix`` (`handeye.vision.aprilgrid`).
 """

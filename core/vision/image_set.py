@@ -11,8 +11,10 @@ which robot pose, the board's pose in each kept image, and why the others were d
    ``index``: the k-th image with the k-th robot pose (equal counts required);
    ``time``: a stamp in the file name or a sidecar file (`image_stamp`) with the robot pose at the
    nearest time stamp within `max_dt` (``handeye.station_matching.match_by_time``);
-3. reads each image (grayscale) and detects the board; unreadable images and images where the
-   board is not found are dropped with their robot pose and the reason;
+3. reads each image (`read_image`: grayscale; 16-bit and float images scaled to 8 bits by their
+   own range) and detects the board; unreadable images, images of another size than most
+   (`_majority_size`) and images where the board is not found are dropped with their robot pose
+   and the reason;
 4. without intrinsics, calibrates the camera from the detections (`handeye.vision.intrinsics`);
 5. solves each board pose (`handeye.vision.camera_poses`) in the robot's length unit (board
    lengths converted) and drops images whose reprojection error is far above the others'
@@ -27,10 +29,11 @@ message; an `InputError` is raised only when no usable station remains.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
-import json
 import re
-from collections.abc import Callable, Sequence
+from collections import Counter
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +41,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
+from ..input_files import load_json, load_yaml, number
 from ..pose_readers import PoseStack, natural_key, read_pose_dir  # noqa: F401 (re-exported)
 from ..station_matching import default_max_dt, match_by_time
 from .boards import UNITS, Board
@@ -57,6 +61,12 @@ _STAMP_KEYS = ("stamp", "time", "t", "timestamp")
 #: integer stamps with at least this many digits are nanoseconds (ROS' sec * 1e9 + nanosec)
 _NANOSECOND_DIGITS = 18
 _NUMBER = re.compile(r"\d+(?:\.\d+)?")
+#: imread flags: one grey channel at the file's own depth (8, 16 bit, float). Unlike IMREAD_UNCHANGED
+#: this still turns a JPEG by its EXIF orientation; IMREAD_UNCHANGED is the fallback for what it
+#: cannot convert (a float colour TIFF)
+_READ_FLAGS = cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH
+#: images named in a warning before "and N more"
+_NAMED = 5
 
 Detector = Callable[[np.ndarray, Board], Any]
 
@@ -149,6 +159,68 @@ def list_images(source: str | Path | Sequence[str | Path]) -> list[Path]:
     return sorted(files, key=lambda p: natural_key(p.name))
 
 
+def read_image(path: str | Path) -> np.ndarray:
+    """The image file `path` as an 8-bit grey array (`to_8bit` of `_read_any`). InputError (one
+    line, naming the file) when it cannot be read or holds no usable values."""
+    return to_8bit(_read_any(Path(path)), Path(path).name)
+
+
+def _read_any(path: Path) -> np.ndarray:
+    """The image as stored, grey (2-D), at its own depth. OpenCV's warnings are silenced: a file it
+    cannot read is reported here, once, as an InputError."""
+    with _opencv_quiet():
+        image = cv2.imread(str(path), _READ_FLAGS)
+        if image is None:
+            image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise InputError(f"{path.name}: unreadable image file (not an image, damaged, or a kind OpenCV cannot "
+                         "decode); save it as 8- or 16-bit PNG")
+    if image.ndim == 3 and image.shape[2] in (3, 4):
+        code = cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
+        work = image if image.dtype in (np.uint8, np.uint16, np.float32) else image.astype(np.float32)
+        image = cv2.cvtColor(work, code)
+    elif image.ndim == 3 and image.shape[2] == 1:
+        image = image[..., 0]
+    if image.ndim != 2:
+        raise InputError(f"{path.name}: an image of shape {image.shape} is neither grey nor colour")
+    return image
+
+
+@contextlib.contextmanager
+def _opencv_quiet() -> Iterator[None]:
+    """OpenCV's own log (its "[ WARN ]" lines on stderr) off for the block, restored after."""
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    try:
+        yield
+    finally:
+        cv2.utils.logging.setLogLevel(level)
+
+
+def to_8bit(image: np.ndarray, name: str = "image") -> np.ndarray:
+    """A grey image as uint8: 8-bit passed through; any other depth (16-bit, e.g. 12-bit data in a
+    16-bit PNG, or float) scaled linearly from its own range (min..max) to 0..255, as the detectors
+    need 8 bits and only contrast matters to them (OpenCV's own 16 -> 8 bit conversion divides by
+    256, which leaves 12-bit data at 0..15, too dark to find a board). InputError for NaN or
+    infinite pixels."""
+    if image.dtype == np.uint8:
+        return image
+    values = image.astype(np.float64)
+    if not np.all(np.isfinite(values)):
+        raise InputError(f"{name}: a {_depth_name(image.dtype)} image with NaN or infinite pixels; save it with "
+                         "finite values (or as 8- or 16-bit PNG)")
+    low, high = float(values.min()), float(values.max())
+    scaled = (values - low) * (255.0 / (high - low)) if high > low else np.zeros_like(values)
+    return np.rint(scaled).astype(np.uint8)
+
+
+def _depth_name(dtype: np.dtype) -> str:
+    """'16-bit', '32-bit float', ... for an image's dtype."""
+    dtype = np.dtype(dtype)
+    kind = {"f": " float", "i": " signed"}.get(dtype.kind, "")
+    return f"{dtype.itemsize * 8}-bit{kind}"
+
+
 def image_stamp(path: str | Path) -> float | None:
     """The time stamp (seconds) of an image: from a sidecar file with its stem (``.txt``: one
     number; ``.json`` / ``.yaml``: key stamp, time, t or timestamp, a number or {sec(s), nanosec /
@@ -174,23 +246,22 @@ def _sidecar_stamp(path: Path) -> float:
     if path.suffix == ".txt":
         value: Any = text
     else:
-        import yaml
-
         try:
-            doc = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-        except (json.JSONDecodeError, yaml.YAMLError):
-            raise InputError(f"{src}: not valid {path.suffix[1:].upper()}; write the stamp as {{stamp: SECONDS}}") from None
+            doc = load_json(text, src) if path.suffix == ".json" else load_yaml(text, src)
+        except InputError as exc:
+            raise InputError(f"{exc}; write the stamp as {{stamp: SECONDS}}") from None
         value = doc
         if isinstance(doc, dict):
             value = next((doc[k] for k in _STAMP_KEYS if k in doc), None)
             if isinstance(value, dict):
                 sec = value.get("sec", value.get("secs"))
                 nsec = value.get("nanosec", value.get("nsecs", 0))
-                value = None if sec is None else float(sec) + float(nsec) * 1e-9
-    try:
-        return float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{src}: expected one number of seconds (or a key stamp / time), got {str(value)[:40]!r}") from None
+                sec, nsec = (None, None) if isinstance(sec, str) or isinstance(nsec, str) else (number(sec), number(nsec))
+                value = None if sec is None or nsec is None else sec + nsec * 1e-9
+    seconds = None if isinstance(value, str) and path.suffix != ".txt" else number(value)  # JSON/YAML: no "12.5"
+    if seconds is None:
+        raise InputError(f"{src}: expected one number of seconds (or a key stamp / time), got {str(value)[:40]!r}")
+    return seconds
 
 
 # ----------------------------------------------------------------------------- pairing
@@ -273,30 +344,70 @@ def _default_detector() -> Detector:
     return detect
 
 
-def _detect_all(files: Sequence[Path], board: Board, detector: Detector) -> tuple[list, list[str | None], tuple | None]:
-    """Per file: the detection or None, the reason it failed or None; and the common image size."""
+def _detect_all(files: Sequence[Path], board: Board,
+                detector: Detector) -> tuple[list, list[str | None], tuple | None, list[str]]:
+    """Per file: the detection or None, the reason it failed or None; the set's image size (the
+    one most readable images have, None when none is readable); warnings (images scaled to 8 bits,
+    images of another size dropped)."""
     found: list = []
     reasons: list[str | None] = []
-    size = None
+    sizes: list[tuple[int, int] | None] = []
+    converted: dict[str, list[tuple[str, float]]] = {}
     for path in files:
-        image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-        if image is None:
-            found.append(None)
-            reasons.append("unreadable image file (not an image, or damaged)")
-            continue
-        shape = (image.shape[1], image.shape[0])
-        if size is not None and shape != size:
-            found.append(None)
-            reasons.append(f"image size {shape[0]}x{shape[1]} differs from the others' {size[0]}x{size[1]}")
-            continue
-        size = size or shape
-        try:
-            found.append(detector(image, board))
-            reasons.append(None)
-        except InputError as exc:
-            found.append(None)
-            reasons.append(f"board not found: {exc}")
-    return found, reasons, size
+        detection, reason, size, depth = _read_and_detect(path, board, detector)
+        found.append(detection)
+        reasons.append(reason)
+        sizes.append(size)
+        if depth is not None:
+            converted.setdefault(depth[0], []).append((path.name, depth[1]))
+    size = _majority_size(sizes)
+    odd = [k for k, s in enumerate(sizes) if s is not None and s != size]
+    for k in odd:
+        found[k] = None
+        reasons[k] = (f"image size {sizes[k][0]}x{sizes[k][1]} differs from the {size[0]}x{size[1]} of most "
+                      "images")
+    warnings = [_converted_warning(depth, named, len(files)) for depth, named in converted.items()]
+    warnings += [f"dropped image {files[k].name}: {reasons[k]} (another camera or resolution?)" for k in odd]
+    return found, reasons, size, warnings
+
+
+def _read_and_detect(path: Path, board: Board, detector: Detector) -> tuple[Any, str | None, tuple[int, int] | None,
+                                                                               tuple[str, float] | None]:
+    """One image: its detection or None, why not (or None), its size (width, height; None when
+    unreadable) and, when it was not 8-bit, its depth and largest value."""
+    try:
+        raw = _read_any(path)
+        image = to_8bit(raw, path.name)
+    except InputError as exc:
+        return None, str(exc).removeprefix(f"{path.name}: "), None, None
+    size = (image.shape[1], image.shape[0])
+    depth = None if raw.dtype == np.uint8 else (_depth_name(raw.dtype), float(raw.max()))
+    try:
+        return detector(image, board), None, size, depth
+    except InputError as exc:
+        return None, f"board not found: {exc}", size, depth
+
+
+def _majority_size(sizes: Sequence[tuple[int, int] | None]) -> tuple[int, int] | None:
+    """The image size (width, height) most readable images have; a tie goes to the size seen first
+    (Counter keeps first-seen order). One odd image, first or not, then drops alone."""
+    counts = Counter(s for s in sizes if s is not None)
+    return counts.most_common(1)[0][0] if counts else None
+
+
+def _converted_warning(depth: str, named: list[tuple[str, float]], total: int) -> str:
+    """One line for the images of one depth that were scaled to 8 bits."""
+    largest = max(value for _, value in named)
+    which = (f"all {total} images are" if len(named) == total else
+             f"{len(named)} image{'s are' if len(named) > 1 else ' is'} ({_names([n for n, _ in named])})")
+    return (f"{which} {depth} (largest value {largest:g}): each was scaled from its own min..max to 8 bits to "
+            "detect the board")
+
+
+def _names(names: Sequence[str]) -> str:
+    """Up to `_NAMED` names, then "and N more"."""
+    shown = ", ".join(names[:_NAMED])
+    return shown + (f" and {len(names) - _NAMED} more" if len(names) > _NAMED else "")
 
 
 def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, camera: Camera | None = None, *,
@@ -329,16 +440,17 @@ def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, ca
     def pose_of(k: int) -> str | None:
         return None if robot_names is None else robot_names[robot_rows[k]]
 
-    found, reasons, size = _detect_all(files_used, board, detector or _default_detector())
+    found, reasons, size, warnings = _detect_all(files_used, board, detector or _default_detector())
     keep = [k for k, d in enumerate(found) if d is not None]
     dropped += [Dropped(files_used[k].stem, pose_of(k), reasons[k]) for k in range(len(found)) if found[k] is None]
+    if size is None:
+        raise InputError(f"none of the {len(files_used)} images could be read ({files_used[0].name}: {reasons[0]})")
     if not keep:
         raise InputError(f"the board ({board.describe()}) was found in none of the {len(files_used)} images "
                          f"({reasons[0]}); check --board (counts, kind) and the images")
     if camera is not None and camera.size is not None and size is not None and tuple(camera.size) != size:
         raise InputError(f"the intrinsics are for {camera.size[0]}x{camera.size[1]} images but the images are "
                          f"{size[0]}x{size[1]}; give the intrinsics of this camera at this resolution")
-    warnings = []
     if board.orientation_ambiguous:
         warnings.append(f"the board ({board.describe()}) looks the same after a half turn (cols + rows even): "
                         "its corner order may flip 180 deg between images, which spoils the board poses; prefer "

@@ -24,7 +24,6 @@ Nothing passed in is modified; bad input raises `handeye.errors.InputError` with
 from __future__ import annotations
 
 import dataclasses
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Protocol
@@ -33,6 +32,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
+from ..input_files import load_json, load_yaml, number
 from .observations import Camera
 
 #: fewest images with the board found that `calibrate_camera` accepts
@@ -86,18 +86,9 @@ def load_camera(path: str | Path) -> Camera:
     if ext == ".xml" or text.lstrip().startswith("%YAML"):
         fields = _read_file_storage(path, src)
     elif ext == ".json":
-        try:
-            fields = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise InputError(f"{src}: invalid JSON at line {exc.lineno}: {exc.msg}") from None
+        fields = load_json(text, src)
     else:
-        import yaml
-
-        try:
-            fields = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            mark = getattr(exc, "problem_mark", None)
-            raise InputError(f"{src}: invalid YAML{f' at line {mark.line + 1}' if mark else ''}") from None
+        fields = load_yaml(text, src)
     if not isinstance(fields, dict):
         raise InputError(f"{src}: expected a mapping of camera fields (camera_matrix, distortion_coefficients, ...)")
     return _camera_from_fields(fields, src)
@@ -160,11 +151,8 @@ def _numbers(value: Any, what: str, src: str) -> np.ndarray:
 
 
 def _scalar(value: Any, what: str, src: str) -> float:
-    try:
-        out = float(value)
-    except (TypeError, ValueError):
-        out = float("nan")
-    if isinstance(value, bool) or not np.isfinite(out):
+    out = number(value)
+    if out is None or not np.isfinite(out):
         raise InputError(f"{src}: {what} must be a finite number, got {str(value)[:40]!r}")
     return out
 
