@@ -13,14 +13,16 @@ milliseconds); the command line and studies turn it on for third-party plugins.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import signal
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from .errors import SolverError, SolverTimeoutError
+from .processes import set_parent_death_signal
 
 
 def fork_available() -> bool:
@@ -36,7 +38,7 @@ def call_with_time_limit(call: Callable[[], Any], seconds: float, who: str) -> A
         raise SolverError(f"a time limit needs a platform that can fork a process; run {who} without one")
     context = multiprocessing.get_context("fork")
     receive, send = context.Pipe(duplex=False)
-    with warnings.catch_warnings():  # Python >= 3.12 warns about fork with threads (BLAS pools)
+    with warnings.catch_warnings(), _signals_held():  # Python >= 3.12 warns about fork with threads (BLAS pools)
         warnings.simplefilter("ignore", DeprecationWarning)
         child = context.Process(target=_child, args=(send, call), daemon=True)
         child.start()
@@ -64,10 +66,29 @@ def call_with_time_limit(call: Callable[[], Any], seconds: float, who: str) -> A
     return payload
 
 
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """SIGINT and SIGTERM held back during the fork (delivered right after it): a handler that
+    raises (a study's stop request) must not raise inside the interpreter's at-fork hooks, where
+    the exception would be lost and a lock left held."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
 def _child(send: Any, call: Callable[[], Any]) -> None:
     """The child's side: run, send ("ok", result) or ("error", exception), and exit at once
     (no atexit handlers, no waiting for threads the call left running)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # the parent's stop handler is not the child's
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})  # held during the fork
+    set_parent_death_signal(signal.SIGKILL)  # a parent killed outright (a study's worker) takes this along
     try:
         try:
             message: tuple[str, Any] = ("ok", call())

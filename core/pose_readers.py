@@ -242,20 +242,20 @@ def write_poses(path: str | Path, poses: ArrayLike | PoseStack, format: str | Po
         sep = "\t" if ext == ".tsv" else ","
         lines = [f"# handeye poses: format {fmt.name}, unit {unit}", sep.join(header)]
         lines += [sep.join(repr(v) if isinstance(v, float) else str(v) for v in rec) for rec in records]
-        write_text(path, "\n".join(lines) + "\n")
+        write_text(path, "\n".join(lines) + "\n", force=True)
     elif ext in (".json", ".yaml", ".yml"):
         doc = {"format": fmt.name, "units": unit, POSES_KEY: [dict(zip(header, rec)) for rec in records]}
         if ext == ".json":
-            write_text(path, json.dumps(doc, indent=1) + "\n")
+            write_text(path, json.dumps(doc, indent=1) + "\n", force=True)
         else:
-            write_text(path, _yaml().safe_dump(doc, sort_keys=False))
+            write_text(path, _yaml().safe_dump(doc, sort_keys=False), force=True)
     elif ext == ".npz":
         extra = {"units": np.array(unit)}
         if names:
             extra["names"] = np.array(names)
         if stamps is not None:
             extra["stamps"] = stamps
-        with new_file(path, binary=True) as fh:  # a file object: np.savez would append .npz to other names
+        with new_file(path, force=True, binary=True) as fh:  # a file object: np.savez would append .npz to other names
             np.savez(fh, **{POSES_KEY: rows}, **extra)
     else:
         raise InputError(f"{str(path)!r}: unsupported pose file extension {ext or '(none)'!r}; supported: {', '.join(EXTENSIONS)}")

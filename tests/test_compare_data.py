@@ -78,7 +78,7 @@ def test_heldout_residuals_close_to_the_truths(axyb_file):
 
 
 def test_axxb_station_folds_leak_no_test_station(stations_file, monkeypatch):
-    from handeye.harness import crossval
+    from handeye.harness import runner
     from handeye.problems.axxb import motions
 
     pose_file = load_file(stations_file, "axxb")
@@ -86,13 +86,13 @@ def test_axxb_station_folds_leak_no_test_station(stations_file, monkeypatch):
                       get_registry().problem("axxb").station_reader)
     assert cv.by_station and cv.count == 14
     seen = []
-    real_solve = crossval.solve
+    real_solve = runner.solve
 
     def spy(problem, **kwargs):
         seen.append(kwargs["A"].copy())
         return real_solve(problem, **kwargs)
 
-    monkeypatch.setattr(crossval, "solve", spy)
+    monkeypatch.setattr(runner, "solve", spy)  # every fit goes through runner.limited_solve
     result = run_crossval(cv, (Spec("kron-lstsq"),), folds=3, seed=0, progress=False)
     robot, camera = pose_file.poses["robot_poses"], pose_file.poses["camera_poses"]
     assert len(seen) == 4  # the full fit, then one per fold

@@ -274,3 +274,18 @@ def test_a_faulty_problem_plugin_is_a_one_line_solver_error(plugin, capsys, tmp_
         handeye.solve("faulty-problem", solver="faulty-kron", **data)
     assert main(["simulate", "--problem", "faulty-problem", "-o", str(tmp_path / "x.npz")]) == 1
     assert "failed: IndexError: simulate looks past the end" in one_line_error(capsys)
+
+
+def test_a_study_stops_a_solver_that_swallows_its_time_limit(faulty):
+    """`compare --timeout` was defeated by a solver that catches the timeout exception: a third
+    party's solver now runs in a worker process that is killed at the limit."""
+    from handeye.harness import Spec, Study, Sweep, run_study
+
+    study = Study(name="swallow", problem="axyb", specs=(Spec("f-hangs"), Spec("shah")), trials=2, seed=1,
+                  timeout=0.5, sweeps=(Sweep("noise", levels=(1.0,), pairs=(8,)),))
+    start = time.perf_counter()
+    result = run_study(study, jobs=1, progress=False)
+    assert time.perf_counter() - start < 30
+    hung = result.select(label="f-hangs")
+    assert len(hung) == 2 and all(r["status"] == "failed" and "gave no answer within" in r["error"] for r in hung)
+    assert all(r["status"] != "failed" for r in result.select(label="shah"))  # the study went on

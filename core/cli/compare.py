@@ -11,6 +11,11 @@ noise on A and B, m = 8, 16, 50, every solver against a refinement started at th
 override what the study says. A folder that already holds the results of a study of the same
 name is left alone unless ``--force`` is given.
 
+Every finished trial is appended to ``OUTDIR/NAME.journal.jsonl`` at once. Ctrl-C or SIGTERM
+stops the study cleanly (exit 130 / 143) and keeps the finished trials; running the same command
+again resumes from the journal (a journal of another study definition is refused; ``--force``
+starts afresh). The journal is removed once the final outputs are written.
+
 ``--data FILE -o OUTDIR`` (or ``--example NAME``) compares the solvers on your own data, which have
 no truth, by held-out residuals: k-fold cross-validation (``--folds``, default 5, seeded by
 ``--seed``) over the pairs, or over the stations of a file of absolute poses read as AX=XB
@@ -215,8 +220,29 @@ def _stacks(args: argparse.Namespace, default: tuple[str, ...]) -> tuple[str, ..
     return stacks
 
 
+def open_journal(args: argparse.Namespace, study: Any, outdir: Path) -> Any:
+    """The run's `StudyJournal` in `outdir`: an unfinished run of the same study there is resumed
+    (its final files, if the report was being written when it stopped, are then rewritten);
+    otherwise, as for every command, earlier results are not overwritten without --force, which
+    also discards the journal and starts afresh. A journal of another study definition: exit 2."""
+    from ..harness.result import StudyJournal, journal_path
+
+    path = journal_path(outdir, study.name)
+    if args.force or not path.exists():
+        flag = "--paper" if args.paper else "--accuracy" if args.accuracy else "-o"
+        check_new_results(flag, outdir, [study.name + suffix for suffix in STUDY_FILES], args.force)
+    return StudyJournal.open(path, study, fresh=args.force,
+                             hint="pass --force to discard it and start afresh (or use another folder or --name)")
+
+
 def run(args: argparse.Namespace) -> int:
     from ..harness import run_study, time_table, write_report
+    from ..harness.interrupts import (
+        Interrupted,
+        StudyInterrupted,
+        interruptible,
+        stop_on_signals,
+    )
 
     if args.data or args.example:
         from . import compare_data
@@ -228,11 +254,24 @@ def run(args: argparse.Namespace) -> int:
     study, outdir = build_study(args)
     if args.scheduler and args.executor != "dask":
         raise InputError("--scheduler needs --executor dask")
-    flag = "--paper" if args.paper else "--accuracy" if args.accuracy else "-o"
-    check_new_results(flag, outdir, [study.name + suffix for suffix in STUDY_FILES], args.force)
-    result = run_study(study, jobs=args.jobs, progress=not args.no_progress,
-                       executor=args.executor, scheduler=args.scheduler)
-    paths = write_report(result, outdir)
+    journal = open_journal(args, study, outdir)
+    if journal.resumed:
+        print(f"resumed {journal.resumed:,} of {journal.total:,} trials from {journal.path}")
+        sys.stdout.flush()
+    try:
+        with stop_on_signals():
+            result = run_study(study, jobs=args.jobs, progress=not args.no_progress,
+                               executor=args.executor, scheduler=args.scheduler, journal=journal)
+            with interruptible():  # the report is written whole or not at all
+                paths = write_report(result, outdir)
+    except StudyInterrupted as stop:
+        print(f"handeye: {stop}; run the same command again to resume", file=sys.stderr)
+        return stop.exit_code
+    except Interrupted as stop:
+        print(f"handeye: stopped by {stop.signal_name} while writing the report; every trial is saved in "
+              f"{journal.path}: run the same command again to write it", file=sys.stderr)
+        return stop.exit_code
+    journal.remove()
     failed = sum(r["status"] == "failed" for r in result.records)
     print(f"study {study.name!r}: {len(result.records)} runs ({failed} failed) of {len(result.specs)} "
           f"solver(s) in {result.seconds:.1f} s (CPU {result.cpu_seconds:.1f} s) with {result.jobs} job(s) "

@@ -5,6 +5,9 @@ The data file is read as for ``handeye solve`` (`handeye.io.load_file`: the prob
 fields, or the absolute poses of stations with ``--setup`` / ``--pairing``). A bundled example
 (pairs of AX=YB) is read as the stations' absolute poses when ``--problem`` forms motions
 (``axxb``), so it is folded by station.
+
+The folds run in this process, in one go, and the files are written at the end, whole or not at
+all: Ctrl-C or SIGTERM (exit 130 / 143) leaves no file of the run behind; run it again.
 """
 
 from __future__ import annotations
@@ -66,6 +69,7 @@ def run(args: argparse.Namespace) -> int:
     from ..harness import default_specs, parse_specs
     from ..harness.crossval import run_crossval
     from ..harness.crossval_report import heldout_table, write_crossval
+    from ..harness.interrupts import Interrupted, interruptible, stop_on_signals
 
     given = [f.replace("_", "-") for f in SIMULATION_FLAGS if getattr(args, f, None) not in (None, False)]
     if args.executor != "process":
@@ -84,9 +88,15 @@ def run(args: argparse.Namespace) -> int:
     specs = parse_specs(args.solvers, args.problem) if args.solvers else default_specs(args.problem)
     cv, source = read(args)
     timeout = 30.0 if args.timeout is None else (args.timeout if args.timeout > 0 else None)
-    result = run_crossval(cv, specs, folds=folds, seed=0 if args.seed is None else args.seed,
-                          timeout=timeout, progress=not args.no_progress)
-    paths = write_crossval(result, Path(args.output), name=name, source=source)
+    try:
+        with stop_on_signals(), interruptible():  # in memory, in one go; the files are written whole or not at all
+            result = run_crossval(cv, specs, folds=folds, seed=0 if args.seed is None else args.seed,
+                                  timeout=timeout, progress=not args.no_progress)
+            paths = write_crossval(result, Path(args.output), name=name, source=source)
+    except Interrupted as stop:
+        print(f"handeye: stopped by {stop.signal_name} before the cross-validation was written (nothing of it is in "
+              f"{args.output}); run the command again", file=sys.stderr)
+        return stop.exit_code
     failed = sum(r["status"] == "failed" for r in result.folds)
     print(f"held-out residuals of {len(specs)} solver(s) on {source} ({args.problem}): {folds}-fold "
           f"cross-validation over {cv.count} {cv.item}s, seed {result.seed}; {failed} failed fit(s); "

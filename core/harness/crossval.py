@@ -20,7 +20,7 @@ What is folded:
   drifting camera: only neighbouring stations form good motions) the folds are contiguous blocks,
   so that test motions exist at all.
 
-Reuses the harness: `Spec` contenders, `runner.time_limit` for the per-solve time limit, the
+Reuses the harness: `Spec` contenders, `runner.limited_solve` for the per-solve time limit, the
 progress bar, `result.describe`; `crossval_report` writes the tables, CSV, JSON and the figure.
 """
 
@@ -35,12 +35,11 @@ from typing import Any
 
 import numpy as np
 
-from ..api import solve
 from ..errors import HandEyeError, InputError
 from ..problem import StationReader
 from ..registry import get_registry
 from ..solution import Status
-from .runner import _progress, time_limit
+from .runner import SolveTimeout, _progress, limited_solve
 from .study import Spec
 
 #: the label of the reference row when the data carry a truth: the true unknowns' residuals on
@@ -206,9 +205,8 @@ class CrossValResult:
 def _fit(problem: str, spec: Spec, data: Mapping[str, np.ndarray], timeout: float | None) -> tuple[Any, str]:
     """(solution or None, error text)."""
     try:
-        with time_limit(timeout):
-            return solve(problem, solver=spec.solver, backend=spec.backend, **data, **spec.options), ""
-    except Exception as exc:  # noqa: BLE001 - a failing solver is a record, the comparison goes on
+        return limited_solve(problem, spec.solver, spec.backend, dict(data), dict(spec.options), timeout), ""
+    except (Exception, SolveTimeout) as exc:  # noqa: BLE001 - a failing solver is a record, the comparison goes on
         return None, " ".join(f"{type(exc).__name__}: {exc}".split())
 
 

@@ -17,7 +17,7 @@ from typing import Any
 
 from .crossval import TRUTH_LABEL, CrossValResult
 from .report import _ms
-from .result import _csv_value, _plain, environment
+from .result import _csv_value, _plain, environment, moved, staged_outputs
 
 
 def _unit(result: CrossValResult) -> str:
@@ -80,9 +80,16 @@ def _write_csv(rows: list[dict[str, Any]], path: Path) -> Path:
 
 def write_crossval(result: CrossValResult, outdir: str | Path, name: str = "heldout",
                    source: str = "") -> dict[str, Path]:
-    """Write everything to `outdir`; return {"folds", "pairs", "json", "table", "figure"} paths."""
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
+    """Write everything to `outdir`, whole or not at all (`staged_outputs`: a run stopped while
+    writing leaves no half-written file); return {"folds", "pairs", "json", "table", "figure"}
+    paths."""
+    with staged_outputs(outdir, name) as stage:
+        paths = _write_crossval_files(result, stage, name, source)
+    return moved(paths, outdir)
+
+
+def _write_crossval_files(result: CrossValResult, outdir: Path, name: str, source: str) -> dict[str, Path]:
+    """`write_crossval`'s files, written to `outdir` (its staging folder)."""
     data = result.data
     summary = {
         "source": source, "problem": data.problem, "folded": data.item, "items": data.count,

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..registry import get_registry
-from .result import StudyResult, describe
+from .result import StudyResult, describe, moved, staged_outputs
 
 #: y axis goes logarithmic when the centres and lower band edges plotted (noise level 0 excluded)
 #: span more than this ratio
@@ -200,10 +200,16 @@ def error_table(result: StudyResult, *, stat: str = "median", reference: str | N
 def write_report(result: StudyResult, outdir: str | Path, *, reference: str | None = None) -> dict[str, Any]:
     """Write ``<study>.csv`` (records), ``<study>_summary.json``, the PNG figures,
     ``<study>_times.md`` and ``<study>_errors.md`` (errors per cell, `Study.center` over the
-    trials) to `outdir`.
+    trials) to `outdir`, whole or not at all (`staged_outputs`: a run stopped while writing
+    leaves no half-written file).
     Returns {"csv": path, "json": path, "times": path, "errors": path, "figures": [paths]}."""
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
+    with staged_outputs(outdir, result.study.name) as stage:
+        paths = _write_report_files(result, stage, reference)
+    return moved(paths, outdir)
+
+
+def _write_report_files(result: StudyResult, outdir: Path, reference: str | None) -> dict[str, Any]:
+    """`write_report`'s files, written to `outdir` (its staging folder)."""
     name = result.study.name
     if reference is None and "oracle" in result.labels:
         reference = "oracle"

@@ -5,22 +5,33 @@ A record is one trial x spec (columns in `handeye.harness.runner`). `summary` gr
 quartiles of every metric column (errors, residuals, seconds). Failed runs have no metrics (NaN)
 and are left out of the statistics; runs that returned an answer with a non-optimal status
 (``not_converged``, ``uncertified``, ...) are included and counted in ``not_optimal``.
+
+`StudyJournal` keeps the records of a run on disk as its units finish, so that a run stopped
+at any moment (Ctrl-C, SIGTERM, SIGKILL, a crash) loses at most the units in flight and a rerun
+of the same study resumes it. `staged_outputs` writes a report's files whole or not at all.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
+import datetime
 import importlib.metadata
 import json
 import math
+import os
 import platform
-from collections.abc import Iterable
+import shutil
+import signal
+import tempfile
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
 from .study import Spec, Study
 
 GROUP_KEYS = ("sweep", "level", "pairs", "label")
@@ -43,6 +54,9 @@ class StudyResult:
     jobs: int = 1
     executor: str = "process"
     cpu_seconds: float = math.nan
+    #: units (trials of a cell) taken from the journal of an earlier, interrupted session;
+    #: `seconds` and `cpu_seconds` are those of this session
+    resumed: int = 0
 
     @property
     def labels(self) -> list[str]:
@@ -109,7 +123,7 @@ class StudyResult:
             "study": self.study.to_dict(),
             "specs": [s.to_dict() for s in self.specs],
             "run": {"seconds": self.seconds, "cpu_seconds": self.cpu_seconds, "jobs": self.jobs,
-                    "executor": self.executor,
+                    "executor": self.executor, "resumed_units": self.resumed,
                     "records": len(self.records), "environment": environment()},
             "summary": self.summary(),
         }
@@ -165,3 +179,192 @@ def read_csv(path: str | Path) -> list[dict[str, str]]:
     """The rows of a results CSV as dicts of strings (for tests and quick looks)."""
     with Path(path).open(newline="") as f:
         return list(csv.DictReader(f))
+
+
+# --------------------------------------------------------------------------------------------
+# the journal of a run, and reports written whole
+
+#: the journal of a run in its output folder: ``<study>.journal.jsonl``
+JOURNAL_SUFFIX = ".journal.jsonl"
+JOURNAL_FORMAT = "handeye-study-journal"
+JOURNAL_VERSION = 1
+
+#: what identifies a unit in a journal: (sweep name, level index, pair-count index, trial)
+UnitKey = tuple[str, int, int, int]
+
+
+def journal_path(outdir: str | Path, name: str) -> Path:
+    """Where a run of study `name` into `outdir` keeps its journal."""
+    return Path(outdir) / f"{name}{JOURNAL_SUFFIX}"
+
+
+class StudyJournal:
+    """The finished units of a run on disk, one JSON line each, appended as each unit returns.
+
+    Why JSON lines rather than a partial CSV: a line holds one whole unit (the records of every
+    spec on one trial of a cell) with its key, so a unit is on disk entirely or not at all; the
+    records keep their Python types (int, float to the last bit, bool, NaN as Python's json
+    writes it), so a resumed run writes the same CSV as an uninterrupted one; and the columns
+    may differ between units (sweeps with their own noise stacks), which a CSV header fixed at
+    the first row could not hold.
+
+    Line 1 is a header: ``{"format", "version", "fingerprint", "study", "units", "started",
+    "definition"}``; `Study.fingerprint` says which study the journal belongs to. Every other
+    line is ``{"unit": [sweep, level index, pairs index, trial], "pid": the worker process,
+    "records": [...]}``, written with one write(2) to a file opened with O_APPEND: a process
+    killed at any moment leaves whole lines and at most a torn last one, which reading drops (that
+    unit runs again). The file is created, or a torn tail cut off, at the first append, so
+    opening a journal changes nothing on disk (but ``fresh=True``, which removes it).
+    """
+
+    def __init__(self, path: Path, fingerprint: str, header: dict[str, Any],
+                 done: dict[UnitKey, list[dict[str, Any]]], valid_bytes: int) -> None:
+        self.path = path
+        self.fingerprint = fingerprint
+        self.header = header
+        #: the records of every finished unit, by key (read at open, then appended)
+        self.done = done
+        #: units read from the file at open
+        self.resumed = len(done)
+        self._valid_bytes = valid_bytes  # the file up to its last whole line; -1: start a new file
+        self._fd: int | None = None
+
+    @property
+    def total(self) -> int:
+        """Units of the study (cells x trials)."""
+        return int(self.header["units"])
+
+    @classmethod
+    def open(cls, path: str | Path, study: Study, specs: Sequence[Spec] | None = None, *, fresh: bool = False,
+             hint: str = "pass fresh=True to discard it and start afresh") -> StudyJournal:
+        """The journal at `path` of a run of `study` (`specs`: default its resolved specs): the
+        units an earlier session finished when the file is there, else none. `fresh` removes an
+        existing journal. Raises InputError (ending with `hint`, what to do) when the file is
+        the journal of another study definition, not a journal, or damaged before its last line."""
+        path = Path(path)
+        specs = study.resolved_specs() if specs is None else tuple(specs)
+        fingerprint = study.fingerprint(specs)
+        header = {"format": JOURNAL_FORMAT, "version": JOURNAL_VERSION, "fingerprint": fingerprint,
+                  "study": study.name, "units": sum(1 for _ in study.cells()) * study.trials,
+                  "started": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+                  "definition": {**study.to_dict(), "solvers": [s.to_dict() for s in specs]}}
+        if fresh:
+            path.unlink(missing_ok=True)
+        if not path.exists():
+            return cls(path, fingerprint, header, {}, -1)
+        done, valid_bytes, found = _read_journal(path, fingerprint, hint)
+        return cls(path, fingerprint, found or header, done, valid_bytes if found else -1)
+
+    def append(self, key: UnitKey, records: list[dict[str, Any]], pid: int | None = None) -> None:
+        """Put a finished unit on disk (one line, one write(2): whole or not at all, and in the
+        kernel's hands as soon as this returns, so that even SIGKILL cannot lose it)."""
+        line = json.dumps({"unit": list(key), "pid": pid, "records": records}, default=str)
+        self._write(line)
+        self.done.setdefault(key, records)
+
+    def close(self) -> None:
+        """Sync the file to disk and close it (a later `append` reopens it)."""
+        if self._fd is not None:
+            fd, self._fd = self._fd, None
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+
+    def remove(self) -> None:
+        """Close and delete the journal: once a run's final outputs are written it is not needed."""
+        self.close()
+        self.path.unlink(missing_ok=True)
+
+    def _write(self, line: str) -> None:
+        data = (line + "\n").encode()
+        if self._fd is None:
+            self._fd = self._open_for_append()
+        written = os.write(self._fd, data)
+        if written != len(data):  # a full disk: the torn line is dropped when the journal is read
+            raise OSError(f"{self.path}: wrote {written} of {len(data)} bytes of a journal line; is the disk full?")
+
+    def _open_for_append(self) -> int:
+        """Open the file for appending: a new file starts with the header; an existing one loses
+        a torn last line (a session killed while writing it)."""
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        if self._valid_bytes < 0:
+            fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND, 0o644)
+            os.write(fd, (json.dumps(self.header, default=str) + "\n").encode())
+            self._valid_bytes = 0
+            return fd
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+        if os.fstat(fd).st_size > self._valid_bytes:
+            os.ftruncate(fd, self._valid_bytes)
+        return fd
+
+
+def _read_journal(path: Path, fingerprint: str, hint: str) -> tuple[dict[UnitKey, list[dict[str, Any]]], int, dict[str, Any] | None]:
+    """(records by unit key, bytes up to the last whole line, header) of the journal at `path`;
+    no header when the file is empty or holds only a torn header (treated as no journal)."""
+    data = path.read_bytes()
+    lines = data.split(b"\n")[:-1]  # a torn last line (no newline) is left out
+    if not lines:
+        return {}, 0, None
+    try:
+        header = json.loads(lines[0])
+    except ValueError:
+        header = None
+    if not isinstance(header, dict) or header.get("format") != JOURNAL_FORMAT:
+        raise InputError(f"{path} is not a journal of a handeye study; remove it, or {hint}")
+    if header.get("version") != JOURNAL_VERSION:
+        raise InputError(f"{path} is a version {header.get('version')} journal, this handeye reads version "
+                         f"{JOURNAL_VERSION}; {hint}")
+    if header.get("fingerprint") != fingerprint:
+        raise InputError(f"{path} holds an unfinished run of another definition of study {header.get('study')!r} "
+                         "(solvers, sweeps, trials, seed, noise, units or timeout differ); rerun that study unchanged "
+                         f"to resume it, or {hint}")
+    done: dict[UnitKey, list[dict[str, Any]]] = {}
+    for number, line in enumerate(lines[1:], start=2):
+        try:
+            entry = json.loads(line)
+            key = tuple(entry["unit"])
+            records = entry["records"]
+        except (ValueError, KeyError, TypeError):
+            raise InputError(f"{path}: line {number} is damaged; {hint}") from None
+        done.setdefault(key, records)  # type: ignore[arg-type]
+    return done, len(data) - len(data.split(b"\n")[-1]), header
+
+
+@contextlib.contextmanager
+def staged_outputs(outdir: str | Path, name: str) -> Iterator[Path]:
+    """A hidden folder in `outdir` to write a report into. When the block ends, its files move
+    into `outdir` together (SIGINT and SIGTERM held off for those few renames); when the block
+    raises (an error, Ctrl-C, SIGTERM), the folder goes with its files. So a report is there
+    whole or not at all, never half a CSV; only SIGKILL while writing leaves the hidden folder
+    (``.<name>.writing-*``)."""
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=f".{name}.writing-", dir=outdir))
+    try:
+        yield stage
+        with _signals_held():
+            for path in sorted(stage.iterdir()):
+                os.replace(path, outdir / path.name)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def moved(paths: dict[str, Any], outdir: str | Path) -> dict[str, Any]:
+    """`paths` (paths, or lists of them, in the staging folder) as they are in `outdir`."""
+    outdir = Path(outdir)
+    return {key: [outdir / p.name for p in value] if isinstance(value, list) else outdir / Path(value).name
+            for key, value in paths.items()}
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """SIGINT and SIGTERM wait (are blocked) in the block and are delivered after it (POSIX)."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)

@@ -23,6 +23,13 @@ error, seconds = `Solution.seconds`), errors against the truth (eqs. 30-31, ``er
 ``res_rot_median`` rad, ``res_trans_mean``, ``res_trans_median`` mm), and the solution's warnings
 (``warnings``: how many, ``notes``: their text, e.g. why a run did not converge). Translations are always
 reported in mm, the simulator's unit, whatever `Study.units` the solvers were given.
+
+Interruptions: with a journal (`run_study(journal=...)`, `handeye.harness.result.StudyJournal`)
+every finished unit's records are on disk as soon as the unit returns, and a rerun of the same
+study skips them. While a study runs, SIGINT and SIGTERM stop it cleanly (`stop_on_signals`): no
+more units start, queued ones are cancelled, the process-pool workers are terminated, and
+`StudyInterrupted` (a KeyboardInterrupt) says how many units are saved. The workers also end
+when the process running the study is killed outright (SIGKILL): `handeye.processes.die_with_parent`.
 """
 
 from __future__ import annotations
@@ -38,25 +45,31 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..api import solve
 from ..errors import InputError
+from ..isolation import fork_available
+from ..processes import die_with_parent
 from ..registry import (
     _extra as _runtime_plugins,  # run-time plugins, re-registered in workers
 )
 from ..registry import get_registry, register_plugin
 from ..se3 import random_poses
 from ..solution import Status
-from .result import StudyResult
+from .interrupts import POLL, StudyInterrupted, check_stop, interruptible, stop_on_signals
+from .result import StudyJournal, StudyResult, UnitKey
 from .study import UNITS, Cell, Spec, Study
 
 #: std of each translation axis of a random truth (mm), as `handeye.problems.axyb.random_truth`
 RANDOM_TRUTH_MM = 500.0
 EXECUTORS = ("process", "dask")
+#: seconds terminated workers get to exit before they are killed (SIGKILL)
+STOP_TIMEOUT = 2.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,6 +81,11 @@ class Unit:
     specs: tuple[Spec, ...]
     cell: Cell
     trial: int
+
+    @property
+    def key(self) -> UnitKey:
+        """What identifies the unit in a journal: (sweep, level index, pairs index, trial)."""
+        return (self.cell.sweep, self.cell.level_index, self.cell.pairs_index, self.trial)
 
 
 def data_seed(study: Study, cell: Cell, trial: int) -> int:
@@ -115,8 +133,10 @@ _warmed: set[tuple[str, str]] = set()
 WARMUP_TIMEOUT_FACTOR = 4.0
 
 
-class SolveTimeout(Exception):
-    """A solve ran past `Study.timeout`; recorded as a failure of that run."""
+class SolveTimeout(BaseException):
+    """A solve ran past `Study.timeout`; recorded as a failure of that run. A BaseException, so
+    that a solver's ``except Exception`` does not swallow it (a bare ``except`` still can: third
+    parties' solvers run in a worker process instead, `limited_solve`)."""
 
 
 @contextlib.contextmanager
@@ -142,6 +162,20 @@ def time_limit(seconds: float | None) -> Iterator[None]:
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
+
+
+def limited_solve(problem: str, solver: str, backend: str | None, data: dict[str, Any], options: dict[str, Any],
+                  seconds: float | None) -> Any:
+    """`handeye.solve` within `seconds` (None: no limit). A third party's solver runs in a forked
+    worker process that is killed at the limit (``solve(time_limit=...)``): it cannot swallow the
+    limit, outlast it in a C call or leave a thread behind. handeye's own solvers run here, under
+    `time_limit` (a fork per solve would cost more than most solves)."""
+    registry = get_registry()
+    third_party = seconds and solver in registry.solver_names(problem) and not registry.is_builtin(solver, problem)
+    if third_party and fork_available():
+        return solve(problem, solver=solver, backend=backend, time_limit=seconds, **data, **options)
+    with time_limit(seconds):
+        return solve(problem, solver=solver, backend=backend, **data, **options)
 
 
 def run_unit(unit: Unit) -> tuple[int, list[dict[str, Any]]]:
@@ -174,14 +208,13 @@ def run_unit(unit: Unit) -> tuple[int, list[dict[str, Any]]]:
         if study.warmup and key not in _warmed:
             _warmed.add(key)
             try:  # one-off costs (imports, compiled-problem caches) stay out of the timings
-                with time_limit(None if study.timeout is None else WARMUP_TIMEOUT_FACTOR * study.timeout):
-                    solve(study.problem, solver=spec.solver, backend=spec.backend, **data, **options)
-            except Exception:  # noqa: BLE001, S110 - the timed solve below records any failure
+                limited_solve(study.problem, spec.solver, spec.backend, data, options,
+                              None if study.timeout is None else WARMUP_TIMEOUT_FACTOR * study.timeout)
+            except (Exception, SolveTimeout):  # noqa: BLE001, S110 - the timed solve below records any failure
                 pass
         try:
-            with time_limit(study.timeout):
-                sol = solve(study.problem, solver=spec.solver, backend=spec.backend, **data, **options)
-        except Exception as exc:  # noqa: BLE001 - any solver failure is a record, the study goes on
+            sol = limited_solve(study.problem, spec.solver, spec.backend, data, options, study.timeout)
+        except (Exception, SolveTimeout) as exc:  # noqa: BLE001 - any solver failure is a record, the study goes on
             records.append(_failed(base, spec, f"{type(exc).__name__}: {exc}", problem.unknowns))
             continue
         row = _row(base, spec, sol.backend)
@@ -228,12 +261,29 @@ def _failed(base: dict[str, Any], spec: Spec, reason: str, unknowns: Iterable[st
 # --------------------------------------------------------------------------------------------
 # executors
 
-def _init_worker(plugins: list[tuple[str, Any]]) -> None:
-    """Make a worker see the run-time plugins of its parent (a no-op after fork)."""
+#: what an executor does with a finished unit: finish(unit index, records, pid of the process that ran it)
+Finish = Callable[[int, list[dict[str, Any]], int], None]
+
+
+def _init_worker(plugins: list[tuple[str, Any]], parent: int | None = None) -> None:
+    """Prepare a process-pool worker: make it end with `parent` (the process running the study,
+    `handeye.processes.die_with_parent`), leave Ctrl-C to the parent (which stops the workers itself) and let
+    SIGTERM end it at once, and make it see the run-time plugins of its parent (a no-op after
+    fork)."""
+    if parent is not None:
+        die_with_parent(parent)
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
     known = {name for name, _ in _runtime_plugins}
     for name, plugin in plugins:
         if name not in known:
             register_plugin(plugin, name)
+
+
+def _tagged(unit: Unit) -> tuple[int, list[dict[str, Any]], int]:
+    """`run_unit` plus the id of the process that ran it (kept in the journal)."""
+    index, records = run_unit(unit)
+    return index, records, os.getpid()
 
 
 def _process_context() -> multiprocessing.context.BaseContext:
@@ -242,38 +292,83 @@ def _process_context() -> multiprocessing.context.BaseContext:
     return multiprocessing.get_context()
 
 
-def _progress(total: int, desc: str, enabled: bool) -> Any:
-    """A tqdm bar on stderr without tqdm's monitor thread (no thread may run when workers fork)."""
+def _progress(total: int, desc: str, enabled: bool, initial: int = 0) -> Any:
+    """A tqdm bar on stderr without tqdm's monitor thread (no thread may run when workers fork);
+    `initial`: units already done (resumed)."""
     from tqdm import tqdm
 
     class Bar(tqdm):
         monitor_interval = 0
 
-    return Bar(total=total, desc=desc, unit="trial", disable=not enabled, dynamic_ncols=True, file=sys.stderr)
+    return Bar(total=total, initial=initial, desc=desc, unit="trial", disable=not enabled, dynamic_ncols=True,
+               file=sys.stderr)
 
 
-def _run_serial(units: list[Unit], tick: Callable[[], None]) -> dict[int, list[dict[str, Any]]]:
-    out = {}
+def _run_serial(units: list[Unit], finish: Finish) -> None:
+    """Run `units` in this process, each `interruptible` (a signal stops its solve)."""
     for unit in units:
-        index, records = run_unit(unit)
-        out[index] = records
-        tick()
-    return out
+        with interruptible():
+            done = _tagged(unit)
+        finish(*done)
 
 
-def _run_processes(units: list[Unit], jobs: int, tick: Callable[[], None]) -> dict[int, list[dict[str, Any]]]:
-    out = {}
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=_process_context(),
-                             initializer=_init_worker, initargs=(list(_runtime_plugins),)) as pool:
-        futures = [pool.submit(run_unit, unit) for unit in units]
-        for future in as_completed(futures):
-            index, records = future.result()
-            out[index] = records
-            tick()
-    return out
+def _run_processes(units: list[Unit], jobs: int, finish: Finish) -> None:
+    """Run `units` on a pool of `jobs` worker processes. On any way out but the end (a signal,
+    an error) the units finished but not yet handed over are handed over (`_harvest`) and the
+    pool is stopped at once (`_stop_pool`)."""
+    before = set(multiprocessing.active_children())
+    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=_process_context(), initializer=_init_worker,
+                               initargs=(list(_runtime_plugins), os.getpid()))
+    futures: list[Future[Any]] = []
+    try:
+        futures = [pool.submit(_tagged, unit) for unit in units]
+        pending = set(futures)
+        while pending:
+            check_stop()
+            done, pending = wait(pending, timeout=POLL, return_when=FIRST_COMPLETED)
+            for future in done:
+                finish(*future.result())
+    except BaseException:
+        try:
+            _harvest(futures, finish)
+        finally:
+            _stop_pool(pool, before)
+        raise
+    pool.shutdown(wait=True)
 
 
-def _run_dask(units: list[Unit], scheduler: Any, jobs: int, tick: Callable[[], None]) -> dict[int, list[dict[str, Any]]]:
+def _harvest(futures: Sequence[Future[Any]], finish: Finish) -> None:
+    """Hand over every unit that finished without being handed over yet (`finish` ignores the
+    ones it has), so that a stop keeps every finished row."""
+    for future in futures:
+        if future.done() and not future.cancelled() and future.exception() is None:
+            finish(*future.result())
+
+
+def _stop_pool(pool: ProcessPoolExecutor, before: set[Any]) -> None:
+    """Stop `pool` now: cancel its queued units and terminate its workers (SIGTERM; SIGKILL
+    after `STOP_TIMEOUT` s). ``shutdown`` alone would let the workers run every queued unit
+    first (wait=True) or leave them running (wait=False). The workers are this process's
+    multiprocessing children that were not there before the pool (`before`; the pool's own
+    list is private)."""
+    pool.shutdown(wait=False, cancel_futures=True)
+    workers = [p for p in multiprocessing.active_children() if p not in before]
+    for process in workers:
+        process.terminate()
+    deadline = time.monotonic() + STOP_TIMEOUT
+    for process in workers:
+        process.join(max(0.0, deadline - time.monotonic()))
+        if process.is_alive():
+            process.kill()
+            process.join(STOP_TIMEOUT)
+    pool.shutdown(wait=True)  # the pool's manager thread sees its workers gone and ends
+
+
+def _run_dask(units: list[Unit], scheduler: Any, jobs: int, finish: Finish) -> None:
+    """Run `units` on a dask.distributed cluster. On any way out but the end (a signal, an
+    error), the units not yet done are cancelled on the cluster and a cluster this function
+    started (no `scheduler`) is closed with its workers; a cluster given by address or Client
+    keeps running."""
     try:
         from distributed import Client
         from distributed import as_completed as dask_completed
@@ -284,17 +379,24 @@ def _run_dask(units: list[Unit], scheduler: Any, jobs: int, tick: Callable[[], N
         client = Client(scheduler) if scheduler else Client(n_workers=jobs, threads_per_worker=1)
     else:
         client = scheduler
-    out = {}
+    futures: list[Any] = []
     try:
-        futures = client.map(run_unit, units, pure=False)
-        for future in dask_completed(futures):
-            index, records = future.result()
-            out[index] = records
-            tick()
+        futures = client.map(_tagged, units, pure=False)
+        arriving = dask_completed(futures)
+        while not arriving.is_empty():
+            check_stop()
+            ready = arriving.next_batch(block=False)
+            for future in ready:
+                finish(*future.result())
+            if not ready:
+                time.sleep(POLL)
+    except BaseException:
+        if futures and not own:  # closing our own cluster below ends its work anyway
+            client.cancel(futures)
+        raise
     finally:
         if own:
             client.close()
-    return out
 
 
 def cpu_seconds() -> float:
@@ -319,14 +421,33 @@ def available_cores() -> int:
         return os.cpu_count() or 1
 
 
+def _execute(units: list[Unit], executor: str, scheduler: Any, jobs: int, finish: Finish) -> None:
+    """Run `units` on the chosen executor, handing each finished one to `finish`."""
+    if units:
+        if executor == "dask":
+            _run_dask(units, scheduler, jobs, finish)
+        elif jobs == 1 or len(units) == 1:
+            _run_serial(units, finish)
+        else:
+            _run_processes(units, min(jobs, len(units)), finish)
+    check_stop()  # a request that came at the very end
+
+
 def run_study(study: Study, jobs: int | None = None, progress: bool = True, *,
-              executor: str = "process", scheduler: Any = None) -> StudyResult:
+              executor: str = "process", scheduler: Any = None,
+              journal: StudyJournal | str | Path | None = None) -> StudyResult:
     """Run every (cell, trial) unit of `study` and collect the records.
 
     jobs: worker processes (default: all cores, `available_cores`; 1 runs in this process). progress: show a tqdm
     bar on stderr. executor: ``"process"`` or ``"dask"``; scheduler: for dask, a scheduler
     address (``"tcp://host:8786"``), a `distributed.Client`, or None for a local cluster of
-    `jobs` workers. Returns a `StudyResult` whose records are in unit order, then spec order.
+    `jobs` workers. journal: a `StudyJournal` or the path of one (None: none): every finished
+    unit is appended to it at once, and the units it holds from an earlier session of the same
+    study are not run again (InputError when it belongs to another study definition). Returns
+    a `StudyResult` whose records are in unit order, then spec order.
+
+    SIGINT and SIGTERM stop the run (`stop_on_signals`): the units finished so far stay in the
+    journal, the others are cancelled, the workers terminated, and `StudyInterrupted` is raised.
     """
     if executor not in EXECUTORS:
         raise InputError(f"executor must be one of {EXECUTORS}, got {executor!r}")
@@ -335,17 +456,35 @@ def run_study(study: Study, jobs: int | None = None, progress: bool = True, *,
         raise InputError(f"jobs must be >= 1, got {jobs}")
     specs = study.resolved_specs()
     units = units_of(study, specs)
+    if journal is not None and not isinstance(journal, StudyJournal):
+        journal = StudyJournal.open(journal, study, specs)
+    elif journal is not None and journal.fingerprint != study.fingerprint(specs):
+        raise InputError(f"journal {journal.path} was opened for another study than {study.name!r}; open it with this one")
+    done = journal.done if journal is not None else {}
+    by_index = {unit.index: done[unit.key] for unit in units if unit.key in done}
+    resumed = len(by_index)
+    todo = [unit for unit in units if unit.index not in by_index]
     start, cpu_start = time.perf_counter(), cpu_seconds()
-    bar = _progress(len(units), study.name, progress)
+    bar = _progress(len(units), study.name, progress, initial=resumed)
+
+    def finish(index: int, records: list[dict[str, Any]], pid: int) -> None:
+        if index in by_index:
+            return
+        if journal is not None:
+            journal.append(units[index].key, records, pid)
+        by_index[index] = records
+        bar.update()
+
     try:
-        if executor == "dask":
-            by_index = _run_dask(units, scheduler, jobs, bar.update)
-        elif jobs == 1 or len(units) == 1:
-            by_index = _run_serial(units, bar.update)
-        else:
-            by_index = _run_processes(units, min(jobs, len(units)), bar.update)
+        with stop_on_signals():
+            _execute(todo, executor, scheduler, jobs, finish)
+    except KeyboardInterrupt as stop:
+        raise StudyInterrupted(getattr(stop, "signum", signal.SIGINT), len(by_index), len(units),
+                               journal.path if journal is not None else None) from None
     finally:
         bar.close()
+        if journal is not None:
+            journal.close()
     records = [row for index in sorted(by_index) for row in by_index[index]]
     return StudyResult(study=study, specs=specs, records=records, seconds=time.perf_counter() - start,
-                       jobs=jobs, executor=executor, cpu_seconds=cpu_seconds() - cpu_start)
+                       jobs=jobs, executor=executor, cpu_seconds=cpu_seconds() - cpu_start, resumed=resumed)

@@ -22,6 +22,7 @@ still) gets its built-in sweeps once per protocol (`PROTOCOLS`, `Sweep.simulatio
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import math
 import tomllib
@@ -40,6 +41,9 @@ TRUTHS = ("paper", "random")
 #: what the figures draw over the trials of a cell: the median with the interquartile range, or
 #: the mean with +- one standard deviation (the paper plots means over its five trials)
 CENTERS = ("median", "mean")
+#: fields of a `Study` that change only its figures and tables, never a record: left out of
+#: `Study.fingerprint`, so that a resumed run may relabel its figures
+PRESENTATION_FIELDS = ("level_label", "center")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -228,6 +232,19 @@ class Study:
                        for s in self.sweeps],
             "solvers": [s.to_dict() for s in self.specs],
         }
+
+    def fingerprint(self, specs: Sequence[Spec] | None = None) -> str:
+        """A hash (16 hex digits) of everything that decides the study's records: the definition
+        (`to_dict`, without the `PRESENTATION_FIELDS`) with `specs` (default `resolved_specs()`,
+        so an empty spec list stands for the solvers registered here, default backends filled
+        in). A run's journal carries it, so that only the same study resumes the run: the same
+        fingerprint means the same units, seeds and solvers, hence the same rows but for times."""
+        doc = self.to_dict()
+        for name in PRESENTATION_FIELDS:
+            doc.pop(name)
+        doc["solvers"] = [s.to_dict() for s in (self.resolved_specs() if specs is None else specs)]
+        text = json.dumps(doc, sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def scale_noise(noise: NoiseModel, level: float) -> NoiseModel:
