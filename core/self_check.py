@@ -19,7 +19,9 @@ solver's (third parties' too), against the data it was computed from:
    the answer is unreliable. (Sigma gets a floor of NUMERICAL_FLOOR so that noise-free data, where
    every numerical solver is "infinitely many sigmas" from the exact answer at 1e-8, pass.)
 3. **Gross pairs.** Pairs whose whitened residual exceeds OUTLIER_CHI2 (`handeye.robust`) at the
-   least-squares fit make the best fit of check 2 a robust (Cauchy) one; the pairs still far off
+   least-squares fit, or pairs outside the data's largest group that agree with each other
+   (check 7), make the best fit of check 2 a robust (Cauchy) one, from the least-squares fit and
+   from the answer, the lower Cauchy cost kept (`_robust_fit`); the pairs still far off
    at it, unless the solver reports having left them out (``diagnostics["outliers"]``, as
    ``auto`` does), are named in check 2's message, as the reason its answer is pulled away.
 4. **Signs a solver reports of a broken estimate** (``diagnostics["rotation_blocks"]``: the
@@ -36,6 +38,11 @@ solver's (third parties' too), against the data it was computed from:
    kappa (`handeye.camera_scale.noise_bias`), which its stated uncertainty leaves out
    (`_camera_scale_noise`): beyond NOISE_BIAS_FAIL a failure (the data do not determine the
    scale), beyond SCALE_WARN a warning; both only NOISE_BIAS_SIGMAS standard deviations of s.
+
+7. **A consistent majority** (A X = Y B, A X = X B): the largest group of pairs that agree with
+   each other, without X or Y (robot and camera rotation angles between them equal to
+   `handeye.validation.AGREEMENT_ANGLE`), must hold more than half the pairs (`MAJORITY`); else
+   at least half are gross and no fit can be trusted (a failure, named first).
 
 Then **observability**: the covariance of the best fit, at the noise the data show, says how
 precisely the data determine each unknown; where the 1-sigma of a rotation exceeds
@@ -61,7 +68,8 @@ from . import camera_scale, nlls, so3_fast
 from .errors import DegenerateDataError
 from .linalg import median
 from .robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
-from .whitening import CHI3_MEDIAN, estimate_sigmas
+from .validation import AGREEMENT_ANGLE
+from .whitening import CHI3_MEDIAN, Whitening, estimate_sigmas
 
 #: check 1: median residual rotation beyond this many times what the data's noise gives
 ROTATION_RESIDUAL_FACTOR = 10.0
@@ -109,6 +117,8 @@ BLOCK_SPREAD = 2.0
 MIN_ANGLE = 0.1
 #: fewest usable motions for check 1
 MIN_MOTIONS = 3
+#: check 7: the largest group of pairs that agree with each other must hold more than this share
+MAJORITY = 0.5
 #: observability: 1-sigma beyond which the data do not determine an unknown well enough
 PRECISION_ROTATION_DEG = 0.25
 PRECISION_TRANSLATION = 0.01
@@ -218,7 +228,23 @@ def assess(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], diagnost
     _rotation_residual(problem, data, unknowns, failures, figures, rotation)
     _rotation_blocks(diagnostics, failures, figures)
     failures.sort(key=lambda f: not f.startswith("the answer leaves"))  # check 1 first: it says the most
+    _majority(data, failures, figures)  # first of all when it fails: no answer can be right
     return Assessment(not failures, tuple(failures), tuple(warnings), figures)
+
+
+def _majority(data: Any, failures: list[str], figures: dict[str, Any]) -> None:
+    """Check 7: the data's largest group of mutually agreeing pairs (`data.agreeing_share`, where
+    the problem's data have it: `handeye.validation.agreeing_share`) must be a majority."""
+    share = getattr(data, "agreeing_share", None)
+    if share is None:
+        return
+    figures["agreeing_share"] = share
+    if share <= MAJORITY:
+        failures.insert(0, f"no majority of consistent pairs exists: the largest group of pairs that agree with each "
+                           f"other (the robot's and the camera's rotations between them, to "
+                           f"{math.degrees(AGREEMENT_ANGLE):g} deg) holds {share:.0%} of them, so at least half are "
+                           "gross errors (failed detections, mismatched poses) and no fit can tell the right answer "
+                           "from a wrong one: check the pairing and the detections, and record more stations")
 
 
 def _rotation_residual(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], failures: list[str],
@@ -262,7 +288,7 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
     data's pairs at the answer (for check 1) when the model is on those pairs, else None."""
     model, poses, interest = spec
     try:
-        fit, cov, flagged, res, at_answer, factor = _best_fit(model, poses)
+        fit, cov, flagged, res, at_answer, factor = _best_fit(model, poses, _disagreeing(data))
     except DegenerateDataError:
         failures.append("the data do not determine the unknowns near this answer (the least-squares fit from it "
                         "is singular)")
@@ -302,21 +328,46 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
     return np.linalg.norm(at_answer[:, :3], axis=1) if model.m == problem_pairs(data) else None
 
 
-def _best_fit(model: Any, poses: tuple[np.ndarray, ...]) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray, Any, np.ndarray, float]:
+def _disagreeing(data: Any) -> bool:
+    """Whether some pairs lie outside the data's largest group of pairs that agree with each
+    other (`data.agreeing_share`, where the problem's data have it), which is a majority (else
+    check 7 fails the answer whatever the fit, and a robust fit of such data is slow and moot)."""
+    return MAJORITY < getattr(data, "agreeing_share", 1.0) < 1.0
+
+
+def _best_fit(model: Any, poses: tuple[np.ndarray, ...], disagreeing: bool = False
+              ) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray, Any, np.ndarray, float]:
     """The best fit near the answer `poses`: (fit, its covariance (6k, 6k), the pairs flagged far
     off at it, the engine's result there, the residuals at the answer itself, the variance
     factor of the covariance). The local least-squares fit with estimated weights (`nlls`,
-    refine's engine, to FIT_TOL), and a robust (Cauchy) one from it when pairs are far off."""
+    refine's engine, to FIT_TOL), and when pairs are far off at it, or some pairs disagree with
+    the others (`disagreeing`: many gross pairs can pull the fit so far that none looks far off
+    at it), a robust (Cauchy) one: from that fit and from the answer, the lower Cauchy cost kept
+    (`_robust_fit`)."""
     loss = "linear"
     res = nlls.levenberg_marquardt(model, poses, None, loss, DEFAULT_LOSS_SCALE, MAX_ITER, FIT_TOL)
     at_answer = res.e0
     flagged = _beyond(res.e, model.scale)
-    if flagged.any():
+    if flagged.any() or disagreeing:
         loss = "cauchy"
-        res = nlls.levenberg_marquardt(model, res.poses, None, loss, DEFAULT_LOSS_SCALE, MAX_ITER, FIT_TOL)
+        res = _robust_fit(model, res.poses, poses)
         flagged = _beyond(res.e, model.scale)
     cov, factor = nlls.covariance(res, loss, DEFAULT_LOSS_SCALE, estimated=True)
     return res.poses, cov, flagged, res, at_answer, factor
+
+
+def _robust_fit(model: Any, least_squares: tuple[np.ndarray, ...], answer: tuple[np.ndarray, ...]) -> Any:
+    """The Cauchy fit from the least-squares fit and the one from the answer, whichever has the
+    lower Cauchy cost under the sharper of their noise scales. Many gross pairs (40%, measured)
+    pull the least-squares fit into another basin, where a Cauchy fit from it stays (1-sigma
+    9 deg for an answer 0.05 deg off, which auto found by leaving those pairs out); the answer
+    itself is the other start, and the cost, not the start, decides."""
+    fits = [nlls.levenberg_marquardt(model, start, None, "cauchy", DEFAULT_LOSS_SCALE, MAX_ITER, FIT_TOL)
+            for start in (least_squares, answer)]
+    scales = [estimate_sigmas(f.e, model.scale, robust=True) for f in fits]
+    W = Whitening(min(s.sigma_rot for s in scales), min(s.sigma_trans for s in scales))
+    cost = [nlls.cost_of(model, f.poses, W, "cauchy", DEFAULT_LOSS_SCALE) for f in fits]
+    return fits[1] if cost[1] < cost[0] else fits[0]
 
 
 def camera_scale_verdict(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray]) -> dict[str, Any] | None:

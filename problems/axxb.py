@@ -35,7 +35,7 @@ from handeye.noise import NoiseModel
 from handeye.problem import Problem, StationReader, pose_discrepancy
 from handeye.problems import planar as planar_mode
 from handeye.se3 import inverse
-from handeye.validation import check_motion_beyond_noise, pose_stack, same_length
+from handeye.validation import agreeing_motions, agreeing_share, check_motion_beyond_noise, pose_stack, same_length
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
 PAIRINGS = ("consecutive", "all")
@@ -140,6 +140,21 @@ class AXXBData(PosePairs):
         n = rotvec[moving] / angle[moving, None]
         lam = np.linalg.eigvalsh(n.T @ n)
         return float(2.0 * np.arctan(np.sqrt(max(lam[1], 0.0) / lam[2])))
+
+    @functools.cached_property
+    def agreeing_share(self) -> float:
+        """The share of the data that agree with each other: of the stations the motions were
+        made from, when they are every pair of stations (`handeye.validation.agreeing_share`: a
+        gross station spoils all its motions), else of the motions (`agreeing_motions`). At one
+        half or below no consistent majority exists."""
+        stations = self.stations
+        return agreeing_share(*stations) if stations is not None else float(np.mean(self.agreeing_group))
+
+    @functools.cached_property
+    def agreeing_group(self) -> np.ndarray:
+        """(m,) bool: the motions whose robot and camera rotation angles agree
+        (`handeye.validation.agreeing_motions`), a robust start."""
+        return agreeing_motions(*self.angles)
 
     def normal_equations(self, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
         """The normal equations of the linear system (`normal_equations`)."""

@@ -38,7 +38,7 @@ from handeye.se3 import (
     make_pose,
     project_to_so3,
 )
-from handeye.validation import check_motion_beyond_noise, pose_stack
+from handeye.validation import AGREEMENT_STATIONS, agreeing_group, check_motion_beyond_noise, pose_stack
 
 #: Ground truth of the paper's simulation (Sec. IV-A), projected onto SO(3): the printed 4-digit
 #: rotation blocks are not exactly orthonormal. Translations in mm.
@@ -108,6 +108,18 @@ class AXYBData(PosePairs):
         from handeye.problems import axyb_geometry
 
         return axyb_geometry.consecutive_motions(self.A, self.B)
+
+    @functools.cached_property
+    def agreeing_group(self) -> np.ndarray:
+        """(m,) bool: the largest group of pairs that agree with each other, without X or Y
+        (`handeye.validation.agreeing_group`): a robust start, and a majority or not."""
+        return agreeing_group(self.A, self.B)
+
+    @property
+    def agreeing_share(self) -> float:
+        """The share of the pairs in `agreeing_group` (of those it looked at): at one half or
+        below no consistent majority exists (`handeye.validation.agreeing_share`)."""
+        return float(self.agreeing_group.sum()) / min(self.m, AGREEMENT_STATIONS)
 
     def normal_equations(self, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
         """Eq. 8's normal equations (`normal_equations`)."""
