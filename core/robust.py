@@ -24,8 +24,16 @@ LOSSES = ("linear", "huber", "cauchy")
 DEFAULT_LOSS_SCALE = 3.5484626592
 #: a pair whose residual, whitened by median-based scales, has squared norm beyond this (8 robust
 #: sigmas) is far off the others: a gross error, not noise (`auto`'s outlier step, the host's
-#: self-check)
+#: self-check). Not chi^2_6 at 99.9% (22.46): real residuals have heavier tails than chi^2_6 (a
+#: station's rotation noise reaches the translation residual through the lever arm,
+#: anisotropically; consecutive motions share stations), and that threshold flagged a pair in
+#: 5-9% of clean simulated axyb data sets (m = 16-50) and 19-30% of clean consecutive-motion axxb
+#: sets; 64 flagged none of 100 in each cell, while gross pairs (>= 5 deg) sit at norms of ~40
+#: and beyond (bench/outliers.py, docs/solvers/auto.md).
 OUTLIER_CHI2 = 64.0
+#: sigma = MAD_TO_SIGMA * median |x| for x ~ N(0, sigma^2): 1 / (the 75% quantile of the standard
+#: normal), the robust standard deviation of differences about 0
+MAD_TO_SIGMA = 1.482602218505602
 
 
 def loss_terms(s: np.ndarray, loss: str, c: float) -> tuple[np.ndarray, np.ndarray]:

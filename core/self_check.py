@@ -67,7 +67,7 @@ import numpy as np
 from . import camera_scale, nlls, so3_fast
 from .errors import DegenerateDataError
 from .linalg import median
-from .robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
+from .robust import DEFAULT_LOSS_SCALE, MAD_TO_SIGMA, OUTLIER_CHI2
 from .validation import AGREEMENT_ANGLE
 from .whitening import CHI3_MEDIAN, Whitening, estimate_sigmas
 
@@ -155,12 +155,12 @@ class Assessment:
 
 def angle_noise(angle_A: np.ndarray, angle_B: np.ndarray) -> float | None:
     """Robust standard deviation (rad) of the differences of the rotation angles of paired
-    motions (1.4826 x their median absolute value), over the motions that rotate by more than
+    motions (MAD_TO_SIGMA x their median absolute value), over the motions that rotate by more than
     MIN_ANGLE on both sides; None with fewer than MIN_MOTIONS such motions."""
     use = (angle_A > MIN_ANGLE) & (angle_B > MIN_ANGLE)
     if use.sum() < MIN_MOTIONS:
         return None
-    return 1.4826 * median(np.abs(angle_A[use] - angle_B[use]))
+    return MAD_TO_SIGMA * median(np.abs(angle_A[use] - angle_B[use]))
 
 
 def pitch_noise(phi_A: np.ndarray, t_A: np.ndarray, phi_B: np.ndarray, t_B: np.ndarray) -> float | None:
@@ -175,7 +175,7 @@ def pitch_noise(phi_A: np.ndarray, t_A: np.ndarray, phi_B: np.ndarray, t_B: np.n
         return None
     pitch_A = np.einsum("ij,ij->i", phi_A[use], t_A[use]) / angle_A[use]
     pitch_B = np.einsum("ij,ij->i", phi_B[use], t_B[use]) / angle_B[use]
-    return 1.4826 * median(np.abs(pitch_A - pitch_B))
+    return MAD_TO_SIGMA * median(np.abs(pitch_A - pitch_B))
 
 
 def expected_from_invariants(angle_sigma: float | None, pitch_sigma: float | None, lever: float,

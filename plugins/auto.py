@@ -65,7 +65,7 @@ from handeye.options import check_choice
 from handeye.plugins import _auto_steps as steps
 from handeye.plugins import refine as _refine
 from handeye.plugins._auto_steps import DRIFT_AUTOCORRELATION, DRIFT_MIN_PAIRS  # noqa: F401 (auto's constants)
-from handeye.robust import DEFAULT_LOSS_SCALE
+from handeye.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
 from handeye.self_check import MAJORITY
 from handeye.solution import jsonable
 from handeye.whitening import Whitening, estimate_sigmas
@@ -76,14 +76,6 @@ CERTIFICATE_KEYS = ("certified", "eigenvalue_ratio", "relative_gap", "duality_ga
 OUTLIER_CHOICES = ("reject", "keep")
 #: problems without a certifiable start: the safeguard's second start always runs
 MULTI_START = ("axbycz",)
-#: a pair whose whitened residual norm (median-based scales, or the stated weights) exceeds 8 is an
-#: outlier (squared: 64). Not chi^2_6 at 99.9% (22.46): real residuals have heavier tails than
-#: chi^2_6 (a station's rotation noise reaches the translation residual through the lever arm,
-#: anisotropically; consecutive motions share stations), and that threshold flagged a pair in 5-9%
-#: of clean simulated axyb data sets (m = 16-50) and 19-30% of clean consecutive-motion axxb sets;
-#: 64 flagged none of 100 in each cell, while gross pairs (>= 5 deg) sit at norms of ~40 and beyond
-#: (bench/outliers.py, docs/solvers/auto.md).
-OUTLIER_CHI2 = 64.0
 #: the noise-source model (8 variances) is fitted by default from this many pairs on (120
 #: residuals, 15 per variance); below it the two per-group variances. Measured on the KinHEC
 #: small tier (docs/solvers/auto.md): at 3-12 pairs it was 1.1x less accurate than the

@@ -34,8 +34,15 @@ from handeye.kronecker import PosePairs
 from handeye.noise import NoiseModel
 from handeye.problem import Problem, StationReader, pose_discrepancy
 from handeye.problems import planar as planar_mode
+from handeye.robust import MAD_TO_SIGMA
 from handeye.se3 import inverse
-from handeye.validation import agreeing_motions, agreeing_share, check_motion_beyond_noise, pose_stack, same_length
+from handeye.validation import (
+    agreeing_motions,
+    agreeing_share,
+    check_motion_beyond_noise,
+    pose_stack,
+    same_length,
+)
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
 PAIRINGS = ("consecutive", "all")
@@ -52,7 +59,7 @@ DEGENERATE_AXIS_SPREAD = 1e-6
 WEAK_ROTATION = 0.1
 #: A motion is listed as likely mismatched when |angle(A_i) - angle(B_i)| exceeds both this
 #: floor (rad, 1 deg) and MISMATCH_SIGMAS robust standard deviations of those differences over
-#: all motions (1.4826 x their median: the noise of the angles is about the same for every
+#: all motions (MAD_TO_SIGMA x their median: the noise of the angles is about the same for every
 #: motion). The screw pitch (translation along the axis, also invariant) is reported but not used
 #: to flag: its noise grows with |t| / angle, so one threshold does not fit every motion.
 MISMATCH_ANGLE_FLOOR = np.deg2rad(1.0)
@@ -450,9 +457,9 @@ _GRAM_EYE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
 
 
 def _outlying(gap: np.ndarray, floor: float) -> list[int]:
-    """Indices whose gap exceeds both `floor` and MISMATCH_SIGMAS robust sigmas (1.4826 MAD about 0)."""
+    """Indices whose gap exceeds both `floor` and MISMATCH_SIGMAS robust sigmas (MAD about 0)."""
     g = np.sort(gap)  # its median, as np.median computes it, with 1 numpy call instead of ~12
-    sigma = 1.4826 * float((g[(len(g) - 1) // 2] + g[len(g) // 2]) / 2)
+    sigma = MAD_TO_SIGMA * float((g[(len(g) - 1) // 2] + g[len(g) // 2]) / 2)
     return np.flatnonzero(gap > max(floor, MISMATCH_SIGMAS * sigma)).tolist()
 
 

@@ -10,6 +10,8 @@ or took memory that grows with the square of a recording.
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
 import tracemalloc
 
@@ -18,7 +20,6 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.cli import main
 from handeye.noise import NoiseModel
 from handeye.plausibility import duplicate_stations, station_warnings
 from handeye.problems.axxb import motions, simulate_stations
@@ -107,15 +108,15 @@ def test_copies_of_one_station_are_refused(seed):
 
 
 def test_small_but_real_motions_are_not_refused():
-    """5-degree motions with the accuracy study's noise move well beyond it."""
-    stations, _ = simulate_stations(12, seed=2)
+    """Stations 5 deg apart with the accuracy study's noise move well beyond it: solved."""
+    stations, truth = simulate_stations(12, seed=2)
     rng = np.random.default_rng(2)
-    base_A, base_B = stations["A"][0], stations["B"][0]
-    A = np.stack([make_pose(so3_exp(rng.normal(size=3) / 3 * np.deg2rad(5)), rng.normal(size=3)) @ base_A
-                  for _ in range(12)])
-    X, Y = handeye.get_registry().problem("axyb").simulate(pairs=2, seed=2)[1].values()
-    B = inverse(Y) @ A @ X
-    handeye.solve("axyb", A=A, B=B)  # no DegenerateDataError
+    A = np.stack([make_pose(so3_exp(rng.normal(size=3) / np.sqrt(3) * np.deg2rad(5)), rng.normal(size=3))
+                  @ stations["A"][0] for _ in range(12)])
+    B = inverse(truth["Y"]) @ A @ truth["X"]
+    B = np.stack([make_pose(so3_exp(rng.normal(0, 0.002, 3)), rng.normal(0, 0.5, 3)) @ T for T in B])
+    sol = handeye.solve("axyb", A=A, B=B)  # no DegenerateDataError
+    assert sol.status in (handeye.Status.OPTIMAL, handeye.Status.UNRELIABLE)
 
 
 # ----------------------------------------------------------------------------- long recordings
@@ -158,7 +159,7 @@ def test_largest_relative_angle_in_chunks():
     assert largest_relative_angle(R, chunk=7) == pytest.approx(pairwise, abs=1e-7)
 
 
-def test_a_12000_station_recording_matched_by_time_calibrates_in_bounded_memory(tmp_path, capsys):
+def test_a_12000_station_recording_matched_by_time_calibrates_in_bounded_memory(tmp_path):
     """Measured before: 12,000 stations took 9.8 GB in the station check, and the report alone
     12.5 GB and 140 s (a bar per pair, a pairwise rotation table)."""
     data, _ = AXYB.simulate(pairs=12000, seed=1, noise=NOISE)
@@ -175,19 +176,17 @@ def test_a_12000_station_recording_matched_by_time_calibrates_in_bounded_memory(
             "--camera", str(files[1]), "--camera-format", "xyz-quat-xyzw", "--camera-unit", "mm",
             "--camera-poses", "camera-in-board", "--setup", "eye-in-hand", "--match", "time",
             "--report", str(tmp_path / "r.html")]
-    tracemalloc.start()
-    try:
-        start = time.perf_counter()
-        code = main(args)
-        seconds = time.perf_counter() - start
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
-    out, err = capsys.readouterr()
-    assert code == 0 and "status optimal" in out, err
-    assert "matched 12000 of 12000" in out
-    assert peak < 1.0e9, peak
-    assert seconds < 120, seconds
+    # the command in its own process, which reports its peak resident memory when done
+    child = ("import resource, sys\nfrom handeye.cli import main\ncode = main(sys.argv[1:])\n"
+             "print('peak-rss-kb', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\nsys.exit(code)")
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, "-c", child, *args], capture_output=True, text=True, timeout=300)
+    seconds = time.perf_counter() - start
+    assert done.returncode == 0 and "status optimal" in done.stdout, done.stderr
+    assert "matched 12000 of 12000" in done.stdout
+    peak = int(done.stdout.split("peak-rss-kb")[1]) * 1024
+    assert peak < 1.5e9, peak  # measured 0.52 GB (Python, numpy, matplotlib included)
+    assert seconds < 60, seconds  # measured 6-9 s
 
 
 def test_all_pairs_of_a_long_recording_are_refused_with_the_way_out():

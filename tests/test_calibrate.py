@@ -329,11 +329,12 @@ def test_eth_robot_arm_matched_by_time(tmp_path, capsys):
                              "--robot-unit", "m", "--camera", camera, "--camera-format", "xyz-quat-xyzw",
                              "--camera-unit", "m", "--camera-poses", "camera-in-board", "--setup", "eye-in-hand",
                              "--match", "time", "--max-dt", "0.02", "--json")
-    assert code in (0, 1), err
+    assert code == 0, err  # a real cell, matched by time: an answer it stands behind
     r = json.loads(out)
     assert "camera poses by time" in err and 140 <= r["matching"]["matched"] <= 150 == r["matching"]["camera_poses"]
     assert r["matching"]["max_abs_dt"] <= 0.02 and r["stations"] == r["matching"]["matched"]
     assert 0.2 < r["residuals"]["rotation_deg"]["median"] < 1.0
     assert 0.003 < r["residuals"]["translation"]["median"] < 0.015
-    assert 0.005 < np.linalg.norm(np.array(r["X"])[:3, 3]) < 0.04
-    assert 0.6 < np.linalg.norm(np.array(r["Y"])[:3, 3]) < 0.8
+    # the data set's figures (|t_X| 0.017 m, |t_Y| 0.69 m), within what its 1-sigma allows (~3 mm)
+    assert abs(np.linalg.norm(np.array(r["X"])[:3, 3]) - 0.017) < 0.004
+    assert abs(np.linalg.norm(np.array(r["Y"])[:3, 3]) - 0.69) < 0.01

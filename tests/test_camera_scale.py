@@ -8,7 +8,7 @@ from pathlib import Path
 import handeye
 import numpy as np
 import pytest
-from handeye import InputError, Status
+from handeye import InputError, Status, self_check
 from handeye.harness import ACCURACY_NOISE
 from handeye.noise import NoiseModel
 from handeye.problems.axxb import PROBLEM as AXXB
@@ -220,15 +220,22 @@ def test_noise_in_the_camera_translations_biasing_the_scale_is_flagged(solver):
     assert np.linalg.norm(known.unknowns["X"][:3, 3] - z["X_true"][:3, 3]) < 0.004
 
 
-@pytest.mark.parametrize("name, bias", [("mixed-000066", 2.16), ("motion-000061", 2077.0), ("outliers-000024", 12.3)])
-def test_a_scale_the_data_do_not_determine_is_unreliable(name, bias):
+@pytest.mark.parametrize("name", ["mixed-000066", "motion-000061", "outliers-000024"])
+def test_a_scale_the_data_do_not_determine_is_unreliable(name):
     """Metric KinHEC sequences given camera_scale='unknown' whose translation residuals could be
     noise spanning all of the camera translations' spread (IRB 120 with DH errors and 8 deg
     rotations; wrist-only motions; half the pairs gross outliers): the fitted scale (0.37, 0.003,
-    0.09) is meaningless and X 53, 118, 423 mm off at a stated 2, 1, 17 mm; check 6 fails them."""
+    0.09) is meaningless and X 53, 118, 423 mm off at a stated 2, 1, 17 mm; check 6 fails them
+    (kappa 2.2, 2077, 12.3). Judged against the truth, not against the figures: the scale is
+    far from the true 1 and X's error many times its stated 1-sigma."""
     z = kinhec(name)
     sol = handeye.solve("axyb", solver="refine", camera_scale="unknown", A=z["A"], B=z["B"])
-    assert noise_figures(sol)["bias"] == pytest.approx(bias, rel=0.05)
+    f = noise_figures(sol)
+    assert f["bias"] > self_check.NOISE_BIAS_FAIL
+    assert abs(f["scale"] - 1.0) > 0.5  # the true scale is 1: metric data
+    error = np.linalg.norm(sol.unknowns["X"][:3, 3] - z["X_true"][:3, 3])
+    stated = sol.diagnostics["std"]["X"]["translation"]
+    assert error > 5 * stated, (error, stated)
     assert sol.status is Status.UNRELIABLE
     assert any(f.startswith(BIAS_FAILURE) for f in sol.diagnostics["self_check"]["failures"])
 

@@ -28,7 +28,7 @@ METHODS = ("tsai", "park", "horaud", "andreff", "daniilidis")
 FUNCTIONS = {name: getattr(classic, name) for name in METHODS}
 FLAGS = {name: getattr(cv2, f"CALIB_HAND_EYE_{name.upper()}") for name in METHODS}
 UNIT_INVARIANT = {"tsai": True, "park": True, "horaud": True, "andreff": False, "daniilidis": False}
-TOL = 1e-9  # rotation [rad]; translation relative to |t|
+TOL = 1e-12  # rotation [rad]; translation relative to |t|
 #: cases: (seed, noise, wide): wide draws uniform robot rotations (motions beyond 120 deg, where
 #: the quaternion sign alignment matters) instead of the arm's joint box
 CASES = {

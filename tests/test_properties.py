@@ -53,7 +53,8 @@ from handeye import Status
 from handeye.errors import HandEyeError
 from handeye.harness.campaign import KINDS, cases, solver_runs
 from handeye.noise import NoiseModel
-from handeye.self_check import DISTANCE_WARN, PRECISION_ROTATION_DEG
+from handeye.kronecker import translation_rms
+from handeye.self_check import DISTANCE_WARN, PRECISION_ROTATION_DEG, PRECISION_TRANSLATION
 
 #: statuses under which a user may use the answer (the self-check turns them into unreliable)
 USABLE = (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED)
@@ -592,6 +593,13 @@ CAMPAIGN_SEED = 0
 #: the self-check exists to prevent.
 ABSOLUTE_LIMIT_DEG = 4 * PRECISION_ROTATION_DEG
 RELATIVE_LIMIT = (5.0, 3.0)
+#: The same bound on the translations, as a fraction of the data's lever arm (their RMS
+#: translation, `translation_scale`): 4 x `PRECISION_TRANSLATION` (a silent answer is determined
+#: to 1% of it, so 4% off is 4 sigma off), and 5 x auto's error + 3 x auto's 1-sigma.
+#: Measured: over this test's 30 cases the worst silent
+#: answer is 0.28% of the lever arm (axyb; axxb 0.21%), the largest error / limit 0.49 (axxb
+#: 0.34); over 240 further cases (seed 100) 3.3% and 0.93 (axxb 0.87% and 0.60).
+ABSOLUTE_LIMIT_TRANSLATION = 4 * PRECISION_TRANSLATION
 #: warnings of the self-check that are not failures: the distance from the best fit, and the
 #: precision the data give (handeye.self_check._local_fit / _precision)
 SELF_CHECK_WARNINGS = ("self-check:", "the data determine the rotation", "the data determine the translation")
@@ -607,6 +615,17 @@ def _self_check_warned(sol: handeye.Solution) -> bool:
     check = sol.diagnostics["self_check"]
     return (any(w.startswith(SELF_CHECK_WARNINGS) for w in sol.warnings)
             or check.get("distance_sigmas", 0.0) > DISTANCE_WARN or _rotation_sigma_deg(sol) > PRECISION_ROTATION_DEG)
+
+
+def _translation_sigma(sol: handeye.Solution) -> float:
+    """The largest 1-sigma (data unit, worst direction) of the translations for `sol`."""
+    return max((s["translation"] for s in sol.diagnostics["self_check"].get("std", {}).values()), default=0.0)
+
+
+def _lever_arm(data: dict) -> float:
+    """The data's lever arm: the RMS translation of A and B (`translation_rms`, what validated
+    data call `translation_scale`)."""
+    return float(translation_rms(np.asarray(data["A"], dtype=float), np.asarray(data["B"], dtype=float)))
 
 
 def _rotation_sigma_deg(sol: handeye.Solution) -> float:
@@ -628,25 +647,35 @@ def test_no_confident_wrong_answer_in_the_campaign(problem):
         data, truth = case.data(problem)
         solutions = {run: check_contract(problem, *run, data) for run in runs}
         auto = solutions[("auto", "numpy")]
-        relative = math.inf  # auto refused the data (e.g. planar ones, without the unobservable offsets)
+        relative = relative_trans = math.inf  # auto refused the data (e.g. planar ones, without the unobservable offsets)
         if auto is not None:
             auto_error = max(math.degrees(e["rotation"]) for e in prob.errors(auto.unknowns, truth).values())
             relative = RELATIVE_LIMIT[0] * auto_error + RELATIVE_LIMIT[1] * _rotation_sigma_deg(auto)
+            auto_trans = max(e["translation"] for e in prob.errors(auto.unknowns, truth).values())
+            relative_trans = RELATIVE_LIMIT[0] * auto_trans + RELATIVE_LIMIT[1] * _translation_sigma(auto)
+        lever = _lever_arm(data)
         for (name, backend), sol in solutions.items():
             if sol is None or sol.status not in USABLE or not sol.diagnostics["self_check"]["reliable"]:
                 continue
             if _self_check_warned(sol):
                 continue
             checked += 1
-            error = max(math.degrees(e["rotation"]) for e in prob.errors(sol.unknowns, truth).values())
+            errors = prob.errors(sol.unknowns, truth).values()
+            error = max(math.degrees(e["rotation"]) for e in errors)
             limit = ABSOLUTE_LIMIT_DEG if name == "auto" else min(ABSOLUTE_LIMIT_DEG, relative)
             if error > limit:
                 confident_wrong.append((case.kind, case.seed, name, backend, sol.status.value, round(error, 3),
-                                        round(limit, 3)))
+                                        round(limit, 3), "deg"))
+            trans = max(e["translation"] for e in errors)
+            trans_limit = ABSOLUTE_LIMIT_TRANSLATION * lever
+            trans_limit = trans_limit if name == "auto" else min(trans_limit, relative_trans)
+            if trans > trans_limit:
+                confident_wrong.append((case.kind, case.seed, name, backend, sol.status.value, round(trans, 3),
+                                        round(trans_limit, 3), "translation"))
     assert kinds == set(KINDS)
     assert checked >= MIN_CONFIDENT, f"only {checked} confident answers: the bound is hardly tested"
     assert not confident_wrong, ("answers reported usable, without a self-check warning, beyond the limit "
-                                 f"(kind, seed, solver, backend, status, error deg, limit deg): {confident_wrong}")
+                                 f"(kind, seed, solver, backend, status, error, limit, unit): {confident_wrong}")
 
 
 # --------------------------------------------------------------------------- found on valid data
