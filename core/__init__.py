@@ -19,7 +19,7 @@ import importlib
 from importlib.metadata import PackageNotFoundError, version
 from types import ModuleType
 
-from .api import solve
+from .api import run_registered, solve
 from .errors import (
     BackendUnavailableError,
     DegenerateDataError,
@@ -71,6 +71,7 @@ __all__ = [
     "list_problems",
     "list_solvers",
     "problems",
+    "run_registered",
     "solve",
 ]
 

@@ -59,9 +59,6 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
     for what, name in (("problem", problem), ("solver", solver), ("backend", backend)):
         if name is not None and not isinstance(name, str):
             raise InputError(f"{what} must be a name (str), got {type(name).__name__} {name!r}")
-    if time_limit is not None and (isinstance(time_limit, bool) or not isinstance(time_limit, (int, float))
-                                   or not 0 < time_limit < math.inf):
-        raise InputError(f"time_limit must be a number of seconds > 0 (or None), got {time_limit!r}")
     registry = get_registry()
     spec_problem = registry.problem(problem)
     if solver is None:
@@ -71,6 +68,40 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
                 f"solver= one of {registry.solver_names(problem)}"
             )
         solver = DEFAULT_SOLVER
+    spec, backend = _spec(registry, problem, solver, backend)
+    _check_time_limit(time_limit)
+    fields = spec_problem.data_fields
+    missing = [f for f in fields if f not in data_and_options]
+    if missing:
+        raise InputError(f"problem {problem!r} needs data {list(fields)}; missing {missing}")
+    given = tuple(fields) + tuple(f for f in spec_problem.optional_fields if f in data_and_options)
+    with _problem_faults(registry, problem):
+        data = spec_problem.validate(**{f: data_and_options[f] for f in given})
+    options = {k: v for k, v in data_and_options.items() if k not in given}
+    return _host(registry, problem, solver, spec, backend, data, options, time_limit, self_check=True)
+
+
+def run_registered(solver: str, data: Any, *, problem: str, backend: str | None = None,
+                   options: Mapping[str, Any] | None = None, self_check: bool = False,
+                   time_limit: float | None = None) -> Solution:
+    """Run registered solver `solver` on `data` already validated by `problem` (the object its
+    ``validate`` returned): the way for one solver to use another (a start, a fallback), with the
+    host's checks that `solve` applies: the solver's capabilities against the data (planar mode,
+    unknown camera scale), its options parsed, its faults and answer checked (one-line errors, a
+    third party's named, an answer that is not SE(3) refused). `self_check`: also the self-check
+    of every answer (`handeye.self_check`), as `solve` runs it; off by default, since the caller
+    checks its own final answer and a start's check would cost as much as the start.
+
+    Returns a `Solution`; raises as `solve` does."""
+    registry = get_registry()
+    registry.problem(problem)
+    spec, backend = _spec(registry, problem, solver, backend)
+    _check_time_limit(time_limit)
+    return _host(registry, problem, solver, spec, backend, data, dict(options or {}), time_limit, self_check)
+
+
+def _spec(registry: Any, problem: str, solver: str, backend: str | None) -> tuple[Any, str]:
+    """The solver's spec for `problem` and the backend to run, checked available."""
     spec = registry.solver(solver, problem)
     backend = spec.default_backend if backend is None else backend
     if backend not in spec.backends:
@@ -78,15 +109,25 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
     reason = spec.unavailable_reason(backend)
     if reason:
         raise BackendUnavailableError(reason)
+    return spec, backend
 
-    fields = spec_problem.data_fields
-    missing = [f for f in fields if f not in data_and_options]
-    if missing:
-        raise InputError(f"problem {problem!r} needs data {list(fields)}; missing {missing}")
-    given = tuple(fields) + tuple(f for f in spec_problem.optional_fields if f in data_and_options)
-    own_problem = registry.problem_is_builtin(problem)
-    with plugin_faults(f"problem {problem!r}", own_problem, registry.problem_provider(problem)):
-        data = spec_problem.validate(**{f: data_and_options[f] for f in given})
+
+def _check_time_limit(time_limit: Any) -> None:
+    if time_limit is not None and (isinstance(time_limit, bool) or not isinstance(time_limit, (int, float))
+                                   or not 0 < time_limit < math.inf):
+        raise InputError(f"time_limit must be a number of seconds > 0 (or None), got {time_limit!r}")
+
+
+def _problem_faults(registry: Any, problem: str) -> contextlib.AbstractContextManager[None]:
+    return plugin_faults(f"problem {problem!r}", registry.problem_is_builtin(problem), registry.problem_provider(problem))
+
+
+def _host(registry: Any, problem: str, solver: str, spec: Any, backend: str, data: Any, raw_options: dict[str, Any],
+          time_limit: float | None, self_check: bool) -> Solution:
+    """The host's part of every solve on validated `data`: capabilities, options, the run (within
+    the time limit, faults wrapped), the answer checked, the problem's diagnosis and, with
+    `self_check`, the self-check (a failure makes a usable status `unreliable`)."""
+    spec_problem = registry.problem(problem)
     if getattr(data, "planar", None) is not None and not spec.planar_mode:
         able = [n for n in registry.solver_names(problem) if registry.solver(n, problem).planar_mode]
         raise InputError(f"solver {solver!r} has no planar (4-DOF) mode for data whose robot rotates about one "
@@ -95,24 +136,28 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
         able = [n for n in registry.solver_names(problem) if registry.solver(n, problem).camera_scale_mode]
         raise InputError(f"solver {solver!r} takes the camera's translations as metric; for camera_scale='unknown' "
                          f"use one of {', '.join(able) or '(none registered)'}")
-    options = parse_options(spec.options, {k: v for k, v in data_and_options.items() if k not in given}, solver)
+    options = parse_options(spec.options, raw_options, solver)
 
     builtin = registry.is_builtin(solver, problem)
     start = time.perf_counter()
     output = _run(spec, data, options, backend, time_limit, builtin, _who(registry, solver, problem, builtin))
     seconds = time.perf_counter() - start
     unknowns, status, diagnostics = _checked_output(output, spec_problem.unknowns, solver)
-    with plugin_faults(f"problem {problem!r}", own_problem, registry.problem_provider(problem)):
+    if not self_check:
+        return Solution(unknowns=unknowns, problem=problem, solver=solver, backend=backend, status=status,
+                        seconds=seconds, diagnostics=diagnostics)
+    with _problem_faults(registry, problem):
         weak = spec_problem.diagnose(data)
+    warnings = list(weak.pop("warnings", [])) + list(diagnostics.get("warnings", []))
     # an answer that comes with the camera's scale (auto estimates it where the data demand it)
     # is judged with that scale free, as its solver fitted it (handeye.camera_scale)
     check_data = data
     if "camera_scale" in diagnostics and getattr(data, "camera_scale_unknown", True) is False:
         check_data = dataclasses.replace(data, camera_scale_unknown=True)
-    with plugin_faults(f"problem {problem!r}", own_problem, registry.problem_provider(problem)):
+    with _problem_faults(registry, problem):
         check = assess(spec_problem, check_data, unknowns, diagnostics)
     diagnostics["self_check"] = {"reliable": check.reliable, "failures": list(check.failures), **check.figures}
-    warnings = list(weak.pop("warnings", [])) + list(diagnostics.get("warnings", [])) + list(check.warnings)
+    warnings += list(check.warnings)
     if not check.reliable:
         instead = ("use solver 'auto'" if solver != DEFAULT_SOLVER else
                    "check the data (handeye calibrate checks files for the usual setup mistakes)")
@@ -125,15 +170,8 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
             warnings.append(message)  # the solver's own reason for its status comes first
     diagnostics["warnings"] = warnings
     diagnostics.setdefault("data", weak)
-    return Solution(
-        unknowns=unknowns,
-        problem=problem,
-        solver=solver,
-        backend=backend,
-        status=status,
-        seconds=seconds,
-        diagnostics=diagnostics,
-    )
+    return Solution(unknowns=unknowns, problem=problem, solver=solver, backend=backend, status=status,
+                    seconds=seconds, diagnostics=diagnostics)
 
 
 def _who(registry: Any, solver: str, problem: str, builtin: bool) -> str:

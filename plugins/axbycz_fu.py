@@ -47,7 +47,7 @@ import dataclasses
 from typing import Any
 
 import numpy as np
-from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye import Solution, SolverOutput, SolverSpec, Status, hookimpl
 from handeye.errors import DegenerateDataError, HandEyeError, InputError, shown
 from handeye.options import check_bool, check_positive
 from handeye.problems.axbycz import AXBYCZData
@@ -104,18 +104,16 @@ def find_phase(T: np.ndarray, rotation_tol: float, translation_tol: float) -> np
     return np.flatnonzero(close[int(np.argmax(counts))])
 
 
-def _run_registered(problem: str, solver: str, step: str, advice: str, **fields: np.ndarray) -> SolverOutput:
+def _run_registered(problem: str, solver: str, step: str, advice: str, **fields: np.ndarray) -> Solution:
     """`solver` of `problem` (default options and backend) on the fields, validated by `problem`.
     Its errors say which step of fu-dq raised them; for degenerate data the first sentence of
     the problem's reason is kept and `advice` (what to record) replaces its own (which speaks of
     that problem's data and options, not of fu-dq's)."""
-    from handeye.registry import get_registry
+    from handeye import get_registry, run_registered
 
-    registry = get_registry()
-    spec = registry.solver(solver, problem)
     try:
-        data = registry.problem(problem).validate(**fields)
-        return spec.run(data, spec.options(), spec.default_backend)
+        data = get_registry().problem(problem).validate(**fields)
+        return run_registered(solver, data, problem=problem)
     except DegenerateDataError as exc:
         reason = str(exc).split(". ")[0].rstrip(".")
         raise DegenerateDataError(f"fu-dq {step} ({problem}, solver {solver!r}): {reason}; {advice}") from None

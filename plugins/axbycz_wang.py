@@ -264,11 +264,10 @@ def iterate_rotations(RA: np.ndarray, RB: np.ndarray, RC: np.ndarray, RX: np.nda
 
 
 def _start_from_solver(data: AXBYCZData, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    from handeye.registry import get_registry
+    from handeye import run_registered
 
-    spec = get_registry().solver(name, "axbycz")
     try:
-        out = spec.run(data, spec.options(), spec.default_backend)
+        out = run_registered(name, data, problem="axbycz")
     except HandEyeError as exc:
         raise type(exc)(f"wang: the start (init={name!r}) failed: {exc}") from None
     return tuple(np.asarray(out.unknowns[k], dtype=float)[:3, :3] for k in ("X", "Y", "Z"))

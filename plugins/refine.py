@@ -334,9 +334,7 @@ def start(data: Any, requested: str | None) -> tuple[str, tuple[np.ndarray, ...]
 def run_init(name: str, data: Any) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """Run registered solver `name` (default backend and options) on validated data, as
     handeye.solve does: (poses, status, diagnostics)."""
-    from handeye.api import _checked_pose
-    from handeye.options import parse_options
-    from handeye.registry import get_registry
+    from handeye import get_registry, run_registered
 
     if name in RECURSIVE:
         raise InputError(f"init solver {name!r} would call refine recursively")
@@ -351,9 +349,8 @@ def run_init(name: str, data: Any) -> tuple[tuple[np.ndarray, ...], Status, dict
     reason = spec.unavailable_reason(spec.default_backend)
     if reason:
         raise BackendUnavailableError(f"init solver {name!r} is unavailable: {reason}")
-    output = spec.run(data, parse_options(spec.options, {}, name), spec.default_backend)
-    names = OPTIONS[problem].UNKNOWNS
-    return tuple(_checked_pose(output.unknowns, k, name) for k in names), Status(output.status), dict(output.diagnostics)
+    sol = run_registered(name, data, problem=problem)
+    return tuple(sol.unknowns[k] for k in OPTIONS[problem].UNKNOWNS), sol.status, dict(sol.diagnostics)
 
 
 # --------------------------------------------------------------------------- solver

@@ -214,11 +214,9 @@ def _levenberg_marquardt(cell: _Cell, poses: dict[str, np.ndarray], camera: Any,
 def _start(data: AXYBData, options: Options) -> tuple[dict[str, np.ndarray], str, list[str]]:
     if options.init_X is not None:
         return {"X": options.init_X, "Y": options.init_Y}, "given", []
-    from handeye.options import parse_options
-    from handeye.registry import get_registry
+    from handeye import run_registered
 
-    spec = get_registry().solver(START, "axyb")
-    output = spec.run(data, parse_options(spec.options, {}, START), spec.default_backend)
+    output = run_registered(START, data, problem="axyb")
     if Status(output.status) not in (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED):
         raise SolverError(f"reprojection: its start, solver {START!r} on the board poses, ended {output.status}")
     warnings = [w for w in output.diagnostics.get("warnings", []) if "left out" not in w]

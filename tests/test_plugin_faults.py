@@ -289,3 +289,21 @@ def test_a_study_stops_a_solver_that_swallows_its_time_limit(faulty):
     hung = result.select(label="f-hangs")
     assert len(hung) == 2 and all(r["status"] == "failed" and "gave no answer within" in r["error"] for r in hung)
     assert all(r["status"] != "failed" for r in result.select(label="shah"))  # the study went on
+
+
+def test_a_solver_runs_another_through_the_host(faulty):
+    """handeye.run_registered: the one door for one solver to run another (a start), with the
+    host's checks and fault wrapping but without the self-check unless asked."""
+    data = handeye.get_registry().problem("axyb").validate(**faulty)
+    sol = handeye.run_registered("shah", data, problem="axyb")
+    assert sol.status is handeye.Status.OPTIMAL and "self_check" not in sol.diagnostics
+    assert not sol.X.flags.writeable and sol.X[3].tolist() == [0.0, 0.0, 0.0, 1.0]
+    checked = handeye.run_registered("shah", data, problem="axyb", self_check=True)
+    assert "self_check" in checked.diagnostics
+    np.testing.assert_array_equal(checked.X, sol.X)
+    with pytest.raises(handeye.SolverError, match=r"failed: KeyError: 'missing'"):
+        handeye.run_registered("f-keyerror", data, problem="axyb")
+    with pytest.raises(handeye.SolverError, match="last row"):
+        handeye.run_registered("f-lastrow", data, problem="axyb")
+    with pytest.raises(handeye.UnknownPluginError, match="unknown option 'nonsense'"):
+        handeye.run_registered("shah", data, problem="axyb", options={"nonsense": 1})
