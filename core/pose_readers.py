@@ -122,8 +122,8 @@ class _Table:
 
 
 def read_poses(path: str | Path, format: str | PoseFormat, *, unit: str | None = None,
-               columns: Sequence[str | int] | None = None, degrees: bool | None = None,
-               orthonormalize: bool = False, delimiter: str | None = None) -> PoseStack:
+               columns: Sequence[str | int] | None = None, layout: Sequence[str] | None = None,
+               degrees: bool | None = None, orthonormalize: bool = False, delimiter: str | None = None) -> PoseStack:
     """Read a file of poses into a `PoseStack` (poses: (n, 4, 4)).
 
     format: a name of `handeye.pose_formats.format_names` (``"fanuc-wpr"``, ``"matrix"``,
@@ -134,6 +134,10 @@ def read_poses(path: str | Path, format: str | PoseFormat, *, unit: str | None =
         formats (matrix, quaternion, rotation vector, euler, opencv-rvec) have none and need it.
     columns: the format's columns in format order, as header names (case-insensitive) or 0-based
         indices; default: found by header name, else by position.
+    layout: the other way round: what each of the file's columns holds, in file order, as the
+        format's field names (``("qw", "qx", "qy", "qz", "x", "y", "z")`` for a quaternion-first
+        file read as ``xyz-quat-xyzw``), ``"t"`` for time stamps, ``"name"`` for names, ``"-"``
+        for a column to skip (`file_layout`). Not with `columns`.
     degrees: override the format's angle unit (True: degrees, False: radians).
     orthonormalize: project matrix rotation blocks onto SO(3) (SVD) and normalise quaternions,
         reporting the largest correction; a correction above `MAX_CORRECTION` still raises.
@@ -161,7 +165,56 @@ def read_poses(path: str | Path, format: str | PoseFormat, *, unit: str | None =
         except RecursionError:  # json and yaml recurse once per level of nesting
             raise InputError(f"{src}: nested too deeply to read; a pose is a row of numbers or a 4x4 "
                              "list of lists") from None
+    if layout is not None:
+        if columns is not None:
+            raise InputError(f"{src}: give columns (the format's fields in order) or layout (the file's columns in "
+                             "order), not both")
+        columns = file_layout(layout, fmt, _width(table), src)
     return _convert(table, fmt, src, unit=unit, columns=columns, degrees=degrees, orthonormalize=orthonormalize)
+
+
+def file_layout(layout: Sequence[str], fmt: PoseFormat, width: int, src: str = "pose file") -> _Layout:
+    """The columns of `fmt`'s fields, and of the stamps and names, from `layout`: the file's
+    `width` columns in file order, each a field name of the format (or one of its header
+    aliases), a time-stamp name (``t``, ``time``, ...), a name-column name (``name``, ``index``,
+    ...) or ``-`` (skipped)."""
+    if isinstance(layout, (str, bytes)) or len(layout) != width:
+        raise InputError(f"{src}: the column layout names {len(layout) if not isinstance(layout, (str, bytes)) else 1} "
+                         f"columns but the file has {width}; name every column in file order ({', '.join(fmt.fields)}, "
+                         "t for time stamps, name, or - to skip one)")
+    where: dict[str, int] = {}
+    stamp = name = None
+    for i, entry in enumerate(layout):
+        key = normalise_header(str(entry))
+        field = next((f for f in fmt.fields if key == f or key in fmt.aliases[f]), None)
+        if field is not None:
+            if field in where:
+                raise InputError(f"{src}: the column layout names {field!r} twice")
+            where[field] = i
+        elif key in STAMP_COLUMNS and stamp is None:
+            stamp = i
+        elif key in NAME_COLUMNS and name is None:
+            name = i
+        elif str(entry).strip() not in ("-", "_"):
+            raise InputError(f"{src}: column {i + 1} of the layout, {str(entry)!r}, is not a field of {fmt.name} "
+                             f"({', '.join(fmt.fields)}), t, name or -")
+    missing = [f for f in fmt.fields if f not in where]
+    if missing:
+        raise InputError(f"{src}: the column layout does not say where {', '.join(missing)} of {fmt.name} are")
+    return _Layout(tuple(where[f] for f in fmt.fields), name, stamp)
+
+
+@dataclasses.dataclass(frozen=True)
+class _Layout:
+    """Resolved columns: the format's fields (format order), the names and stamps columns."""
+
+    fields: tuple[int, ...]
+    name: int | None
+    stamp: int | None
+
+
+def _width(table: _Table) -> int:
+    return len(table.header) if table.header else len(table.rows[0])
 
 
 def poses_from_rows(rows: ArrayLike, format: str | PoseFormat, *, unit: str | None = None,
@@ -449,8 +502,10 @@ def _check_unit(unit: Any, src: str) -> None:
 def _columns(table: _Table, fmt: PoseFormat, columns: Sequence[str | int] | None,
              src: str) -> tuple[list[int], int | None, int | None]:
     """(indices of the format's fields, index of the names column, index of the stamps column)."""
-    header, width = table.header, len(table.header) if table.header else len(table.rows[0])
+    header, width = table.header, _width(table)
     norm = [normalise_header(h) for h in header] if header else None
+    if isinstance(columns, _Layout):
+        return list(columns.fields), columns.name, columns.stamp
     if columns is not None:
         if isinstance(columns, (str, bytes)) or len(columns) != fmt.width:
             raise InputError(f"{src}: columns must list the {fmt.width} columns of {fmt.name} "
@@ -534,7 +589,10 @@ def _convert(table: _Table, fmt: PoseFormat, src: str, *, unit: str | None, colu
     values = _numbers(table, idx, src)
     correction = 0.0 if orthonormalize else None
     if fmt.kind == "quat":  # before scipy, which refuses zero quaternions without saying where
-        correction = _check_quaternions(fmt.quaternions(values), table.where, src, orthonormalize)
+        try:
+            correction = _check_quaternions(fmt.quaternions(values), table.where, src, orthonormalize)
+        except InputError as exc:
+            raise InputError(f"{exc}{_quaternion_hint(table, fmt, idx)}") from None
     R, t, _ = fmt.to_rotations(values, degrees)
     if fmt.kind == "matrix":
         R, correction = _matrix_rotations(values, R, fmt, table.where, src, orthonormalize)
@@ -548,6 +606,27 @@ def _convert(table: _Table, fmt: PoseFormat, src: str, *, unit: str | None, colu
         stamps = np.array(stamps, dtype=float)
         stamps.setflags(write=False)
     return PoseStack(poses, unit, fmt.name, names, stamps, correction, src)
+
+
+def _quaternion_hint(table: _Table, fmt: PoseFormat, idx: list[int]) -> str:
+    """Where else the file holds unit quaternions, when four consecutive columns other than the
+    format's do (a quaternion-first file read as quaternion-last, say): the layout to give."""
+    columns = []
+    for j in range(_width(table)):
+        values = [_number(r[j], table.text) for r in table.rows]
+        columns.append(None if any(v is None for v in values) else np.array(values, dtype=float))
+    mine = sorted(idx[k] for k, f in enumerate(fmt.fields) if f.startswith("q"))
+    for s in range(len(columns) - 3):
+        window = columns[s:s + 4]
+        if list(range(s, s + 4)) == mine or any(c is None for c in window):
+            continue
+        if np.all(np.abs(np.linalg.norm(np.stack(window, axis=1), axis=1) - 1.0) < 1e-6):
+            rest = [c for c in ("x", "y", "z") if c in fmt.fields]
+            example = ",".join(["qw", "qx", "qy", "qz"] + rest) if s == 0 else ",".join(rest + ["qx", "qy", "qz", "qw"])
+            return (f"; columns {s + 1}-{s + 4} of the file hold unit quaternions: give the file's column layout, "
+                    f"e.g. layout={example.split(',')} (CLI --robot-columns / --camera-columns {example}), "
+                    "scalar first or last as the file has it")
+    return ""
 
 
 def _first(mask: np.ndarray, where: list[str]) -> str:
@@ -591,6 +670,9 @@ def _check_quaternions(q: Array, where: list[str], src: str, orthonormalize: boo
         raise InputError(f"{src}: {_first(norm < 1e-9, where)}: the quaternion is zero; it is no rotation")
     dev = np.abs(norm - 1.0)
     if not orthonormalize:
+        if dev.max() > MAX_CORRECTION:  # not rounding: normalising would hide a wrong layout or format
+            raise InputError(f"{src}: the quaternion columns do not hold unit quaternions (|q| = {norm[np.argmax(dev)]:.4g} "
+                             f"in {_first(dev == dev.max(), where)}); check the format and the order of the columns")
         if dev.max() > ORTHONORMALITY_TOL:
             raise InputError(f"{src}: quaternions are not unit (largest ||q| - 1| = {dev.max():.1e} > "
                              f"{ORTHONORMALITY_TOL:g}, first in {_first(dev > ORTHONORMALITY_TOL, where)}); "

@@ -227,7 +227,8 @@ def test_cli_tz_X(tmp_path, capsys, command):
         argv = ["calibrate", "--robot", str(robot), "--robot-format", "fanuc-wpr", "--camera", str(camera),
                 "--camera-format", "opencv-rvec", "--camera-unit", "mm", "--setup", "eye-in-hand", "--json"]
     assert main(argv) == 2
-    assert "tz_X=" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "--tz-X VALUE" in err and "tz_X" not in err  # the command line's words, not Python's
     assert main(argv + ["--tz-X", "60"]) == 0
     out = json.loads(capsys.readouterr().out)
     X = np.array(out["X"] if command == "calibrate" else out["unknowns"]["X"])

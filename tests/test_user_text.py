@@ -169,3 +169,80 @@ assert not heavy, heavy
 """
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 0, done.stderr
+
+
+# ----------------------------------------------------------------------------- a new user's trip-ups
+
+def _quaternion_first_files(tmp_path):
+    """A robot file written quaternion first (qw qx qy qz x y z, as many trackers do) and a camera
+    file of T_target_cam in the usual x y z qx qy qz qw, no headers."""
+    from scipy.spatial.transform import Rotation
+
+    data, truth = PROBLEM.simulate(pairs=12, seed=3)
+    q = Rotation.from_matrix(data["A"][:, :3, :3]).as_quat(scalar_first=True)
+    robot, camera = tmp_path / "robot.txt", tmp_path / "camera.txt"
+    np.savetxt(robot, np.column_stack([q, data["A"][:, :3, 3]]))
+    qc = Rotation.from_matrix(data["B"][:, :3, :3]).as_quat()
+    np.savetxt(camera, np.column_stack([data["B"][:, :3, 3], qc]))
+    args = ["calibrate", "--robot", str(robot), "--robot-format", "xyz-quat-xyzw", "--robot-unit", "mm",
+            "--camera", str(camera), "--camera-format", "xyz-quat-xyzw", "--camera-unit", "mm",
+            "--camera-poses", "camera-in-board", "--setup", "eye-in-hand"]
+    return args, truth
+
+
+def test_a_quaternion_first_file_is_named_and_read_with_its_column_layout(tmp_path, capsys):
+    """It used to be refused with advice to --orthonormalize, the wrong fix: the columns that do
+    hold unit quaternions are named, with the layout flag that reads the file."""
+    args, truth = _quaternion_first_files(tmp_path)
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert "columns 1-4 of the file hold unit quaternions" in err and "--robot-columns qw,qx,qy,qz,x,y,z" in err
+    assert "orthonormalize" not in err and "layout=" not in err and err.count("\n") == 0
+    assert main([*args, "--robot-columns", "qw,qx,qy,qz,x,y,z", "--json"]) == 0
+    import json
+
+    X = np.array(json.loads(capsys.readouterr().out)["X"])
+    np.testing.assert_allclose(X, truth["X"], atol=1e-6)
+
+
+@pytest.mark.parametrize("layout, message", [
+    ("qw,qx,qy,qz,x,y", "names 6 columns but the file has 7"),
+    ("qw,qx,qy,qz,x,y,y", "names 'y' twice"),
+    ("qw,qx,qy,qz,x,y,w", "column 7 of the layout, 'w', is not a field of xyz-quat-xyzw"),
+])
+def test_a_wrong_column_layout_is_one_line(tmp_path, capsys, layout, message):
+    args, _ = _quaternion_first_files(tmp_path)
+    assert main([*args, "--robot-columns", layout]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and err.startswith("handeye: error: --robot:") and err.count("\n") == 0
+
+
+def test_cli_errors_name_cli_flags_not_python_keywords(tmp_path, capsys):
+    """A planar robot's data: the library says tz_X=..., the command line --tz-X VALUE."""
+    from handeye.io import save_data
+    from handeye.noise import NoiseModel
+    from handeye.problems import planar
+
+    stations, truth = planar.simulate_stations(12, seed=9, noise=NoiseModel.on(("A", "B"), 0.001, 0.1))
+    path = tmp_path / "scara.json"
+    save_data(path, stations, truth, metadata={"units": "mm", "setup": "eye-in-hand"})
+    assert main(["solve", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "--tz-X VALUE" in err and "--tz-X 0" in err and "--tz-Y" in err
+    assert not re.search(r"\btz_[XY]\b|=<", err)
+    with pytest.raises(DegenerateDataError, match=r"tz_X=<"):  # the library keeps its own words
+        handeye.solve("axyb", **stations)
+
+
+def test_image_pairing_is_said_once(capsys):
+    from pathlib import Path
+
+    data = Path(handeye.__file__).parent / "data" / "rct_circle_grid"
+    argv = ["calibrate", "--images", str(data / "images"), "--board", "circlegrid:10x10:25.4mm", "--robot",
+            str(data / "poses"), "--robot-format", "xyz-quat-xyzw", "--robot-unit", "m", "--setup", "eye-in-hand"]
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert (out + err).count("paired 15 images with the robot poses in order") == 1
+    assert main([*argv, "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert err.count("paired 15 images with the robot poses in order") == 1

@@ -25,6 +25,7 @@ from collections.abc import Sequence
 from .. import __version__
 from ..errors import HandEyeError, SolverError
 from . import bench_cmd, calibrate_cmd, compare, list_cmd, simulate_cmd, solve_cmd
+from ._common import in_cli_words
 
 #: the subcommand modules, in the order ``handeye --help`` shows them
 COMMANDS = [list_cmd, simulate_cmd, solve_cmd, calibrate_cmd, compare, bench_cmd]
@@ -87,6 +88,6 @@ def console_main() -> None:
 
 
 def _fail(exc: BaseException | str, code: int) -> int:
-    message = " ".join(str(exc).split()) or type(exc).__name__
+    message = in_cli_words(" ".join(str(exc).split())) or type(exc).__name__
     print(f"handeye: error: {message}", file=sys.stderr)
     return code

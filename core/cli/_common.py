@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -15,10 +16,29 @@ import numpy as np
 
 from ..errors import InputError
 
+#: how the library's messages spell a fact or an option (as a Python keyword) -> how this command
+#: line spells it (`in_cli_words`); the library's own "(CLI --flag)" asides are dropped
+CLI_WORDS: tuple[tuple[re.Pattern[str], str], ...] = (
+    (re.compile(r"; --tz-X on the command line"), ""),
+    (re.compile(r"tz_([XY])=<[^>]*>"), r"--tz-\1 VALUE"),
+    (re.compile(r"\btz_([XY])=([-+0-9.eE]+)"), r"--tz-\1 \2"),
+    (re.compile(r"\btz_([XY])\b"), r"--tz-\1"),
+    (re.compile(r"camera_scale='(known|unknown)'"), r"--camera-scale \1"),
+    (re.compile(r"\b(noise|loss|outliers|init|estimate)='([^']*)'"), r"--option \1=\2"),
+)
 #: seconds a third-party plugin's solver may take in ``handeye solve`` / ``calibrate`` by default
 PLUGIN_TIME_LIMIT = 600.0
 #: option values read as bools, whatever their case (JSON knows only lower-case true/false)
 BOOLEANS = {"true": True, "false": False}
+
+
+def in_cli_words(text: str) -> str:
+    """`text` (an error, a warning, a printed result) with the library's keyword spellings of
+    facts and options replaced by this command line's flags (`CLI_WORDS`): a user of the CLI is
+    told ``--tz-X VALUE``, not ``tz_X=<...>``."""
+    for pattern, words in CLI_WORDS:
+        text = pattern.sub(words, text)
+    return text
 
 
 def parse_key_values(items: Sequence[str] | None, what: str = "--option") -> dict[str, Any]:

@@ -109,7 +109,8 @@ def load(args: argparse.Namespace, read_robot: Callable[..., PoseStack]) -> Imag
             camera = load_camera(args.intrinsics)
         except InputError as exc:
             raise InputError(f"--intrinsics: {exc}") from None
-    robot = read_robot(args.robot, args.robot_format, args.robot_unit, args.orthonormalize, "robot")
+    robot = read_robot(args.robot, args.robot_format, args.robot_unit, args.orthonormalize, "robot",
+                       args.robot_columns)
     images = images_and_poses(args.images, board, camera, setup=args.setup, robot=robot,
                               match=IMAGE_MATCHES[args.match], max_dt=args.max_dt, unit=robot.unit)
     poses = np.array(images.T_cam_target)

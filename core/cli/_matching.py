@@ -30,9 +30,11 @@ def stations(args: argparse.Namespace, from_images: bool, read: Callable[..., Po
         robot = take(images.robot_file, robot_rows)
         return images, images.robot_file, images.camera_file, robot, robot_rows, camera_rows, matching, warnings
     robot_file = (_streams.read(args.robot, "robot", args.robot_topic, args.robot_unit)
-                  or read(args.robot, args.robot_format, args.robot_unit, args.orthonormalize, "robot"))
+                  or read(args.robot, args.robot_format, args.robot_unit, args.orthonormalize, "robot",
+                          args.robot_columns))
     camera_file = (_streams.read(args.camera, "camera", args.camera_topic, args.camera_unit)
-                   or read(args.camera, args.camera_format, args.camera_unit, args.orthonormalize, "camera"))
+                   or read(args.camera, args.camera_format, args.camera_unit, args.orthonormalize, "camera",
+                           args.camera_columns))
     if args.match == _streams.INTERPOLATE:  # robot poses interpolated, not rows of the file
         robot, camera_rows, matching, warnings = _streams.match(args, robot_file, camera_file)
         robot_rows = None

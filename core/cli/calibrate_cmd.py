@@ -83,6 +83,7 @@ from ._common import (
     _plain,
     add_force_flag,
     add_time_limit_flag,
+    in_cli_words,
     check_new_file,
     check_outputs_apart,
     dump_json,
@@ -122,6 +123,11 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                              "station, in the robot file's order (see --camera-poses, --match)")
     parser.add_argument("--camera-format", metavar="FORMAT",
                         help="format of --camera, not for ROS bags (opencv-rvec for solvePnP's rvec then tvec, or any of the above)")
+    for which in ("robot", "camera"):
+        parser.add_argument(f"--{which}-columns", metavar="LAYOUT",
+                            help=f"what each column of --{which} holds, in file order, comma separated: the format's "
+                                 "fields (e.g. qw,qx,qy,qz,x,y,z for a quaternion-first file read as xyz-quat-xyzw), "
+                                 "t for time stamps, name, - to skip a column; default: by header, else by position")
     parser.add_argument("--camera-poses", choices=CAMERA_POSES, default="board-in-camera",
                         help="board-in-camera (default): the camera file holds T_cam_target; camera-in-board: it "
                              "holds T_target_cam (the camera's pose in the board frame), inverted on reading")
@@ -177,16 +183,24 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 # ----------------------------------------------------------------------------- reading
 
 
-def _read(path: str, fmt: str, unit: str | None, orthonormalize: bool, which: str) -> PoseStack:
-    """One stream, with the messages' API names replaced by this command's flags."""
+def _read(path: str, fmt: str, unit: str | None, orthonormalize: bool, which: str,
+          layout: str | None = None) -> PoseStack:
+    """One stream, with the messages' API names replaced by this command's flags; `layout`: its
+    --robot-columns / --camera-columns text (the file's columns in order, comma separated)."""
     try:
-        reader = read_pose_dir if Path(path).is_dir() else read_poses  # a folder: one pose file per station
-        return reader(path, fmt, unit=unit, orthonormalize=orthonormalize)
+        if Path(path).is_dir():  # a folder: one pose file per station
+            if layout is not None:
+                raise InputError(f"--{which}-columns applies to a pose file, not to a folder of them")
+            return read_pose_dir(path, fmt, unit=unit, orthonormalize=orthonormalize)
+        columns = None if layout is None else [c.strip() for c in layout.split(",")]
+        return read_poses(path, fmt, unit=unit, orthonormalize=orthonormalize, layout=columns)
     except InputError as exc:
         text = (str(exc).replace("pass unit='mm' or unit='m' (CLI --unit)", f"pass --{which}-unit mm or m")
                 .replace("with orthonormalize=True (CLI --orthonormalize)", "with --orthonormalize")
                 .replace("or pass degrees=True/False (CLI --degrees/--radians)", "")
                 .replace("but unit=", f"but --{which}-unit ").replace(" was passed", " was given"))
+        text = re.sub(r"layout=\[[^\]]*\] \(CLI --robot-columns / --camera-columns ([^)]*)\)",
+                      rf"--{which}-columns \1", text)
         raise InputError(f"--{which}: {text}") from None
 
 
@@ -296,7 +310,7 @@ def run(args: argparse.Namespace) -> int:
         inverted.setflags(write=False)
         camera_read = dataclasses.replace(camera_read, poses=inverted)
     camera = camera_read.in_unit(robot.unit)
-    if args.json and "message" in matching:
+    if args.json and "message" in matching and not from_images:  # the image path printed it with its summary
         print(matching["message"], file=sys.stderr)
     pose_file = from_poses(robot.poses, camera.poses, args.problem, setup=args.setup, pairing=args.pairing,
                            metadata={"units": robot.unit}, source=f"{args.robot} + {args.camera or args.images}")
@@ -388,13 +402,13 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(dump_json(result))
     else:
-        print(_text(result, frames, solution.diagnostics))
+        print(in_cli_words(_text(result, frames, solution.diagnostics)))
     for path in written:
         print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout)
     if solution.status is Status.UNRELIABLE:
         why = report.warnings[0] if report and not report.plausible else next(iter(warnings), "")
-        print(f"handeye: error: status unreliable: {why}; no result file was written "
-              "(--no-checks skips the checks)", file=sys.stderr)
+        print(in_cli_words(f"handeye: error: status unreliable: {why}; no result file was written "
+                           "(--no-checks skips the checks)"), file=sys.stderr)
         return 1
     if unusable:
         print(f"handeye: error: solver {solver!r} ended with status {solution.status}: its "
@@ -427,7 +441,9 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
     equation, item = EQUATIONS[r["problem"]]
     lines = [(f"{r['stations']} stations: robot {inp['robot']['file']} ({inp['robot']['format']}, {unit}), "
               f"camera {inp['camera']['file']} ({inp['camera']['format']}, {cam_unit})"),
-             *([r["matching"]["message"]] if "message" in r["matching"] else []),
+             # the image path prints its pairing with the images' summary, before this
+             *([r["matching"]["message"]] if "message" in r["matching"] and not inp["camera"]["format"].startswith("images")
+               else []),
              f"{r['setup']}, problem {r['problem']} ({equation})"
              + (f", {r['residuals']['count']} motions ({r['pairing']} pairs of stations)" if "pairing" in r else ""),
              f"solver {r['solver']} (backend {r['backend']}): status {r['status']}, {r['seconds'] * 1e3:.1f} ms"

@@ -60,6 +60,7 @@ from . import _facts
 from ._common import (
     add_force_flag,
     add_time_limit_flag,
+    in_cli_words,
     check_outputs_apart,
     dump_json,
     format_pose,
@@ -178,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
         "warnings": [*solution.warnings, *(checks.warnings if checks else ())],
         "checks": None if checks is None else checks.to_dict(),
     }
-    print(dump_json(report) if args.json else _text(report, frames))
+    print(dump_json(report) if args.json else in_cli_words(_text(report, frames)))
     if args.report:
         robot_poses = (pose_file.poses["robot_poses"] if pose_file.poses is not None
                        else data["A"] if args.problem == "axyb" else None)  # axyb: A_i = T_base_flange
@@ -192,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
     if solution.status is Status.UNRELIABLE:
         why = checks.warnings[0] if checks and not checks.plausible else solution.warnings[0]
         skip = " (--no-checks skips the file checks)" if checks and not checks.plausible else ""
-        print(f"handeye: error: status unreliable: {why}{skip}", file=sys.stderr)
+        print(in_cli_words(f"handeye: error: status unreliable: {why}{skip}"), file=sys.stderr)
         return 1
     if solution.status in UNUSABLE:
         print(f"handeye: error: solver {solver!r} ended with status {solution.status}: its "
