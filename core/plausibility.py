@@ -72,6 +72,9 @@ DUPLICATE_FRACTION = 1e-3
 DUPLICATES_LISTED = 5
 #: below this many stations the covariance-based 1-sigma is not meaningful
 MIN_STATIONS_FOR_SIGMA = 5
+#: camera-to-board distances (m, median over the stations) a calibration can have: a unit
+#: hypothesis outside them is not tried
+VIEW_DISTANCE_M = (0.02, 50.0)
 #: the Tait-Bryan sequences (scipy: lower case extrinsic, upper case intrinsic)
 TAIT_BRYAN = tuple("".join(p) for p in itertools.permutations("xyz")) + tuple(
     "".join(p) for p in itertools.permutations("XYZ"))
@@ -199,6 +202,15 @@ def _fit(streams: Streams, robot: np.ndarray, camera: np.ndarray, setup: str) ->
     return math.degrees(_rms(res["rotation"])), _rms(res["translation"])
 
 
+def _camera_can_see(camera: np.ndarray, unit: str) -> bool:
+    """Whether the camera-to-board distances of T_cam_target `camera` (n, 4, 4), in `unit`, are
+    ones a camera calibrates from (median within VIEW_DISTANCE_M): a unit hypothesis that puts the
+    board 3 mm or 3 km from the camera is no explanation, however well it fits (a far board seen
+    from few stations fits almost anything once its translations shrink to millimetres)."""
+    metres = float(np.median(np.linalg.norm(camera[:, :3, 3], axis=1))) * (1e-3 if unit == "mm" else 1.0)
+    return VIEW_DISTANCE_M[0] <= metres <= VIEW_DISTANCE_M[1]
+
+
 def _hypotheses(s: Streams) -> list[tuple[str, str, np.ndarray, np.ndarray, str]]:
     """(description, suggestion, robot, camera, setup) of each usual mistake undone."""
     other = "eye-to-hand" if s.setup == "eye-in-hand" else "eye-in-hand"
@@ -221,6 +233,8 @@ def _hypotheses(s: Streams) -> list[tuple[str, str, np.ndarray, np.ndarray, str]
     for factor, word, true_unit in ((1e-3, "1000 times too large", "mm"), (1e3, "1000 times too small", "m")):
         cam = np.array(s.camera)
         cam[:, :3, 3] *= factor
+        if not _camera_can_see(cam, s.unit):  # the board would sit a few mm, or kilometres, from the camera
+            continue
         if s.camera_unit is not None and other_unit[s.camera_unit] == true_unit:
             text = f"the camera file is in {true_unit}, not {s.camera_unit}"
             sugg = f"--camera-unit {true_unit}"

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 
+import handeye
 import numpy as np
 import pytest
 from handeye.cli import main
@@ -13,6 +14,7 @@ from handeye.noise import NoiseModel
 from handeye.plausibility import MIN_STATIONS_FOR_SIGMA, station_warnings
 from handeye.pose_readers import write_poses
 from handeye.problems.axxb import simulate_stations
+from handeye.problems.axyb import PROBLEM as AXYB
 from handeye.se3 import inverse
 from handeye.solution import Status
 
@@ -169,3 +171,31 @@ def test_a_gross_pair_that_auto_leaves_out_is_not_an_implausible_fit(tmp_path, c
     report = json.loads(out)
     assert code == 0 and report["status"] == "optimal", report["warnings"]
     assert any("pair no. 5 (index 4)" in w for w in report["warnings"])
+
+
+def test_a_far_board_seen_from_few_stations_is_not_taken_for_millimetres():
+    """Real metric data, the board ~3 m from the camera, few stations and noisy camera poses: the
+    'camera file in mm, not m' hypothesis shrank the board's distance to 3 mm, where almost any
+    poses fit, and was suggested (this seed, before the distance guard). A camera calibrates from
+    2 cm to 50 m: a unit hypothesis outside that is not tried."""
+    from handeye import plausibility as P
+    from handeye.kinematics import random_flange_poses
+    from handeye.se3 import make_pose, so3_exp
+
+    rng = np.random.default_rng(19)
+    n = int(rng.integers(4, 8))
+    A = random_flange_poses(n, rng)
+    A[:, :3, 3] *= 1e-3
+    X = make_pose(so3_exp(rng.normal(size=3)), [0.05, 0.0, 0.1])
+    Y = make_pose(so3_exp(rng.normal(size=3)), rng.normal(size=3) * 3)
+    cam = inverse(inverse(Y) @ A @ X)
+    cam = np.stack([make_pose(so3_exp(rng.normal(0, 0.01, 3)), rng.normal(0, 0.05, 3) * np.array([1, 1, 3])) @ c
+                    for c in cam])
+    assert 2.5 < np.median(np.linalg.norm(cam[:, :3, 3], axis=1)) < 3.5
+    streams = P.Streams(robot=A, camera=cam, unit="m", setup="eye-in-hand", problem="axyb", camera_unit="m")
+    data = {"A": A, "B": inverse(cam)}
+    sol = handeye.solve("axyb", solver="kron-lstsq", **data)
+    residuals = AXYB.residuals(AXYB.validate(**data), sol.unknowns)
+    report = P.check(streams, residuals)
+    assert report.explanation is None or "not m" not in report.explanation.description
+    assert not any("1000" in h.description or "not m" in h.description for h in report.hypotheses)

@@ -146,3 +146,15 @@ def test_robot_errors_larger_than_the_pixel_noise_are_named():
     sol = handeye.solve("axyb", solver="reprojection", **data)
     assert sol.diagnostics["robot_misfit"] > 1.5
     assert any("robot's pose errors" in w and "solver 'auto'" in w for w in sol.warnings)
+
+
+@pytest.mark.parametrize("rms, pnp, dominate", [
+    (0.063, 0.03, False),  # a rendered set with exact robot poses: ratio 2.1, but 0.055 px added
+    (1.7, 0.19, True),  # the real circle-grid set: the robot adds 1.69 px
+    (0.25, 0.2, False),  # ratio 1.25
+    (0.5, 0.2, True),
+])
+def test_robot_errors_dominate_only_beyond_a_tenth_of_a_pixel(rms, pnp, dominate):
+    from handeye.plugins.reprojection import robot_errors_dominate
+
+    assert robot_errors_dominate({"rms_px": rms, "pnp_rms_px": pnp, "robot_misfit": rms / pnp}) is dominate

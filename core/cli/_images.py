@@ -139,10 +139,12 @@ def pose_based_instead(solution: Any, defaulted: bool) -> str | None:
     when the robot's poses explain the corners far worse than each image alone does
     (``robot_misfit`` above the solver's limit), the robot's pose errors dominate, which the
     reprojection model (robot poses exact) does not describe; only when the user chose no solver."""
-    from handeye.plugins.reprojection import MISFIT_LIMIT
+    from handeye.plugins.reprojection import robot_errors_dominate
 
-    misfit = solution.diagnostics.get("robot_misfit")
-    if not defaulted or solution.solver != REPROJECTION_SOLVER or misfit is None or misfit <= MISFIT_LIMIT:
+    d = solution.diagnostics
+    if not defaulted or solution.solver != REPROJECTION_SOLVER or d.get("robot_misfit") is None:
+        return None
+    if not robot_errors_dominate(d):
         return None
     return (f"the robot's poses explain the board corners only to {solution.diagnostics['rms_px']:.2g} px RMS while "
             f"each image alone fits them to {solution.diagnostics['pnp_rms_px']:.2g} px: the robot's pose errors "
