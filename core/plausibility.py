@@ -143,6 +143,9 @@ class Report:
             "residual_rms": {"rotation_deg": self.rotation_deg, "translation": self.translation},
             "limits": {"rotation_deg": self.limits[0], "translation": self.limits[1]},
             "cell_size": self.cell_size,
+            "baseline": None if self.baseline is None else {
+                "rotation_deg": self.baseline[0], "translation": self.baseline[1],
+                "score": max(self.baseline[0] / self.limits[0], self.baseline[1] / self.limits[1])},
             "explanation": None if self.explanation is None else dataclasses.asdict(self.explanation),
             "hypotheses": [dataclasses.asdict(h) for h in self.hypotheses],
         }

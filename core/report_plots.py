@@ -50,10 +50,19 @@ def _png(fig: Any) -> bytes:
 
 
 def draw_all(r: Mapping[str, Any]) -> dict[str, bytes]:
-    """name -> PNG bytes of every plot the report's data `r` allows."""
+    """name -> PNG bytes of every plot the report's data `r` allows: the residuals, the poses,
+    and for an image run the corner overlays of its worst images (``overlay1``, ...;
+    `handeye.report_images.overlay_png`)."""
     images = {"residuals": residual_plot(r)}
     if r.get("robot_poses") is not None:
         images["poses"] = pose_plot(r)
+    if r.get("images"):
+        from .report_images import overlay_png
+
+        for k, entry in enumerate(r["images"].get("overlays", [])):
+            png = overlay_png(entry)
+            if png is not None:
+                images[f"overlay{k + 1}"] = png
     return images
 
 

@@ -4,8 +4,12 @@ on a simulated cell with one corrupted station, and the bad-path exits."""
 
 from __future__ import annotations
 
+import json
 import re
+from html.parser import HTMLParser
+from pathlib import Path
 
+import handeye
 import numpy as np
 import pytest
 from handeye.cli import main
@@ -129,3 +133,86 @@ def test_advice_reads_the_precision_warnings():
     noisy = {**base, "warnings": ["the data determine the rotation of X only to 0.5 deg (1-sigma, about ...)"]}
     assert any("poorly at their noise" in row[0] for row in advice(noisy))
     assert not any("poorly" in row[0] for row in advice(base))
+
+
+# ----------------------------------------------------------------------------- the report of an image run
+
+class _Tables(HTMLParser):
+    """The tables of an HTML page: [(header cells or None, [row cells, ...]), ...]; and the images."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.tables: list[tuple[list[str] | None, list[list[str]]]] = []
+        self.images: list[str] = []
+        self._row: list[str] | None = None
+        self._cell: list[str] | None = None
+        self._header = False
+
+    def handle_starttag(self, tag, attrs):
+        if tag == "table":
+            self.tables.append((None, []))
+        elif tag == "tr":
+            self._row, self._header = [], False
+        elif tag in ("td", "th"):
+            self._cell = []
+            self._header = tag == "th"
+        elif tag == "img":
+            self.images.append(dict(attrs)["src"])
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell.append(data)
+
+    def handle_endtag(self, tag):
+        if tag in ("td", "th") and self._cell is not None:
+            self._row.append("".join(self._cell).strip())
+            self._cell = None
+        elif tag == "tr" and self._row is not None:
+            head, rows = self.tables[-1]
+            if self._header:
+                self.tables[-1] = (self._row, rows)
+            else:
+                rows.append(self._row)
+            self._row = None
+
+
+def test_the_report_of_an_image_run(tmp_path, capsys):
+    """The bundled real circle-grid set: the report shows the board, the intrinsics with their
+    calibration RMS, every image's reprojection error (its own pose and predicted through the
+    robot), overlays of the 3 worst images, the full command line, the data as given beside the
+    setup mistakes tried, and every warning of the run with what to do; no table has an empty
+    column or an empty header row."""
+    data = Path(handeye.__file__).parent / "data" / "rct_circle_grid"
+    report = tmp_path / "run.html"
+    argv = ["calibrate", "--images", str(data / "images"), "--board", "circlegrid:10x10:25.4mm", "--robot",
+            str(data / "poses"), "--robot-format", "xyz-quat-xyzw", "--robot-unit", "m", "--setup", "eye-in-hand",
+            "--report", str(report), "--json"]
+    assert main(argv) == 0
+    result = json.loads(capsys.readouterr().out)
+    page = _Tables()
+    page.feed(report.read_text(encoding="utf-8"))
+    assert len(page.images) == 5 and all(s.startswith("data:image/png;base64,") for s in page.images)
+    cells = {row[0]: row[1:] for _, rows in page.tables for row in rows if row}
+    assert cells["board"] == ["circlegrid:10x10:25.4mm"] and cells["intrinsics"] == ["calibrated from the images"]
+    assert cells["calibration RMS [px]"] == [f"{result['camera']['rms_px']:.3g} over 15 images"]
+    per_image = next(rows for head, rows in page.tables if head and head[0] == "image")
+    assert [r[0] for r in per_image] == [str(k) for k in range(15)]
+    own = [float(r[3]) for r in per_image]
+    predicted = [float(r[4]) for r in per_image]
+    expected = [s["rms_px"] for s in result["images"]["stations"]]
+    np.testing.assert_allclose(own, expected, rtol=5e-3)  # the corners' own fit, as the run printed it
+    assert min(p / o for p, o in zip(predicted, own)) > 3  # this arm's pose errors: several px through it
+    assert "handeye calibrate --images" in cells["command"][0] and "--board circlegrid:10x10:25.4mm" in cells["command"][0]
+    hypotheses = next(rows for head, rows in page.tables if head and head[0] == "hypothesis")
+    assert hypotheses[0][0] == "the data as given" and float(hypotheses[0][3]) < 1
+    advice_rows = next(rows for head, rows in page.tables if head == ["found", "what to do"])
+    text = " ".join(" ".join(r) for r in advice_rows)
+    for warning in result["warnings"]:
+        first = warning.split(":")[0] if not warning.startswith("the data determine") else "poorly at their noise"
+        assert first in text, warning
+    assert "camera_scale=" not in text and "--camera-scale unknown" in text  # the command line's words
+    for head, rows in page.tables:
+        assert head is None or any(head), head  # no empty header row
+        width = max(len(r) for r in rows)
+        for k in range(width):
+            assert any(k < len(r) and r[k] for r in rows), (head, k)  # no empty column

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import sys
 import threading
 from collections.abc import Sequence
@@ -56,6 +57,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, --version, or an argparse usage error (code 2)
         return int(exc.code or 0) if not isinstance(exc.code, str) else EXIT_BAD_INPUT
+    args.command_line = shlex.join(["handeye", *(sys.argv[1:] if argv is None else map(str, argv))])
     try:
         return int(args.run(args))
     except SolverError as exc:

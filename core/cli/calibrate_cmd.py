@@ -69,12 +69,13 @@ from scipy.spatial.transform import Rotation
 from ..api import solve
 from ..errors import InputError
 from ..io import PAIRINGS, SETUPS, from_poses
+from ..output_files import write_text
 from ..plausibility import Streams, check
 from ..pose_formats import format_names, parse_format
 from ..pose_readers import UNITS, PoseStack, read_pose_dir, read_poses
-from ..output_files import write_text
 from ..quality_report import check_new_report, collect, report_files, write_report
 from ..registry import get_registry
+from ..report_images import image_entries
 from ..se3 import inverse
 from ..solution import Status, standard_deviations
 from ..station_matching import MATCHES
@@ -83,15 +84,22 @@ from ._common import (
     _plain,
     add_force_flag,
     add_time_limit_flag,
-    in_cli_words,
     check_new_file,
     check_outputs_apart,
     dump_json,
     format_pose,
+    in_cli_words,
     parse_key_values,
     time_limit,
 )
-from .solve_cmd import EQUATIONS, FRAMES, UNUSABLE, _setup_note, default_solver, noise_lines
+from .solve_cmd import (
+    EQUATIONS,
+    FRAMES,
+    UNUSABLE,
+    _setup_note,
+    default_solver,
+    noise_lines,
+)
 
 NAME = "calibrate"
 #: what the camera file holds: board-in-camera = T_cam_target (as solvePnP), camera-in-board = T_target_cam
@@ -392,12 +400,17 @@ def run(args: argparse.Namespace) -> int:
     unusable = solution.status in UNUSABLE or solution.status is Status.UNRELIABLE
     written = [] if unusable else _write(result, args.output, args.yaml, args.force)
     if args.report:
+        camera_input = (f"{args.images} (images, board {args.board})" if images is not None
+                        else f"{args.camera} ({camera_read.format}, {camera_read.unit})")
         data = collect(problem=args.problem, setup=args.setup, unit=unit, solution=solution, residuals=residuals,
-                       frames=frames, checks=result["checks"], warnings=result["warnings"],
+                       frames=frames, checks=result["checks"], warnings=[in_cli_words(w) for w in result["warnings"]],
                        inputs={"robot file": f"{args.robot} ({robot.format}, {robot.unit})",
-                               "camera file": f"{args.camera or args.images} ({camera_read.format}, {camera_read.unit})"},
+                               "camera " + ("images" if images is not None else "file"): camera_input},
                        robot_poses=robot.poses, stations=len(robot), pairing=pose_file.metadata.get("pairing"),
-                       command="handeye calibrate")
+                       command=getattr(args, "command_line", "handeye calibrate"),
+                       images=None if images is None else image_entries(
+                           images.image_set, args.board, args.setup, robot.poses, solution.unknowns,
+                           args.intrinsics or "calibrated from the images"))
         written.append(str(write_report(args.report, data, force=args.force)[0]))
     if args.json:
         print(dump_json(result))

@@ -60,10 +60,10 @@ from . import _facts
 from ._common import (
     add_force_flag,
     add_time_limit_flag,
-    in_cli_words,
     check_outputs_apart,
     dump_json,
     format_pose,
+    in_cli_words,
     parse_key_values,
     time_limit,
 )
@@ -186,9 +186,10 @@ def run(args: argparse.Namespace) -> int:
         units = metadata.get("units")
         written = write_report(args.report, force=args.force, r=collect(
             problem=args.problem, setup=metadata.get("setup"), unit=units, solution=solution, residuals=residuals,
-            frames=frames, checks=report["checks"], warnings=report["warnings"],
+            frames=frames, checks=report["checks"], warnings=[in_cli_words(w) for w in report["warnings"]],
             inputs={"data": source + (f" ({units})" if units else "")}, robot_poses=robot_poses,
-            stations=report.get("stations"), pairing=report.get("pairing"), command="handeye solve"))
+            stations=report.get("stations"), pairing=report.get("pairing"),
+            command=getattr(args, "command_line", "handeye solve")))
         print(f"wrote {written[0]}", file=sys.stderr if args.json else sys.stdout)
     if solution.status is Status.UNRELIABLE:
         why = checks.warnings[0] if checks and not checks.plausible else solution.warnings[0]
