@@ -34,8 +34,9 @@ import sys
 import time
 
 import numpy as np
+
+from handeye.framework.registry import get_registry
 from handeye.harness import Spec, accuracy_study, run_study, write_report
-from handeye.registry import get_registry
 
 PROBLEM = "axbycz"
 UNKNOWNS = ("X", "Y", "Z")

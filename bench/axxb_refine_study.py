@@ -27,9 +27,10 @@ import statistics
 import time
 
 import cv2
-import handeye
 import numpy as np
-from handeye.noise import NoiseModel
+
+import handeye
+from handeye.estimation.noise import NoiseModel
 from handeye.problems.axxb import PROBLEM, relative_motions, simulate_stations
 
 NOISE = NoiseModel.on(("A", "B"), 0.002, 0.2)
@@ -49,7 +50,7 @@ def motion_covariances(A_abs: np.ndarray, B_abs: np.ndarray, X: np.ndarray) -> n
     of the motion alpha = a_i - R_A^T a_j and t_A picks up [t_A]_x a_j + R_j^T (u_i - u_j) (likewise
     for B), so r = R_A (alpha - R_X beta) and
     t = -R_A [t_X]_x alpha + [t_A]_x a_j + R_j^T (u_i - u_j) - R_X ([t_B]_x b_j + S_j^T (w_i - w_j))."""
-    from handeye.se3 import skew
+    from handeye.geometry.se3 import skew
 
     (sa, su), (sb, sw) = NOISE.sigmas["A"], NOISE.sigmas["B"]
     A, B = relative_motions(A_abs, B_abs, "consecutive")

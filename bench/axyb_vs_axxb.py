@@ -52,12 +52,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-import handeye
 import numpy as np
-from handeye.noise import NoiseModel
-from handeye.problem import pose_errors
+
+import handeye
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.problem import pose_errors
+from handeye.geometry.se3 import inverse, so3_exp
 from handeye.problems.axxb import relative_motions, simulate_stations
-from handeye.se3 import inverse, so3_exp
 
 #: white noise (rad, mm) of the camera and robot poses: the accuracy study's realistic noise
 CAMERA_NOISE = (0.002, 0.5)

@@ -23,13 +23,14 @@ import statistics
 import time
 from typing import Any
 
-import handeye
 import numpy as np
-from handeye.examples import list_examples, load_example
+
+import handeye
+from handeye.geometry.se3 import rotation_angle
 from handeye.harness import accuracy_study
 from handeye.harness.runner import simulate
+from handeye.io.examples import list_examples, load_example
 from handeye.problems.axxb import relative_motions
-from handeye.se3 import rotation_angle
 
 LEVELS = (1.0, 10.0, 30.0, 100.0)
 

@@ -25,13 +25,14 @@ from __future__ import annotations
 import argparse
 import time
 
-import handeye
 import numpy as np
-from handeye.noise import NoiseModel
+
+import handeye
+from handeye.estimation.noise import NoiseModel
+from handeye.geometry.se3 import inverse, make_pose, so3_exp
 from handeye.problems.axxb import PROBLEM as AXXB
 from handeye.problems.axxb import motions, relative_motions, simulate_stations
 from handeye.problems.axyb import PROBLEM as AXYB
-from handeye.se3 import inverse, make_pose, so3_exp
 
 NOISE = NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)})
 FRACTION = 0.15

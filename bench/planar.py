@@ -20,11 +20,12 @@ from __future__ import annotations
 import argparse
 import warnings
 
-import handeye
 import numpy as np
-from handeye.noise import NoiseModel
+
+import handeye
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.registry import get_registry
 from handeye.problems import planar
-from handeye.registry import get_registry
 
 BEFORE = {"axyb": ("auto", "kron-lstsq", "dual-quaternion"), "axxb": ("auto", "kron-lstsq", "park", "daniilidis")}
 

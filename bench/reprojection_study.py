@@ -27,11 +27,12 @@ from __future__ import annotations
 import argparse
 import time
 
-import handeye
 import numpy as np
-from handeye.noise import NoiseModel
+
+import handeye
+from handeye.estimation.noise import NoiseModel
+from handeye.geometry.se3 import inverse
 from handeye.problems import axyb_images
-from handeye.se3 import inverse
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
 METHODS = ("auto (poses)", "reprojection", "reprojection from truth")

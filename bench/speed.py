@@ -14,7 +14,7 @@ import argparse
 import sys
 
 from handeye.cli import bench_cmd
-from handeye.errors import HandEyeError
+from handeye.framework.errors import HandEyeError
 
 
 def main(argv: list[str] | None = None) -> int:

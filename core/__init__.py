@@ -16,11 +16,16 @@ problems.
 from __future__ import annotations
 
 import importlib
+import importlib.abc
+import importlib.machinery
+import importlib.util
+import sys
 from importlib.metadata import PackageNotFoundError, version
 from types import ModuleType
+from typing import Any
 
-from .api import run_registered, solve
-from .errors import (
+from handeye.framework.api import run_registered, solve
+from handeye.framework.errors import (
     BackendUnavailableError,
     DegenerateDataError,
     HandEyeError,
@@ -31,16 +36,54 @@ from .errors import (
     SolverTimeoutError,
     UnknownPluginError,
 )
-from .hookspecs import hookimpl
-from .options import NoOptions
-from .problem import Problem
-from .registry import get_registry, list_problems, list_solvers
-from .solution import Solution, SolverOutput, Status
-from .solver import SolverSpec
+from handeye.framework.hookspecs import hookimpl
+from handeye.framework.options import NoOptions
+from handeye.framework.problem import Problem
+from handeye.framework.registry import get_registry, list_problems, list_solvers
+from handeye.framework.solution import Solution, SolverOutput, Status
+from handeye.framework.solver import SolverSpec
 
 #: submodules that ``handeye.<name>`` imports on first use (PEP 562), so that ``import handeye``
 #: stays cheap: ``handeye.io.load_file(...)`` works without ``import handeye.io`` first.
 _LAZY_SUBMODULES = ("examples", "harness", "io", "problems")
+#: the modules of the flat layout before the layers (framework, geometry, estimation, checks, io,
+#: streams, workflow) -> where they live now. ``import handeye.se3``, ``from handeye.options import
+#: check_choice`` and every other path of that layout keep working and give the same module
+#: object (`_MovedModules`), so that code written for it, a plugin's or a user's, runs unchanged.
+_MOVED = {
+    **{m: f"framework.{m}" for m in ("api", "errors", "hookspecs", "isolation", "options", "problem", "processes",
+                                     "registry", "solution", "solver")},
+    **{m: f"geometry.{m}" for m in ("se3", "so3_fast", "dualquat", "kinematics", "linalg")},
+    **{m: f"estimation.{m}" for m in ("nlls", "whitening", "robust", "noise", "noise_sources", "kronecker",
+                                      "so3_relaxation", "rotation_cost", "trust_region", "camera_scale")},
+    **{m: f"checks.{m}" for m in ("validation", "self_check", "plausibility")},
+    **{m: f"io.{m}" for m in ("npz", "pose_formats", "pose_readers", "bag_readers", "input_files", "output_files",
+                              "examples")},
+    "station_matching": "streams.station_matching",
+    **{m: f"workflow.{m}" for m in ("quality_report", "report_layout", "report_render", "report_images",
+                                    "report_plots")},
+}
+
+
+class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """Imports ``handeye.<old name>`` of `_MOVED` as the module at its new place (the same object,
+    under both names in sys.modules), on first use only."""
+
+    def find_spec(self, fullname: str, path: Any = None, target: Any = None) -> importlib.machinery.ModuleSpec | None:
+        head, _, tail = fullname.partition(".")
+        if head != __name__ or tail not in _MOVED:
+            return None
+        return importlib.util.spec_from_loader(fullname, self)
+
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType:
+        return importlib.import_module(f"{__name__}.{_MOVED[spec.name.partition('.')[2]]}")
+
+    def exec_module(self, module: ModuleType) -> None:
+        """Nothing: the module was executed at its new place."""
+
+
+if not any(isinstance(f, _MovedModules) for f in sys.meta_path):
+    sys.meta_path.insert(0, _MovedModules())
 
 try:
     __version__ = version("handeye")
@@ -79,7 +122,7 @@ __all__ = [
 def __getattr__(name: str) -> ModuleType:
     """``handeye.io``, ``handeye.examples``, ``handeye.harness``, ``handeye.problems``: imported
     on first access (PEP 562); any other unknown name is an AttributeError as usual."""
-    if name in _LAZY_SUBMODULES:
+    if name in _LAZY_SUBMODULES or name in _MOVED:
         return importlib.import_module(f"{__name__}.{name}")  # the import binds it on the package
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 

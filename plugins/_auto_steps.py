@@ -12,11 +12,12 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+
 from handeye import SolverOutput
-from handeye.errors import DegenerateDataError, InputError
+from handeye.estimation.whitening import Whitening
+from handeye.framework.errors import DegenerateDataError, InputError
+from handeye.framework.solution import jsonable
 from handeye.plugins import refine as _refine
-from handeye.solution import jsonable
-from handeye.whitening import Whitening
 
 #: camera poses that drift (`drift`): lag-1 autocorrelation of the A X = Y B translation
 #: residuals beyond this (and beyond 3 / sqrt(m)), from DRIFT_MIN_PAIRS stations on. Measured
@@ -40,13 +41,13 @@ def estimate_scale_if_needed(data: Any, options: Any, backend: str, output: Solv
                              at: tuple[Any, np.ndarray] | None, solve: Solve) -> tuple[Any, SolverOutput]:
     """(data, output) as they are, or with the camera's scale unknown and solved again when check
     5 fails on `output` (auto's `run`)."""
-    from handeye.problems.axxb import PROBLEM as AXXB
-    from handeye.problems.axyb import PROBLEM as AXYB
-    from handeye.self_check import (
+    from handeye.checks.self_check import (
         camera_scale_screen,
         camera_scale_verdict,
         scale_suspect,
     )
+    from handeye.problems.axxb import PROBLEM as AXXB
+    from handeye.problems.axyb import PROBLEM as AXYB
 
     name = _refine.problem_of(data)
     fitted = output.diagnostics.get("refine", {})

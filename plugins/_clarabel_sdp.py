@@ -34,7 +34,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from handeye.errors import SolverError
+
+from handeye.framework.errors import SolverError
 
 #: Clarabel's statuses with a usable solution -> the status reported (cvxpy's names, so that both
 #: so3-sdp backends report the same ``sdp_status``); any other status is a SolverError.

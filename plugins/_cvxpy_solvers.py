@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from handeye.errors import InputError
+from handeye.framework.errors import InputError
 
 #: The cvxpy solver used when ``cvxpy_solver`` is not given.
 DEFAULT_CVXPY_SOLVER = "CLARABEL"

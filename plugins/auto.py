@@ -53,22 +53,18 @@ import dataclasses
 from typing import Any
 
 import numpy as np
-from handeye import (
-    SolverOutput,
-    SolverSpec,
-    Status,
-    hookimpl,
-    nlls,
-)
-from handeye.errors import DegenerateDataError, HandEyeError, InputError
-from handeye.options import check_choice
+
+from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye.checks.self_check import MAJORITY
+from handeye.estimation import nlls
+from handeye.estimation.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
+from handeye.estimation.whitening import Whitening, estimate_sigmas
+from handeye.framework.errors import DegenerateDataError, HandEyeError, InputError
+from handeye.framework.options import check_choice
+from handeye.framework.solution import jsonable
 from handeye.plugins import _auto_steps as steps
 from handeye.plugins import refine as _refine
 from handeye.plugins._auto_steps import DRIFT_AUTOCORRELATION, DRIFT_MIN_PAIRS  # noqa: F401 (auto's constants)
-from handeye.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
-from handeye.self_check import MAJORITY
-from handeye.solution import jsonable
-from handeye.whitening import Whitening, estimate_sigmas
 
 #: keys of an init solver's diagnostics that make up its certificate
 CERTIFICATE_KEYS = ("certified", "eigenvalue_ratio", "relative_gap", "duality_gap", "lower_bound", "cost", "thresholds")

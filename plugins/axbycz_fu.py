@@ -47,12 +47,18 @@ import dataclasses
 from typing import Any
 
 import numpy as np
+
 from handeye import Solution, SolverOutput, SolverSpec, Status, hookimpl
-from handeye.errors import DegenerateDataError, HandEyeError, InputError, shown
-from handeye.options import check_bool, check_positive
+from handeye.framework.errors import (
+    DegenerateDataError,
+    HandEyeError,
+    InputError,
+    shown,
+)
+from handeye.framework.options import check_bool, check_positive
+from handeye.geometry.se3 import inverse
 from handeye.problems.axbycz import AXBYCZData
 from handeye.problems.axxb import relative_motions
-from handeye.se3 import inverse
 
 #: fewest triples of a phase: 3 stations give 3 motions, the least AX=XB needs (two rotation axes)
 MIN_PHASE = 3
@@ -78,7 +84,7 @@ class Options:
 
 
 def _check_solver_name(option: str, value: Any, problem: str) -> None:
-    from handeye.registry import get_registry
+    from handeye.framework.registry import get_registry
 
     names = get_registry().solver_names(problem)
     if not isinstance(value, str) or value not in names:

@@ -58,13 +58,19 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from scipy.spatial.transform import Rotation
+
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.errors import DegenerateDataError, HandEyeError, InputError, shown
-from handeye.options import check_int, check_positive
+from handeye.framework.errors import (
+    DegenerateDataError,
+    HandEyeError,
+    InputError,
+    shown,
+)
+from handeye.framework.options import check_int, check_positive
+from handeye.geometry.se3 import make_pose, project_to_so3, skew, so3_exp, vee
 from handeye.problems.axbycz import AXBYCZData
 from handeye.problems.axbycz_kronecker import solve_translations
-from handeye.se3 import make_pose, project_to_so3, skew, so3_exp, vee
-from scipy.spatial.transform import Rotation
 
 #: the start of ``init="grid"``: the 60 rotations of the icosahedral group
 GRID = Rotation.create_group("I").as_matrix()
@@ -96,7 +102,7 @@ class Options:
         check_positive("tol", self.tol)
         check_int("max_iter", self.max_iter, minimum=1)
         if not (isinstance(self.init, str) and self.init == GRID_INIT):
-            from handeye.registry import get_registry
+            from handeye.framework.registry import get_registry
 
             names = [n for n in get_registry().solver_names("axbycz") if n != "wang"]
             if not isinstance(self.init, str) or self.init not in names:

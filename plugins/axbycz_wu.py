@@ -47,19 +47,20 @@ import dataclasses
 import itertools
 
 import numpy as np
+
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.dualquat import (
+from handeye.framework.errors import DegenerateDataError
+from handeye.framework.options import check_int
+from handeye.geometry.dualquat import (
     q_left,
     q_right,
     quat_from_rotation,
     quat_multiply,
     rotation_from_quat,
 )
-from handeye.errors import DegenerateDataError
-from handeye.options import check_int
+from handeye.geometry.se3 import make_pose, rotation_angle
 from handeye.problems.axbycz import AXBYCZData
 from handeye.problems.axbycz_kronecker import solve_translations
-from handeye.se3 import make_pose, rotation_angle
 
 #: the paper's number of sign triples and of sign patterns compared by their residual
 SIGN_TRIPLES = 10

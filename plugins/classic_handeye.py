@@ -35,19 +35,20 @@ import dataclasses
 from typing import Any
 
 import numpy as np
+
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.dualquat import (
+from handeye.checks.self_check import rotation_block_figures
+from handeye.framework.errors import DegenerateDataError, InputError
+from handeye.framework.options import check_bool
+from handeye.geometry.dualquat import (
     pose_from_dual_quat,
     q_left,
     q_right,
     rotation_from_quat,
 )
-from handeye.errors import DegenerateDataError, InputError
-from handeye.linalg import triangular_factor
-from handeye.options import check_bool
+from handeye.geometry.linalg import triangular_factor
+from handeye.geometry.se3 import make_pose, project_to_so3, skew
 from handeye.problems.axxb import AXXBData, regression_blocks, solve_translation
-from handeye.se3 import make_pose, project_to_so3, skew
-from handeye.self_check import rotation_block_figures
 
 #: Tsai as OpenCV: keep a motion when |P_A| and |P_B| (P = 2 sin(theta/2) n) both lie in this range.
 TSAI_RANGE = (0.3, 1.7)

@@ -73,9 +73,16 @@ import dataclasses
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.dualquat import conjugate, dual_quat_from_pose, pose_from_dual_quat, q_left, q_right, quat_multiply
-from handeye.errors import SolverError
-from handeye.linalg import triangular_factor
+from handeye.framework.errors import SolverError
+from handeye.geometry.dualquat import (
+    conjugate,
+    dual_quat_from_pose,
+    pose_from_dual_quat,
+    q_left,
+    q_right,
+    quat_multiply,
+)
+from handeye.geometry.linalg import triangular_factor
 from handeye.problems.axyb import AXYBData
 
 

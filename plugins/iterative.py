@@ -69,9 +69,9 @@ import dataclasses
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.options import check_choice, check_int, check_positive
+from handeye.framework.options import check_choice, check_int, check_positive
+from handeye.geometry.se3 import make_pose, project_to_so3, skew, vee
 from handeye.problems.axyb import AXYBData, solve_translations, split_beta
-from handeye.se3 import make_pose, project_to_so3, skew, vee
 
 INITS = ("kron-lstsq", "identity")
 #: relative margin by which the final cost may exceed the reference before the end point is

@@ -42,18 +42,20 @@ import dataclasses
 from typing import Any
 
 import numpy as np
-from handeye import SolverOutput, SolverSpec, Status, hookimpl, so3_fast
-from handeye.kronecker import reduce_normal_equations
-from handeye.problems import planar as planar_mode
-from handeye.problems.axxb import AXXBData, solve_translation
-from handeye.problems.axyb import AXYBData, solve_translations, split_beta
-from handeye.rotation_cost import (
+
+from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye.estimation.kronecker import reduce_normal_equations
+from handeye.estimation.rotation_cost import (
     RotationCost,
     signed_blocks,
     signed_rotations,
     sphere_least_squares,
 )
-from handeye.se3 import make_pose, project_to_so3
+from handeye.geometry import so3_fast
+from handeye.geometry.se3 import make_pose, project_to_so3
+from handeye.problems import planar as planar_mode
+from handeye.problems.axxb import AXXBData, solve_translation
+from handeye.problems.axyb import AXYBData, solve_translations, split_beta
 
 
 @dataclasses.dataclass(frozen=True)
@@ -105,8 +107,8 @@ def run_axxb(data: AXXBData, options: Options, backend: str) -> SolverOutput:
 
 def run_axbycz(data: Any, options: Options, backend: str) -> SolverOutput:
     """``axbycz``: least squares of the lifted system on |r|^2 = 12 (module docstring)."""
+    from handeye.checks.self_check import rotation_block_figures
     from handeye.problems import axbycz_kronecker as lifted
-    from handeye.self_check import rotation_block_figures
 
     lifted.check_triples(data, "kron-lstsq")
     gap = lifted.check_rotations(data, "kron-lstsq")

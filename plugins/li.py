@@ -42,12 +42,12 @@ import numpy as np
 from scipy.linalg import solve_triangular
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.errors import DegenerateDataError
-from handeye.linalg import triangular_factor
+from handeye.checks.self_check import rotation_block_figures
+from handeye.framework.errors import DegenerateDataError
+from handeye.geometry.linalg import triangular_factor
+from handeye.geometry.se3 import make_pose
 from handeye.plugins.shah import normalize_rotation
 from handeye.problems.axyb import AXYBData, regression_blocks, split_beta
-from handeye.se3 import make_pose
-from handeye.self_check import rotation_block_figures
 
 
 @dataclasses.dataclass(frozen=True)

@@ -102,9 +102,12 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
+
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.errors import DegenerateDataError, InputError, SolverError, shown
-from handeye.options import check_choice
+from handeye.estimation.rotation_cost import signed_blocks
+from handeye.framework.errors import DegenerateDataError, InputError, SolverError, shown
+from handeye.framework.options import check_choice
+from handeye.geometry.se3 import gram_schmidt, make_pose, project_to_so3
 from handeye.plugins._cvxpy_solvers import (  # noqa: F401 (sdp_cvxpy_solvers re-exported)
     ProblemCache,
     check_backend_options,
@@ -121,8 +124,6 @@ from handeye.problems.axyb import (
     solve_translations,
     split_beta,
 )
-from handeye.rotation_cost import signed_blocks
-from handeye.se3 import gram_schmidt, make_pose, project_to_so3
 
 ORTHOGONALIZERS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
     "gram-schmidt": gram_schmidt,

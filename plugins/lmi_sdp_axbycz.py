@@ -62,10 +62,14 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+
 from handeye import SolverOutput, Status
-from handeye.errors import DegenerateDataError, SolverError
-from handeye.kronecker import reduce_normal_equations
-from handeye.options import check_choice
+from handeye.checks.self_check import rotation_block_figures
+from handeye.estimation.kronecker import reduce_normal_equations
+from handeye.estimation.trust_region import refine_trust_region
+from handeye.framework.errors import DegenerateDataError, SolverError
+from handeye.framework.options import check_choice
+from handeye.geometry.se3 import make_pose
 from handeye.plugins._cvxpy_solvers import (
     ProblemCache,
     check_backend_options,
@@ -85,9 +89,6 @@ from handeye.plugins.lmi_sdp_clarabel import SOLVER as CLARABEL
 from handeye.plugins.lmi_sdp_clarabel import solve_axbycz
 from handeye.problems import axbycz_kronecker as lifted
 from handeye.problems.axbycz import AXBYCZData
-from handeye.se3 import make_pose
-from handeye.self_check import rotation_block_figures
-from handeye.trust_region import refine_trust_region
 
 #: What the SDP is, for error messages.
 WHAT = "the semidefinite program of AXB=YCZ"

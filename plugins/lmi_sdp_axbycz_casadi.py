@@ -27,8 +27,15 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+
 from handeye import SolverOutput
-from handeye.errors import InputError
+from handeye.framework.errors import InputError
+from handeye.geometry.se3 import (
+    make_pose,
+    orthonormality_error,
+    project_to_so3,
+    random_rotations,
+)
 from handeye.plugins.lmi_sdp_casadi import (
     IPOPT_DEFAULTS,
     _captured_stdout,
@@ -39,12 +46,6 @@ from handeye.plugins.lmi_sdp_casadi import (
 )
 from handeye.problems import axbycz_kronecker as lifted
 from handeye.problems.axbycz import AXBYCZData
-from handeye.se3 import (
-    make_pose,
-    orthonormality_error,
-    project_to_so3,
-    random_rotations,
-)
 
 _CACHE: dict[tuple, Any] = {}
 _LOCK = threading.Lock()

@@ -55,9 +55,13 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+
 from handeye import SolverOutput, Status
-from handeye.errors import SolverError
-from handeye.linalg import frobenius_norm
+from handeye.estimation.rotation_cost import RotationCost, signed_rotations
+from handeye.estimation.trust_region import refine_trust_region
+from handeye.framework.errors import SolverError
+from handeye.geometry.linalg import frobenius_norm
+from handeye.geometry.se3 import make_pose
 from handeye.plugins._cvxpy_solvers import (
     ProblemCache,
     check_backend_options,
@@ -74,9 +78,6 @@ from handeye.plugins.lmi_sdp import (
 from handeye.plugins.lmi_sdp_clarabel import SOLVER as CLARABEL
 from handeye.plugins.lmi_sdp_clarabel import solve_axxb
 from handeye.problems.axxb import AXXBData, solve_translation
-from handeye.rotation_cost import RotationCost, signed_rotations
-from handeye.se3 import make_pose
-from handeye.trust_region import refine_trust_region
 
 #: Eigenvalue ratio lambda_2 / lambda_1 of Z above which Z counts as rank two (the trust-region
 #: hard case, point 3 of the module docstring). Measured: <= 1e-9 on simulated data with

@@ -56,12 +56,9 @@ from collections.abc import Iterator, Mapping
 from typing import Any
 
 import numpy as np
+
 from handeye import SolverOutput, Status
-from handeye.errors import InputError, SolverError
-from handeye.options import check_int
-from handeye.problems.axxb import AXXBData
-from handeye.problems.axyb import AXYBData, split_beta
-from handeye.rotation_cost import (
+from handeye.estimation.rotation_cost import (
     RotationCost,
     eliminate_translations,
     rotation_blocks,
@@ -69,12 +66,16 @@ from handeye.rotation_cost import (
     signed_rotations,
     sphere_least_squares,
 )
-from handeye.se3 import (
+from handeye.framework.errors import InputError, SolverError
+from handeye.framework.options import check_int
+from handeye.geometry.se3 import (
     make_pose,
     orthonormality_error,
     project_to_so3,
     random_rotations,
 )
+from handeye.problems.axxb import AXXBData
+from handeye.problems.axyb import AXYBData, split_beta
 
 #: IPOPT settings of every solve (ipopt_options may override or extend them). tol 1e-12 on the
 #: scaled cost (Hessian of order 1): noise-free data are recovered to ~1e-12 rad.

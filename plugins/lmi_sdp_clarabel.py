@@ -49,8 +49,9 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+
 from handeye import Status
-from handeye.errors import SolverError
+from handeye.framework.errors import SolverError
 from handeye.plugins._clarabel_sdp import (
     STATUSES,
     DualSDP,

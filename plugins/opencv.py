@@ -59,12 +59,18 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.errors import DegenerateDataError, SolverError
-from handeye.options import check_choice
+from handeye.framework.errors import DegenerateDataError, SolverError
+from handeye.framework.options import check_choice
+from handeye.geometry.se3 import (
+    inverse,
+    make_pose,
+    orthonormality_error,
+    project_to_so3,
+)
 from handeye.problems.axxb import AXXBData
 from handeye.problems.axyb import AXYBData
-from handeye.se3 import inverse, make_pose, orthonormality_error, project_to_so3
 
 #: method option -> name of OpenCV's flag (looked up on cv2 only when solving)
 METHODS = {"shah": "CALIB_ROBOT_WORLD_HAND_EYE_SHAH", "li": "CALIB_ROBOT_WORLD_HAND_EYE_LI"}

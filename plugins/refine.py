@@ -52,27 +52,21 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
-from handeye import (
-    SolverOutput,
-    SolverSpec,
-    Status,
-    camera_scale,
-    hookimpl,
-    nlls,
-    noise_sources,
-)
-from handeye.errors import BackendUnavailableError, InputError, SolverError
-from handeye.options import check_choice, check_positive
+
+from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye.checks.validation import pose_stack
+from handeye.estimation import camera_scale, nlls, noise_sources
+from handeye.estimation.robust import DEFAULT_LOSS_SCALE, LOSSES
+from handeye.estimation.whitening import covariance_factor, stated
+from handeye.framework.errors import BackendUnavailableError, InputError, SolverError
+from handeye.framework.options import check_choice, check_positive
+from handeye.framework.solution import jsonable
 from handeye.problems.axbycz import AXBYCZData
 from handeye.problems.axbycz_geometry import AXBYCZModel
 from handeye.problems.axxb import AXXBData
 from handeye.problems.axxb_geometry import AXXBModel
 from handeye.problems.axyb import AXYBData
 from handeye.problems.axyb_geometry import AXYBModel
-from handeye.robust import DEFAULT_LOSS_SCALE, LOSSES
-from handeye.solution import jsonable
-from handeye.validation import pose_stack
-from handeye.whitening import covariance_factor, stated
 
 #: the problems refine serves: validated data type -> (problem name, model of `handeye.nlls`)
 MODELS: dict[type, tuple[str, type[nlls.PoseModel]]] = {AXYBData: ("axyb", AXYBModel), AXXBData: ("axxb", AXXBModel),
@@ -116,9 +110,9 @@ class _Options:
     noise: str = "groups"
 
     def __post_init__(self) -> None:
-        from handeye.errors import shown
-        from handeye.options import check_int
-        from handeye.validation import float_array
+        from handeye.checks.validation import float_array
+        from handeye.framework.errors import shown
+        from handeye.framework.options import check_int
 
         check_choice("loss", self.loss, LOSSES)
         check_choice("noise", self.noise, NOISE_MODELS)
@@ -268,7 +262,7 @@ def model_of(data: Any) -> nlls.PoseModel:
 
 
 def _available(name: str, problem: str, planar: bool = False) -> bool:
-    from handeye.registry import get_registry
+    from handeye.framework.registry import get_registry
 
     spec = get_registry().solvers.get(name, {}).get(problem)
     return (spec is not None and spec.unavailable_reason(spec.default_backend) is None

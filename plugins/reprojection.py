@@ -31,16 +31,17 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+
 from handeye import hookimpl
-from handeye.errors import InputError, SolverError
-from handeye.nlls import retract
-from handeye.options import check_choice, check_int, check_positive
+from handeye.checks.validation import float_array, pose_stack
+from handeye.estimation.nlls import retract
+from handeye.estimation.robust import LOSSES, loss_terms
+from handeye.framework.errors import InputError, SolverError
+from handeye.framework.options import check_choice, check_int, check_positive
+from handeye.framework.solution import Status, jsonable
+from handeye.framework.solver import SolverOutput, SolverSpec
+from handeye.geometry.se3 import inverse, rotation_angle
 from handeye.problems.axyb import AXYBData
-from handeye.robust import LOSSES, loss_terms
-from handeye.se3 import inverse, rotation_angle
-from handeye.solution import Status, jsonable
-from handeye.solver import SolverOutput, SolverSpec
-from handeye.validation import float_array, pose_stack
 
 #: the start solver (pose-based maximum likelihood)
 START = "auto"

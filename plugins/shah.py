@@ -25,9 +25,9 @@ from __future__ import annotations
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.errors import DegenerateDataError
+from handeye.framework.errors import DegenerateDataError
+from handeye.geometry.se3 import make_pose
 from handeye.problems.axyb import AXYBData, solve_translations
-from handeye.se3 import make_pose
 
 
 def normalize_rotation(M: np.ndarray) -> np.ndarray:

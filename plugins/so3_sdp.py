@@ -52,21 +52,15 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from handeye import SolverOutput, SolverSpec, Status, camera_scale, hookimpl
-from handeye.errors import DegenerateDataError, InputError, SolverError, shown
-from handeye.linalg import frobenius_norm
-from handeye.plugins._clarabel_sdp import DualSDP
-from handeye.plugins._cvxpy_solvers import (
-    ProblemCache,
-    check_backend_options,
-    compile_seconds,
-    resolve_cvxpy_solver,
+
+from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye.estimation import camera_scale
+from handeye.estimation.rotation_cost import (
+    RotationCost,
+    eliminate_translations,
+    rotations_vector,
 )
-from handeye.problems.axxb import AXXBData
-from handeye.problems.axyb import AXYBData
-from handeye.rotation_cost import RotationCost, eliminate_translations, rotations_vector
-from handeye.se3 import make_pose, rotation_angle
-from handeye.so3_relaxation import (
+from handeye.estimation.so3_relaxation import (
     COST_FLOOR,
     GAP_THRESHOLD,
     RATIO_THRESHOLD,
@@ -79,6 +73,18 @@ from handeye.so3_relaxation import (
     local_minimum,
     polish,
 )
+from handeye.framework.errors import DegenerateDataError, InputError, SolverError, shown
+from handeye.geometry.linalg import frobenius_norm
+from handeye.geometry.se3 import make_pose, rotation_angle
+from handeye.plugins._clarabel_sdp import DualSDP
+from handeye.plugins._cvxpy_solvers import (
+    ProblemCache,
+    check_backend_options,
+    compile_seconds,
+    resolve_cvxpy_solver,
+)
+from handeye.problems.axxb import AXXBData
+from handeye.problems.axyb import AXYBData
 
 #: Clarabel settings (backend clarabel, and backend cvxpy with its default solver): a tiny dense
 #: problem, so no chordal decomposition, presolve or threads;

@@ -51,14 +51,19 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+
 from handeye import hookimpl
-from handeye.errors import DegenerateDataError, InputError
-from handeye.kinematics import random_flange_poses
-from handeye.kronecker import scaled_stacks, translation_rms, validated_stacks
-from handeye.noise import NoiseModel
-from handeye.problem import Problem, pose_discrepancy
-from handeye.se3 import inverse, make_pose, project_to_so3, so3_exp
-from handeye.validation import pose_stack
+from handeye.checks.validation import pose_stack
+from handeye.estimation.kronecker import (
+    scaled_stacks,
+    translation_rms,
+    validated_stacks,
+)
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import DegenerateDataError, InputError
+from handeye.framework.problem import Problem, pose_discrepancy
+from handeye.geometry.kinematics import random_flange_poses
+from handeye.geometry.se3 import inverse, make_pose, project_to_so3, so3_exp
 
 FIELDS = ("A", "B", "C")
 PROTOCOLS = ("free", "phases")
@@ -121,7 +126,7 @@ class AXBYCZData:
         sum n_k n_k^T, 2 atan(sqrt(lambda_2 / lambda_1)), 0 when every rotation is about one axis
         (conjugating by R_0 or inverting does not change it, so it holds for the motions in
         either frame)."""
-        from handeye import so3_fast
+        from handeye.geometry import so3_fast
 
         out = {}
         for name in FIELDS:

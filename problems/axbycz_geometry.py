@@ -34,8 +34,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from handeye import so3_fast
-from handeye.nlls import PoseModel, Poses
+
+from handeye.estimation.nlls import PoseModel, Poses
+from handeye.geometry import so3_fast
 from handeye.problems.axbycz import AXBYCZData
 
 #: fewest triples for the profile likelihood. The translation residuals (3m numbers) depend on 15
@@ -124,7 +125,7 @@ def motion_invariants(data: AXBYCZData, still: str) -> tuple[np.ndarray, np.ndar
     if not i:
         return None
     i, j = np.asarray(i), np.asarray(j)
-    from handeye.se3 import inverse
+    from handeye.geometry.se3 import inverse
 
     if still == "C":
         robot = inverse(data.A[j]) @ data.A[i]
@@ -146,7 +147,11 @@ def expected_rotation_residual(data: AXBYCZData) -> float | None:
     is what this returns (the check flags answers ten times over it; the noise of B cannot be
     told from that of A and C). Free motion has no such invariant: robot 1 and robot 2 move
     together, and no motion of one robot alone is conjugate to one of the camera."""
-    from handeye.self_check import angle_noise, expected_from_invariants, pitch_noise
+    from handeye.checks.self_check import (
+        angle_noise,
+        expected_from_invariants,
+        pitch_noise,
+    )
 
     sigmas, pitches = [], []
     for still in ("C", "A"):
@@ -165,7 +170,7 @@ def expected_rotation_residual(data: AXBYCZData) -> float | None:
 def rotation_axes(data: AXBYCZData) -> dict[str, np.ndarray]:
     """The main rotation axis of robot 1 in X's frame (its flange: A_k^-1 A_k+1) and in Y's (its
     base: A_k+1 A_k^-1), and of robot 2 in Z's frame (its flange: C_k^-1 C_k+1)."""
-    from handeye.self_check import main_axis
+    from handeye.checks.self_check import main_axis
 
     if data.m < 2:
         return {}

@@ -56,11 +56,12 @@ import dataclasses
 from collections.abc import Callable
 
 import numpy as np
-from handeye.errors import DegenerateDataError, SolverError
-from handeye.kronecker import overflow_error
+
+from handeye.estimation.kronecker import overflow_error
+from handeye.estimation.trust_region import TrustRegionSolution, solve_trust_region
+from handeye.framework.errors import DegenerateDataError, SolverError
+from handeye.geometry.se3 import project_to_so3
 from handeye.problems.axbycz import AXBYCZData
-from handeye.se3 import project_to_so3
-from handeye.trust_region import TrustRegionSolution, solve_trust_region
 
 #: beta = [r; tau]: where each unknown sits
 R_X, P_YZ = slice(0, 9), slice(9, 90)

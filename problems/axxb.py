@@ -28,21 +28,24 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from handeye import camera_scale, hookimpl, so3_fast
-from handeye.errors import DegenerateDataError, InputError
-from handeye.kronecker import PosePairs
-from handeye.noise import NoiseModel
-from handeye.problem import Problem, StationReader, pose_discrepancy
-from handeye.problems import planar as planar_mode
-from handeye.robust import MAD_TO_SIGMA
-from handeye.se3 import inverse
-from handeye.validation import (
+
+from handeye import hookimpl
+from handeye.checks.validation import (
     agreeing_motions,
     agreeing_share,
     check_motion_beyond_noise,
     pose_stack,
     same_length,
 )
+from handeye.estimation import camera_scale
+from handeye.estimation.kronecker import PosePairs
+from handeye.estimation.noise import NoiseModel
+from handeye.estimation.robust import MAD_TO_SIGMA
+from handeye.framework.errors import DegenerateDataError, InputError
+from handeye.framework.problem import Problem, StationReader, pose_discrepancy
+from handeye.geometry import so3_fast
+from handeye.geometry.se3 import inverse
+from handeye.problems import planar as planar_mode
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
 PAIRINGS = ("consecutive", "all")

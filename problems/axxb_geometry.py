@@ -29,8 +29,10 @@ approximate (docs/solvers/refine.md measures both).
 from __future__ import annotations
 
 import numpy as np
-from handeye import camera_scale, so3_fast
-from handeye.nlls import Poses
+
+from handeye.estimation import camera_scale
+from handeye.estimation.nlls import Poses
+from handeye.geometry import so3_fast
 from handeye.problems.axxb import AXXBData
 from handeye.problems.axyb_geometry import AXYBModel
 
@@ -94,7 +96,11 @@ def expected_rotation_residual(data: AXXBData) -> float | None:
     """`Problem.expected_rotation_residual` for A_i X = X B_i: from the angle and pitch differences
     of the motions themselves; a motion's residual carries two stations' noise, as its angle
     difference."""
-    from handeye.self_check import angle_noise, expected_from_invariants, pitch_noise
+    from handeye.checks.self_check import (
+        angle_noise,
+        expected_from_invariants,
+        pitch_noise,
+    )
 
     phi_A, phi_B = data.rotation_vectors
     pitch = None if data.camera_scale_unknown else pitch_noise(phi_A, data.A[:, :3, 3], phi_B, data.B[:, :3, 3])
@@ -103,7 +109,7 @@ def expected_rotation_residual(data: AXXBData) -> float | None:
 
 def rotation_axes(data: AXXBData) -> dict[str, np.ndarray]:
     """The robot's main rotation axis in X's frame: that of the motions A_i."""
-    from handeye.self_check import main_axis
+    from handeye.checks.self_check import main_axis
 
     axis = main_axis(data.rotation_vectors[0])
     return {} if axis is None else {"X": axis}

@@ -22,23 +22,26 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from handeye import camera_scale, hookimpl
-from handeye.errors import DegenerateDataError, InputError
-from handeye.kinematics import random_flange_poses
-from handeye.kronecker import (
+
+from handeye import hookimpl
+from handeye.checks.validation import (
+    AGREEMENT_STATIONS,
+    agreeing_group,
+    check_motion_beyond_noise,
+    pose_stack,
+)
+from handeye.estimation import camera_scale
+from handeye.estimation.kronecker import (
     KroneckerSystem,
     PosePairs,
     reduce_normal_equations,
 )
-from handeye.noise import NoiseModel
-from handeye.problem import Problem, StationReader, pose_discrepancy
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import DegenerateDataError, InputError
+from handeye.framework.problem import Problem, StationReader, pose_discrepancy
+from handeye.geometry.kinematics import random_flange_poses
+from handeye.geometry.se3 import inverse, make_pose, project_to_so3
 from handeye.problems import planar as planar_mode
-from handeye.se3 import (
-    inverse,
-    make_pose,
-    project_to_so3,
-)
-from handeye.validation import AGREEMENT_STATIONS, agreeing_group, check_motion_beyond_noise, pose_stack
 
 #: Ground truth of the paper's simulation (Sec. IV-A), projected onto SO(3): the printed 4-digit
 #: rotation blocks are not exactly orthonormal. Translations in mm.

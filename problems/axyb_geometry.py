@@ -24,8 +24,10 @@ from __future__ import annotations
 import copy
 
 import numpy as np
-from handeye import camera_scale, so3_fast
-from handeye.nlls import PoseModel, Poses
+
+from handeye.estimation import camera_scale
+from handeye.estimation.nlls import PoseModel, Poses
+from handeye.geometry import so3_fast
 from handeye.problems.axyb import AXYBData
 
 #: from this many pairs on, the normal equations are summed in closed form (`normal_equations`)
@@ -194,7 +196,11 @@ def expected_rotation_residual(data: AXYBData) -> float | None:
     """`Problem.expected_rotation_residual` for A_i X = Y B_i: from the angle and pitch
     differences of consecutive motions (A_k^-1 A_k+1 X = X B_k^-1 B_k+1); a station's residual
     carries one station's noise."""
-    from handeye.self_check import angle_noise, expected_from_invariants, pitch_noise
+    from handeye.checks.self_check import (
+        angle_noise,
+        expected_from_invariants,
+        pitch_noise,
+    )
 
     if data.m < 4:
         return None
@@ -207,7 +213,7 @@ def expected_rotation_residual(data: AXYBData) -> float | None:
 def rotation_axes(data: AXYBData) -> dict[str, np.ndarray]:
     """The robot's main rotation axis in X's frame (the flange: motions A_k^-1 A_k+1) and in Y's
     (the base: A_k+1 A_k^-1)."""
-    from handeye.self_check import main_axes
+    from handeye.checks.self_check import main_axes
 
     if data.m < 2:
         return {}
@@ -225,7 +231,7 @@ def check_model(data: AXYBData, unknowns: dict[str, np.ndarray]) -> tuple[AXYBMo
 def fitted_Y(A: np.ndarray, B: np.ndarray, X: np.ndarray) -> np.ndarray:
     """The Y that best fits A_k X = Y B_k for a given X: the chordal mean rotation of
     R_A R_X R_B^T and the mean translation of t(A_k X) - R_Y t_B."""
-    from handeye.se3 import make_pose, project_to_so3
+    from handeye.geometry.se3 import make_pose, project_to_so3
 
     AX = A @ X
     RY = project_to_so3(np.einsum("nij,nkj->ik", AX[:, :3, :3], B[:, :3, :3]))

@@ -14,10 +14,11 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from handeye.errors import InputError
-from handeye.noise import NoiseModel
-from handeye.options import check_choice, check_positive
-from handeye.se3 import inverse, make_pose, so3_exp
+
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import InputError
+from handeye.framework.options import check_choice, check_positive
+from handeye.geometry.se3 import inverse, make_pose, so3_exp
 
 #: board corners (cols x rows) and spacing (mm), camera distance range (mm), largest tilt (rad)
 BOARD = (9, 6, 30.0)
@@ -59,6 +60,7 @@ def simulate(pairs: int, rng: np.random.Generator, noise: NoiseModel, X: np.ndar
              options: Mapping[str, Any], unit_scale: float = 1.0) -> dict[str, Any]:
     """The data {A, B, images} of `pairs` stations (module docstring)."""
     import cv2
+
     from handeye.vision.observations import BoardObservations, Camera
 
     unknown = sorted(set(options) - set(KEYS))

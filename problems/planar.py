@@ -37,10 +37,11 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from handeye import so3_fast
-from handeye.errors import DegenerateDataError, InputError
-from handeye.noise import NoiseModel
-from handeye.se3 import inverse, make_pose, so3_exp
+
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import DegenerateDataError, InputError
+from handeye.geometry import so3_fast
+from handeye.geometry.se3 import inverse, make_pose, so3_exp
 
 #: Spread of the robot's rotation axes (rad, `main_axis`) below which the data are planar. The
 #: translation along the axis enters the equations only through the tilt s of the axes,
@@ -259,7 +260,7 @@ def _one_line(R: np.ndarray, t: np.ndarray, axis: np.ndarray, scale: float, abso
 
 def _solvers(problem: str) -> str:
     """The registered solvers with a planar mode, in words ("auto, kron-lstsq or refine")."""
-    from handeye.registry import get_registry
+    from handeye.framework.registry import get_registry
 
     registry = get_registry()
     names = [n for n in registry.solver_names(problem) if registry.solver(n, problem).planar_mode]

@@ -29,7 +29,8 @@ import pytest
 from hypothesis import settings
 
 import handeye
-from handeye import SolverOutput, hookimpl, registry
+from handeye import SolverOutput, hookimpl
+from handeye.framework import registry
 
 # property tests: enough examples to find edge cases, few enough for the suite's time budget;
 # no deadline (the machine is shared, timings vary)

@@ -20,11 +20,18 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.noise import NoiseModel
-from handeye.plausibility import duplicate_stations, station_warnings
+from handeye.checks.plausibility import duplicate_stations, station_warnings
+from handeye.estimation.noise import NoiseModel
+from handeye.geometry.se3 import (
+    inverse,
+    largest_relative_angle,
+    make_pose,
+    random_poses,
+    rotation_angle,
+    so3_exp,
+)
 from handeye.problems.axxb import motions, simulate_stations
 from handeye.problems.axyb import PROBLEM as AXYB
-from handeye.se3 import inverse, largest_relative_angle, make_pose, random_poses, rotation_angle, so3_exp
 
 #: the accuracy study's noise
 NOISE = NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)})

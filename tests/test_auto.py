@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import dataclasses
 
-import handeye
 import numpy as np
 import pytest
-from handeye.errors import InputError
-from handeye.noise import NoiseModel
+
+import handeye
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import InputError
+from handeye.framework.solution import Status
 from handeye.plugins import refine
 from handeye.problems.axxb import PROBLEM as AXXB
 from handeye.problems.axyb import PROBLEM
-from handeye.solution import Status
 
 NOISE = NoiseModel({"B": (0.002, 0.5), "A": (0.0002, 0.05)})
 
@@ -73,7 +74,7 @@ def test_uncertified_start_triggers_a_second_start(noisy, monkeypatch):
         pytest.skip("so3-sdp not registered")
     data, truth = noisy
     real_init, real_refine = refine.run_init, refine.refine
-    from handeye.se3 import make_pose, so3_exp
+    from handeye.geometry.se3 import make_pose, so3_exp
 
     def uncertified(name, d):
         (X, Y), status, diag = real_init(name, d)
@@ -122,7 +123,7 @@ def test_auto_rejects_bad_options(noisy, bad):
 
 @pytest.mark.parametrize("solver", ["auto", "refine"])
 def test_a_failing_default_start_falls_back_to_kron_lstsq(noisy, monkeypatch, solver):
-    from handeye.errors import SolverError
+    from handeye.framework.errors import SolverError
 
     data, _ = noisy
     real = refine.run_init
@@ -217,8 +218,8 @@ def test_auto_axxb_on_every_pair_of_stations_solves_the_stations():
     """Motions that are every pair of n stations (the default of motions()) share the stations'
     noise: auto rebuilds the stations and solves A_k X = Y B_k on them, the maximum-likelihood
     answer, equal to auto for axyb on the user's own stations (a common origin is absorbed by Y)."""
+    from handeye.geometry.se3 import inverse
     from handeye.problems.axxb import motions, simulate_stations
-    from handeye.se3 import inverse
 
     stations, truth = simulate_stations(12, seed=31, noise=AXXB_NOISE)
     data = motions(stations["A"], inverse(stations["B"]))  # robot poses, board poses in the camera
@@ -243,8 +244,8 @@ def test_auto_axxb_on_every_pair_of_stations_solves_the_stations():
 
 
 def test_auto_axxb_stations_without_a_certified_start_run_the_axyb_pipeline(monkeypatch):
+    from handeye.geometry.se3 import inverse
     from handeye.problems.axxb import motions, simulate_stations
-    from handeye.se3 import inverse
 
     stations, _ = simulate_stations(9, seed=32, noise=AXXB_NOISE)
     data = motions(stations["A"], inverse(stations["B"]))
@@ -268,7 +269,7 @@ def test_auto_axxb_stations_without_a_certified_start_run_the_axyb_pipeline(monk
 def _gross(T, indices, degrees=15.0, length=30.0):
     """T with the poses at `indices` moved by `degrees` about a fixed oblique axis and `length`
     along a fixed direction (left-multiplied)."""
-    from handeye.se3 import make_pose, so3_exp
+    from handeye.geometry.se3 import make_pose, so3_exp
 
     axis = np.array([1.0, -2.0, 0.5]) / np.linalg.norm([1.0, -2.0, 0.5])
     E = make_pose(so3_exp(np.deg2rad(degrees) * axis), length * np.array([0.6, 0.0, -0.8]))
@@ -329,8 +330,8 @@ def test_auto_handles_fifteen_percent_gross_pairs():
 
 def test_auto_axxb_outlier_motion_and_outlier_station():
     _axxb_start_or_skip()
+    from handeye.geometry.se3 import inverse
     from handeye.problems.axxb import motions, relative_motions, simulate_stations
-    from handeye.se3 import inverse
 
     stations, truth = simulate_stations(14, seed=8, noise=NOISE)
     # consecutive motions, one motion's camera pose corrupted: the per-motion route
@@ -381,7 +382,7 @@ def drifting(B: np.ndarray, rng: np.random.Generator, rot: float = 0.002, trans:
     """The camera poses B (T_target_cam) with an error that accumulates along the recording in
     the world (board) frame, as visual odometry's: D_k B_k with D_k = D_k-1 exp(xi_k),
     xi_k ~ N(0, rot^2, trans^2)."""
-    from handeye.se3 import make_pose, so3_exp
+    from handeye.geometry.se3 import make_pose, so3_exp
 
     out, D = np.array(B), np.eye(4)
     for k in range(len(B)):

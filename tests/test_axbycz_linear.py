@@ -14,16 +14,17 @@ below are ~2x those.
 
 from __future__ import annotations
 
-import handeye
 import numpy as np
 import pytest
-from handeye.dualquat import quat_from_rotation, quat_multiply
-from handeye.errors import DegenerateDataError, InputError
-from handeye.kronecker import reduce_normal_equations
-from handeye.noise import NoiseModel
+
+import handeye
+from handeye.estimation.kronecker import reduce_normal_equations
+from handeye.estimation.noise import NoiseModel
+from handeye.estimation.trust_region import solve_trust_region
+from handeye.framework.errors import DegenerateDataError, InputError
+from handeye.geometry.dualquat import quat_from_rotation, quat_multiply
 from handeye.problems import axbycz_kronecker as lifted
 from handeye.problems.axbycz import PROBLEM
-from handeye.trust_region import solve_trust_region
 
 NOISE = NoiseModel.on(("A", "B", "C"), 0.002, 0.2)
 SDP_BACKENDS = ("cvxpy", "picos")

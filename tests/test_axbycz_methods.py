@@ -7,14 +7,15 @@ noise, the linearisation, the start, phase detection, and clear errors on the wr
 
 from __future__ import annotations
 
-import handeye
 import numpy as np
 import pytest
-from handeye.errors import DegenerateDataError, InputError
-from handeye.noise import NoiseModel
+
+import handeye
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import DegenerateDataError, InputError
+from handeye.geometry.se3 import random_rotations, so3_exp
 from handeye.plugins import axbycz_fu, axbycz_wang
 from handeye.problems.axbycz import PROBLEM
-from handeye.se3 import random_rotations, so3_exp
 
 #: (solver, protocol) pairs: wang takes any protocol, fu-dq needs robot 2 holding still
 CASES = (("wang", "free"), ("wang", "phases"), ("fu-dq", "phases"))

@@ -5,16 +5,21 @@ harness's protocol sweeps. The shared suite (test_solvers.py) runs every axbycz 
 
 from __future__ import annotations
 
-import handeye
 import numpy as np
 import pytest
-from handeye.errors import BackendUnavailableError, DegenerateDataError, InputError
-from handeye.nlls import retract_all
-from handeye.noise import NoiseModel
+
+import handeye
+from handeye.estimation.nlls import retract_all
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import (
+    BackendUnavailableError,
+    DegenerateDataError,
+    InputError,
+)
+from handeye.geometry.se3 import inverse, make_pose, so3_exp
 from handeye.plugins import refine as R
 from handeye.problems import axbycz_geometry as G
 from handeye.problems.axbycz import PROBLEM
-from handeye.se3 import inverse, make_pose, so3_exp
 
 NOISE = NoiseModel.on(("A", "B", "C"), 0.002, 0.2)
 UNKNOWNS = ("X", "Y", "Z")
@@ -237,7 +242,7 @@ def test_covariance_predicts_the_spread_of_the_estimate():
     """Over seeds, the squared Mahalanobis distance of refine's estimate from the truth (18
     parameters, with the covariance refine reports) averages ~18: the covariance is neither too
     small nor too large. Measured: 17.1 over these 40 seeds."""
-    from handeye.self_check import _difference
+    from handeye.checks.self_check import _difference
 
     d2 = []
     for seed in range(40):
@@ -282,7 +287,7 @@ def test_expected_rotation_residual_needs_both_phases():
 
 
 def test_self_check_flags_a_wrong_answer_and_passes_the_best_fit():
-    from handeye.self_check import assess
+    from handeye.checks.self_check import assess
 
     data, _ = case(11, "phases", pairs=30, noise=NOISE)
     d = PROBLEM.validate(**data)
@@ -396,8 +401,8 @@ def test_built_in_studies_run_each_protocol():
 def test_the_two_cells_of_the_conventions(cell):
     """Both cells of docs/conventions.md built from named frames: the poses as the controllers
     and solvePnP give them, mapped as the tables say, give back the named transforms."""
-    from handeye.kinematics import random_flange_poses
-    from handeye.se3 import random_poses
+    from handeye.geometry.kinematics import random_flange_poses
+    from handeye.geometry.se3 import random_poses
 
     rng = np.random.default_rng(20 + cell)
     T_world_base1, T_world_base2 = random_poses(2, rng, 800.0)

@@ -4,13 +4,14 @@ A, B and X are for an eye-in-hand and an eye-to-hand cell, and how OpenCV's
 
 from __future__ import annotations
 
-import handeye
 import numpy as np
 import pytest
-from handeye.io import from_poses
-from handeye.kinematics import random_flange_poses
+
+import handeye
+from handeye.geometry.kinematics import random_flange_poses
+from handeye.geometry.se3 import inverse
+from handeye.io.data_files import from_poses
 from handeye.problems.axxb import PROBLEM as AXXB
-from handeye.se3 import inverse
 
 STATIONS = 7
 

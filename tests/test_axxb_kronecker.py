@@ -11,20 +11,22 @@ generic recovery, noisy-accuracy, bad-input and unit-invariance tests for these 
 
 from __future__ import annotations
 
-import handeye
 import numpy as np
 import pytest
+from scipy.optimize import minimize
+
+import handeye
 from handeye import Status
-from handeye.errors import DegenerateDataError
-from handeye.noise import NoiseModel
-from handeye.problems.axxb import PROBLEM, regression_blocks, solve_translation
-from handeye.rotation_cost import (
+from handeye.estimation.noise import NoiseModel
+from handeye.estimation.rotation_cost import (
     RotationCost,
     rotations_vector,
     signed_rotations,
     sphere_least_squares,
 )
-from handeye.se3 import (
+from handeye.estimation.trust_region import refine_trust_region, solve_trust_region
+from handeye.framework.errors import DegenerateDataError
+from handeye.geometry.se3 import (
     gram_schmidt,
     inverse,
     make_pose,
@@ -32,8 +34,7 @@ from handeye.se3 import (
     random_rotations,
     rotation_angle,
 )
-from handeye.trust_region import refine_trust_region, solve_trust_region
-from scipy.optimize import minimize
+from handeye.problems.axxb import PROBLEM, regression_blocks, solve_translation
 
 NOISE = NoiseModel.on(("A", "B"), 0.002, 0.2)
 #: (solver, backend) pairs held to the noise-free bound (casadi included: it reaches ~1e-15)

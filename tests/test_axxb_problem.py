@@ -3,10 +3,12 @@ poses (against OpenCV's calibrateHandEye in both setups), validation, diagnostic
 
 from __future__ import annotations
 
-import handeye
 import numpy as np
 import pytest
-from handeye.noise import NoiseModel
+
+import handeye
+from handeye.estimation.noise import NoiseModel
+from handeye.geometry.se3 import inverse, make_pose, so3_exp
 from handeye.problems.axxb import (
     MISMATCH_ANGLE_FLOOR,
     PROBLEM,
@@ -17,7 +19,6 @@ from handeye.problems.axxb import (
     simulate_stations,
     solve_translation,
 )
-from handeye.se3 import inverse, make_pose, so3_exp
 
 
 def _beta(X: np.ndarray) -> np.ndarray:
@@ -292,7 +293,7 @@ def test_numbers_beyond_float64_and_complex_input_are_bad_input():
 
 
 def test_frobenius_norm_does_not_overflow():
-    from handeye.linalg import frobenius_norm
+    from handeye.geometry.linalg import frobenius_norm
 
     M = np.array([[3e200, 4e200], [0.0, 0.0]])
     assert frobenius_norm(M) == pytest.approx(5e200, rel=1e-15)

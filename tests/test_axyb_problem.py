@@ -7,19 +7,19 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.noise import NoiseModel
+from handeye.estimation.noise import NoiseModel
+from handeye.geometry.se3 import inverse, make_pose, orthonormality_error, so3_exp
 from handeye.problems.axyb import (
     PAPER_X,
     PAPER_Y,
     PROBLEM,
     AXYBData,
+    random_truth,
     reduce_system,
     regression_blocks,
-    random_truth,
     solve_translations,
     split_beta,
 )
-from handeye.se3 import inverse, make_pose, orthonormality_error, so3_exp
 
 
 def _beta(X: np.ndarray, Y: np.ndarray) -> np.ndarray:

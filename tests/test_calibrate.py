@@ -10,12 +10,13 @@ import re
 import numpy as np
 import pytest
 import yaml
-from handeye.cli import main
-from handeye.noise import NoiseModel
-from handeye.pose_readers import write_poses
-from handeye.problems.axxb import simulate_stations
-from handeye.se3 import inverse, rotation_angle
 from scipy.spatial.transform import Rotation
+
+from handeye.cli import main
+from handeye.estimation.noise import NoiseModel
+from handeye.geometry.se3 import inverse, rotation_angle
+from handeye.io.pose_readers import write_poses
+from handeye.problems.axxb import simulate_stations
 
 KEYS = {"X", "frames", "units", "setup", "problem", "solver", "status", "std", "residuals", "warnings",
         "inputs", "ros", "poses", "stations"}
@@ -230,8 +231,12 @@ def test_help(capsys):
 
 from pathlib import Path
 
-from handeye.errors import InputError
-from handeye.station_matching import default_max_dt, match_by_name, match_by_time
+from handeye.framework.errors import InputError
+from handeye.streams.station_matching import (
+    default_max_dt,
+    match_by_name,
+    match_by_time,
+)
 
 ETH = Path(__file__).parents[2] / "shared" / "data" / "ethz_asl_handeye_2017" / "robot_arm"
 
@@ -301,7 +306,7 @@ def test_match_name_and_time_on_shuffled_files(tmp_path, capsys):
 
 def test_camera_in_board_is_inverted(tmp_path, capsys):
     robot, camera, truth = cell(tmp_path, camera_format="xyz-quat-xyzw")
-    from handeye.pose_readers import read_poses
+    from handeye.io.pose_readers import read_poses
     stack = read_poses(camera, "xyz-quat-xyzw", unit="mm")
     write_poses(camera, inverse(stack.poses), "xyz-quat-xyzw", unit="mm")
     code, out, err = run_cli(capsys, *args(robot, camera, "fanuc-wpr", "xyz-quat-xyzw", "eye-in-hand",

@@ -15,16 +15,17 @@ import cv2
 import numpy as np
 import pytest
 import yaml
+from scipy.spatial.transform import Rotation
+from test_vision_pipeline import pose_error, simulated_cell
+
 from handeye.cli import main
-from handeye.examples import image_example_dir
-from handeye.pose_readers import read_pose_dir, write_poses
-from handeye.se3 import inverse
+from handeye.geometry.se3 import inverse
+from handeye.io.examples import image_example_dir
+from handeye.io.pose_readers import read_pose_dir, write_poses
 from handeye.vision.boards import parse_board
 from handeye.vision.image_set import images_and_poses
 from handeye.vision.observations import Camera
 from handeye.vision.render import render
-from scipy.spatial.transform import Rotation
-from test_vision_pipeline import pose_error, simulated_cell
 
 SHARED = Path(__file__).parents[2] / "shared" / "data" / "industrial_calibration_rct"
 #: a ChArUco board the renderer draws and OpenCV detects quickly at 480 x 360

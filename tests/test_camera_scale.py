@@ -5,12 +5,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import handeye
 import numpy as np
 import pytest
-from handeye import InputError, Status, self_check
+
+import handeye
+from handeye import InputError, Status
+from handeye.checks import self_check
+from handeye.estimation.noise import NoiseModel
 from handeye.harness import ACCURACY_NOISE
-from handeye.noise import NoiseModel
 from handeye.problems.axxb import PROBLEM as AXXB
 from handeye.problems.axyb import PROBLEM as AXYB
 
@@ -118,7 +120,7 @@ def test_command_line(tmp_path, capsys):
     """handeye solve --camera-scale unknown: the scale printed, the residuals in the robot's unit;
     a solver that cannot take it is bad input (exit 2)."""
     from handeye.cli import main
-    from handeye.io import save_data
+    from handeye.io.data_files import save_data
 
     data, _ = simulate("axyb", seed=5)
     path = save_data(tmp_path / "monocular.json", camera_in_own_unit(data))

@@ -3,15 +3,17 @@ daniilidis) against OpenCV's ``cv2.calibrateHandEye``, and the `opencv` solver's
 
 from __future__ import annotations
 
-import handeye
 import numpy as np
 import pytest
-from handeye.errors import BackendUnavailableError, DegenerateDataError, InputError
-from handeye.kinematics import random_flange_poses
-from handeye.plugins import classic_handeye as classic
-from handeye.plugins import opencv as opencv_plugin
-from handeye.problems.axxb import motions
-from handeye.se3 import (
+
+import handeye
+from handeye.framework.errors import (
+    BackendUnavailableError,
+    DegenerateDataError,
+    InputError,
+)
+from handeye.geometry.kinematics import random_flange_poses
+from handeye.geometry.se3 import (
     inverse,
     make_pose,
     orthonormality_error,
@@ -19,6 +21,9 @@ from handeye.se3 import (
     rotation_angle,
     so3_exp,
 )
+from handeye.plugins import classic_handeye as classic
+from handeye.plugins import opencv as opencv_plugin
+from handeye.problems.axxb import motions
 
 cv2 = pytest.importorskip("cv2")
 if not hasattr(cv2, "calibrateHandEye"):
@@ -244,7 +249,7 @@ def test_opencv_axxb_options_and_availability(monkeypatch):
 def test_daniilidis_says_when_its_constraints_have_no_exact_solution():
     """Very noisy motions (0.2 rad, 50 mm on 5 stations): the quadratic of eqs. 34-35 has no real
     root; the answer is not claimed optimal and a warning says why and what to use."""
-    from handeye.noise import NoiseModel
+    from handeye.estimation.noise import NoiseModel
     from handeye.problems.axxb import PROBLEM
 
     data, _ = PROBLEM.simulate(pairs=4, seed=0, noise=NoiseModel.on(("A", "B"), 0.2, 50.0))

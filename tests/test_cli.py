@@ -12,10 +12,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from handeye import SolverError
 from handeye.cli import COMMANDS, main
-from handeye.io import load_data, save_data
-from handeye.registry import get_registry
+from handeye.framework.registry import get_registry
+from handeye.io.data_files import load_data, save_data
 
 
 def run_cli(capsys, *argv):
@@ -360,9 +361,9 @@ def eye_to_hand_stations(n: int = 8, seed: int = 3) -> tuple[dict[str, np.ndarra
     """Noise-free stations of an eye-to-hand cell built from named frames: a camera fixed at
     T_base_cam, a board on the flange at T_flange_target; robot_poses = T_base_flange,
     camera_poses = T_cam_target = T_base_cam^-1 T_base_flange T_flange_target."""
-    from handeye.kinematics import random_flange_poses
+    from handeye.geometry.kinematics import random_flange_poses
+    from handeye.geometry.se3 import inverse
     from handeye.problems.axxb import PROBLEM as AXXB
-    from handeye.se3 import inverse
 
     rng = np.random.default_rng(seed)
     T_base_flange = random_flange_poses(n, rng)

@@ -8,12 +8,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from handeye.cli import main
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.registry import get_registry
 from handeye.harness import Spec
 from handeye.harness.crossval import TRUTH_LABEL, CrossValData, make_folds, run_crossval
-from handeye.io import load_file, save_data
-from handeye.noise import NoiseModel
-from handeye.registry import get_registry
+from handeye.io.data_files import load_file, save_data
 
 #: a solver's held-out median residual may exceed the truth's on the same held-out pairs by at
 #: most this factor (the answer's own error adds to the pairs' noise; ~1.0-1.1 seen at m = 40)

@@ -8,7 +8,8 @@ import math
 import pytest
 from scipy import stats
 
-from handeye import robust, self_check, validation, whitening
+from handeye.checks import self_check, validation
+from handeye.estimation import robust, whitening
 from handeye.plugins import auto
 
 

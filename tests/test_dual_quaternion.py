@@ -8,7 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import handeye
-from handeye.dualquat import (
+from handeye.estimation.noise import NoiseModel
+from handeye.geometry.dualquat import (
     conjugate,
     dual_quat_from_pose,
     pose_from_dual_quat,
@@ -18,11 +19,19 @@ from handeye.dualquat import (
     quat_multiply,
     rotation_from_quat,
 )
-from handeye.noise import NoiseModel
-from handeye.linalg import triangular_factor
-from handeye.plugins.dual_quaternion import dq_matrix, pair_signs, solve_dual_quaternions
+from handeye.geometry.linalg import triangular_factor
+from handeye.geometry.se3 import (
+    quat_from_matrix,
+    random_poses,
+    random_rotations,
+    so3_exp,
+)
+from handeye.plugins.dual_quaternion import (
+    dq_matrix,
+    pair_signs,
+    solve_dual_quaternions,
+)
 from handeye.problems.axyb import PROBLEM, random_truth
-from handeye.se3 import quat_from_matrix, random_poses, random_rotations, so3_exp
 
 finite = st.floats(-10, 10, allow_nan=False, allow_infinity=False)
 quaternion = st.lists(finite, min_size=4, max_size=4).map(np.array)

@@ -10,6 +10,7 @@ import importlib.util
 
 import numpy as np
 import pytest
+from conftest import SolverPlugin, identity_run
 
 import handeye
 from handeye import (
@@ -23,12 +24,10 @@ from handeye import (
     SolverSpec,
     UnknownPluginError,
 )
-from handeye.noise import NoiseModel
-from handeye.options import check_positive
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.options import check_positive
+from handeye.geometry.se3 import ORTHONORMALITY_TOL, inverse, make_pose, so3_exp
 from handeye.problems.axyb import PROBLEM
-from handeye.se3 import ORTHONORMALITY_TOL, inverse, make_pose, so3_exp
-
-from conftest import SolverPlugin, identity_run
 
 SOLVER = "kron-lstsq"
 

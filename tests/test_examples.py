@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.errors import UnknownPluginError
-from handeye.examples import list_examples, load_example
-from handeye.kinematics import random_flange_poses
+from handeye.framework.errors import UnknownPluginError
+from handeye.geometry.kinematics import random_flange_poses
+from handeye.geometry.se3 import inverse, make_pose, random_rotations, rotation_angle
+from handeye.io.examples import list_examples, load_example
 from handeye.problems.axyb import PROBLEM
-from handeye.se3 import inverse, make_pose, random_rotations, rotation_angle
 
 
 def test_list_examples():
@@ -48,7 +48,7 @@ def test_eth_example_rotations_are_well_spread():
 
 
 def test_simulated_example_matches_its_recipe():
-    from handeye.noise import NoiseModel
+    from handeye.estimation.noise import NoiseModel
 
     data, truth, meta = load_example("simulated")
     again, true_again = PROBLEM.simulate(pairs=16, seed=1, noise=NoiseModel.on("B", 0.002, 0.2))

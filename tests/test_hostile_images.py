@@ -25,9 +25,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+
 from handeye.cli import main
-from handeye.errors import InputError
-from handeye.examples import image_example_dir
+from handeye.framework.errors import InputError
+from handeye.io.examples import image_example_dir
 from handeye.vision.boards import parse_board
 from handeye.vision.circlegrid import blob_limit
 from handeye.vision.detect import BoardNotFound, detect

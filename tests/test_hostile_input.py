@@ -17,14 +17,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from handeye import npz
+
 from handeye.cli import main
-from handeye.errors import HandEyeError, InputError
-from handeye.input_files import MAX_ALIAS_NODES, load_json, load_yaml
-from handeye.io import load_data, save_data
-from handeye.npz import load_npz
-from handeye.pose_readers import PoseStack, poses_from_rows, read_poses, write_poses
-from handeye.se3 import make_pose, random_poses, so3_exp
+from handeye.framework.errors import HandEyeError, InputError
+from handeye.geometry.se3 import make_pose, random_poses, so3_exp
+from handeye.io import npz
+from handeye.io.data_files import load_data, save_data
+from handeye.io.input_files import MAX_ALIAS_NODES, load_json, load_yaml
+from handeye.io.npz import load_npz
+from handeye.io.pose_readers import PoseStack, poses_from_rows, read_poses, write_poses
 from handeye.vision.boards import parse_board
 from handeye.vision.image_set import image_stamp
 from handeye.vision.intrinsics import load_camera
@@ -446,7 +447,7 @@ def test_cli_sqlite_bag_with_a_damaged_page_is_bad_input(tmp_path, capsys):
 def test_damaged_bags_give_poses_or_input_errors(tmp_path, kind):
     """Random bytes overwritten in a bag (fixed seeds): rosbags raises a dozen kinds of errors on
     such files; every one must come out as an InputError naming the bag."""
-    from handeye.bag_readers import read_bag_poses
+    from handeye.io.bag_readers import read_bag_poses
 
     bag = write_test_bag(tmp_path / ("robot.bag" if kind == "ros1" else "robot"), kind, n=10)
     file = storage_file(bag)

@@ -23,14 +23,14 @@ import pytest
 
 import handeye
 from handeye.cli import main
-from handeye.errors import HandEyeError, InputError, SolverError
-from handeye.io import load_data, save_data
-from handeye.kronecker import MIN_TRANSLATION
-from handeye.options import check_int, check_positive, parse_options
+from handeye.estimation.kronecker import MIN_TRANSLATION
+from handeye.framework.errors import HandEyeError, InputError, SolverError
+from handeye.framework.options import check_int, check_positive, parse_options
+from handeye.geometry.se3 import rotation_angle
+from handeye.io.data_files import load_data, save_data
+from handeye.io.pose_readers import poses_from_rows, read_poses
 from handeye.plugins.lmi_sdp_casadi import MAX_MULTISTART
-from handeye.pose_readers import poses_from_rows, read_poses
 from handeye.problems.axxb import motions, simulate_stations
-from handeye.se3 import rotation_angle
 
 PROBLEMS = ("axyb", "axxb")
 
@@ -396,7 +396,7 @@ def _existing_copy(existing: Path, name: str) -> Path:
 def test_lmi_sdp_on_translations_near_zero_says_so_and_auto_solves_them(factor, noisy):
     if not available("axyb", "lmi-sdp"):
         pytest.skip("lmi-sdp not available")
-    from handeye.noise import NoiseModel
+    from handeye.estimation.noise import NoiseModel
 
     data, truth = simulated("axyb", noise=NoiseModel.on("B", 0.002, 0.2) if noisy else None)
     flat = scaled(data, factor)

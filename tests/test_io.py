@@ -6,9 +6,10 @@ import json
 
 import numpy as np
 import pytest
-from handeye.errors import InputError
-from handeye.io import load_data, load_file, save_data, supported_extensions
-from handeye.noise import NoiseModel
+
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import InputError
+from handeye.io.data_files import load_data, load_file, save_data, supported_extensions
 from handeye.problems.axyb import PROBLEM
 
 
@@ -146,8 +147,8 @@ def test_save_validates_before_writing(tmp_path, simulated):
 @pytest.fixture(scope="module")
 def stations():
     """8 noise-free eye-in-hand stations: robot poses T_base_flange, camera poses T_cam_target, X."""
+    from handeye.geometry.se3 import inverse
     from handeye.problems.axxb import simulate_stations
-    from handeye.se3 import inverse
 
     poses, truth = simulate_stations(8, seed=5)
     return {"robot_poses": poses["A"], "camera_poses": inverse(poses["B"])}, {"X": truth["X"]}
@@ -177,7 +178,7 @@ def test_axxb_absolute_poses_round_trip_and_become_motions(tmp_path, stations, e
 
 
 def test_axxb_setup_from_the_caller_and_from_poses(stations):
-    from handeye.io import from_poses
+    from handeye.io.data_files import from_poses
 
     poses, _ = stations
     hand = from_poses(poses["robot_poses"], poses["camera_poses"], setup="eye-in-hand", pairing="consecutive")
@@ -240,7 +241,7 @@ def test_one_file_of_stations_serves_axyb_and_axxb_with_the_cells_truth(tmp_path
     """A file of absolute poses reads as AX=YB pairs (A = robot poses, B = camera poses^-1
     eye-in-hand, as they are eye-to-hand) and as AX=XB motions; its truth, the cell's X and Y of
     AX=YB, gives axxb's X = X eye-in-hand and Y eye-to-hand (docs/conventions.md)."""
-    from handeye.se3 import inverse
+    from handeye.geometry.se3 import inverse
 
     poses, _ = stations
     X, Y = np.eye(4), np.eye(4)

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.errors import InputError
-from handeye.noise import NoiseModel
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import InputError
+from handeye.geometry.se3 import make_pose, random_rotations, so3_exp
 from handeye.plugins.iterative import (
     RotationSums,
     exp_so3,
@@ -18,7 +19,6 @@ from handeye.plugins.iterative import (
     rotation_cost,
 )
 from handeye.problems.axyb import PROBLEM, random_truth
-from handeye.se3 import make_pose, random_rotations, so3_exp
 
 DIAGNOSTICS = ("iterations", "step_norm", "rotation_cost_initial", "rotation_cost_final",
                "rotation_cost_reference", "converged", "reason", "init", "cost_history")

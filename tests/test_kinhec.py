@@ -20,10 +20,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from handeye.cli import _kinhec, main
-from handeye.noise import NoiseModel
+from handeye.estimation.noise import NoiseModel
+from handeye.geometry.se3 import inverse
 from handeye.problems.axyb import PROBLEM
-from handeye.se3 import inverse
 
 
 def run_cli(capsys, *argv):
@@ -165,7 +166,7 @@ def test_registers_every_pose_solver_runs_the_protocol_and_restores_kinhec(capsy
 
     # registered during the run: axyb solvers as handeye:NAME (auto first), axxb ones as handeye-axxb:NAME,
     # beside the references; solvers needing more than poses (reprojection: images) left out
-    from handeye.registry import get_registry
+    from handeye.framework.registry import get_registry
 
     registry = get_registry()
     axyb = {f"handeye:{n}" for n in registry.solver_names("axyb")} - {"handeye:reprojection"}
@@ -223,7 +224,7 @@ def test_scale_aware_variants_solve_a_camera_known_up_to_scale():
     """Every solver that takes camera_scale='unknown' is registered twice, the second time as
     NAME+scale with the scale unknown (like KinHEC's andreff_scale): on poses whose camera
     translations are 3x too large it finds X (the data's noise: 0.001 rad / 0.1 mm)."""
-    from handeye.registry import get_registry
+    from handeye.framework.registry import get_registry
 
     entries, _ = _kinhec.handeye_entries(probe=False)
     by = {e.name: e for e in entries}

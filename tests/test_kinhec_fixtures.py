@@ -7,11 +7,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import handeye
 import numpy as np
 import pytest
+
+import handeye
 from handeye import DegenerateDataError, Status
-from handeye.se3 import rotation_angle
+from handeye.geometry.se3 import rotation_angle
 
 FIXTURES = sorted((Path(__file__).parent / "data" / "kinhec").glob("*.npz"))
 #: every rotation about one axis (a free body turning about one axis, one joint moving): the

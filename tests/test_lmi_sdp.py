@@ -20,16 +20,17 @@ import importlib.util
 import threading
 import types
 
-import handeye
 import numpy as np
 import pytest
+
+import handeye
 from handeye import Status
-from handeye.errors import BackendUnavailableError, InputError, SolverError
-from handeye.noise import NoiseModel
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import BackendUnavailableError, InputError, SolverError
+from handeye.geometry.se3 import gram_schmidt, project_to_so3, rotation_angle
 from handeye.plugins import lmi_sdp, lmi_sdp_clarabel
 from handeye.plugins._clarabel_sdp import svec
 from handeye.problems.axyb import PROBLEM, solve_translations, split_beta
-from handeye.se3 import gram_schmidt, project_to_so3, rotation_angle
 
 SDP_BACKENDS = ("clarabel", "cvxpy", "picos")
 NOISE = NoiseModel(sigmas={"A": (0.001, 0.3), "B": (0.005, 0.5)})
@@ -378,7 +379,7 @@ def _axxb_case(seed: int = 3):
 def test_axxb_clarabel_sdp_is_the_trust_region_solution(normalize):
     """As test_axxb_kronecker.test_sdp_optimum_is_the_trust_region_solution for cvxpy and picos.
     Measured: eigenvalue ratio <= 7e-14, the SDP's r within 1.5e-7 of the trust-region r."""
-    from handeye.rotation_cost import (
+    from handeye.estimation.rotation_cost import (
         RotationCost,
         signed_rotations,
         sphere_least_squares,
@@ -405,8 +406,8 @@ def test_axxb_clarabel_sdp_is_the_trust_region_solution(normalize):
 def test_axxb_clarabel_on_the_rotation_rig():
     """Every motion rotating about one point: Z has rank two (both signs of r optimal), and the
     rotation is still found (test_axxb_kronecker.test_rotation_rig_is_solved for cvxpy)."""
+    from handeye.geometry.se3 import inverse, make_pose, random_rotations
     from handeye.problems import axxb
-    from handeye.se3 import inverse, make_pose, random_rotations
 
     rng = np.random.default_rng(2)
     X = axxb.PROBLEM.random_unknowns(rng)["X"]
@@ -440,7 +441,7 @@ def test_axbycz_clarabel_matches_the_least_squares_and_cvxpy():
     """scale="translations": eq. 14 at n = 132 (the same native code as axyb) is the least squares
     of the lifted system; scale="norm": the arrow SDP gives cvxpy's answer (both the
     trust-region solution after the polish)."""
-    from handeye.kronecker import reduce_normal_equations
+    from handeye.estimation.kronecker import reduce_normal_equations
     from handeye.problems import axbycz
     from handeye.problems import axbycz_kronecker as lifted
 

@@ -11,11 +11,16 @@ import numpy as np
 import pytest
 
 from handeye import Status
-from handeye.errors import InputError, SolverError
-from handeye.noise import NoiseModel
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import InputError, SolverError
 from handeye.plugins import kron_lstsq
 from handeye.plugins import lmi_sdp_casadi as lc
-from handeye.problems.axyb import PROBLEM, random_truth, regression_blocks, solve_translations
+from handeye.problems.axyb import (
+    PROBLEM,
+    random_truth,
+    regression_blocks,
+    solve_translations,
+)
 
 pytest.importorskip("casadi")
 

@@ -3,15 +3,16 @@
 
 from __future__ import annotations
 
-import handeye
 import numpy as np
 import pytest
+
+import handeye
 from handeye import InputError, Status
-from handeye.noise import NoiseModel
-from handeye.noise_sources import SOURCES
+from handeye.estimation.noise import NoiseModel
+from handeye.estimation.noise_sources import SOURCES
+from handeye.geometry.se3 import make_pose, so3_exp
 from handeye.plugins.auto import SOURCES_MIN_GAIN
 from handeye.problems.axyb import PROBLEM
-from handeye.se3 import make_pose, so3_exp
 
 
 def camera_noise_in_the_target_frame(B: np.ndarray, seed: int, rot: float = 0.002, trans: float = 0.2) -> np.ndarray:
@@ -91,8 +92,8 @@ def test_where_auto_does_not_fit_them_it_says_why():
     """A X = X B's stations rebuilt from every pair of 25 stations (their common origin would move
     the lever arms), and a camera known up to scale: auto keeps the per-group model, records why,
     and warns where noise='sources' was asked for."""
+    from handeye.geometry.se3 import inverse
     from handeye.problems.axxb import motions, simulate_stations
-    from handeye.se3 import inverse
 
     noise = NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)})
     stations, _ = simulate_stations(25, seed=3, noise=noise)

@@ -11,11 +11,11 @@ import pytest
 import handeye
 from handeye.cli import main as cli_main
 from handeye.cli.list_cmd import collect
-from handeye.errors import BackendUnavailableError, InputError, SolverError
-from handeye.noise import NoiseModel
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import BackendUnavailableError, InputError, SolverError
+from handeye.geometry.se3 import orthonormality_error, rotation_angle
 from handeye.plugins import opencv as plugin
 from handeye.problems.axyb import PROBLEM, random_truth
-from handeye.se3 import orthonormality_error, rotation_angle
 
 cv2 = pytest.importorskip("cv2")
 if not hasattr(cv2, "calibrateRobotWorldHandEye"):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.options import check_bool, parse_options
+from handeye.framework.options import check_bool, parse_options
 
 
 def bool_options() -> list[tuple[str, str, str]]:

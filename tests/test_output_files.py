@@ -24,9 +24,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from handeye import InputError, output_files
+from handeye import InputError
 from handeye.cli import main
-from handeye.output_files import new_file, write_text
+from handeye.io import output_files
+from handeye.io.output_files import new_file, write_text
 
 ROOT = Path(__file__).resolve().parents[1]
 ETH = ROOT / "core" / "data"
@@ -139,8 +140,9 @@ def test_force_replaces_the_name_not_a_hard_linked_input(tmp_path):
 def _calibrate_args(tmp_path: Path) -> list[str]:
     robot, camera = tmp_path / "robot.csv", tmp_path / "camera.csv"
     rng = np.random.default_rng(1)
-    from handeye.problems.axyb import PROBLEM
     from scipy.spatial.transform import Rotation
+
+    from handeye.problems.axyb import PROBLEM
 
     data, _ = PROBLEM.simulate(pairs=12, seed=int(rng.integers(100)))
     for path, T in ((robot, data["A"]), (camera, np.linalg.inv(data["B"]))):

@@ -10,18 +10,20 @@ from __future__ import annotations
 import copy
 import json
 
-import handeye
 import numpy as np
 import pytest
-from handeye import DegenerateDataError, InputError, nlls
+
+import handeye
+from handeye import DegenerateDataError, InputError
 from handeye.cli import main
-from handeye.io import save_data
-from handeye.noise import NoiseModel
-from handeye.pose_readers import write_poses
+from handeye.estimation import nlls
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.registry import get_registry
+from handeye.geometry.se3 import inverse, make_pose, so3_exp
+from handeye.io.data_files import save_data
+from handeye.io.pose_readers import write_poses
 from handeye.problems import planar
 from handeye.problems.axxb import motions
-from handeye.registry import get_registry
-from handeye.se3 import inverse, make_pose, so3_exp
 
 PLANAR_SOLVERS = ("auto", "refine", "kron-lstsq")
 PROBLEMS = ("axyb", "axxb")

@@ -6,17 +6,18 @@ from __future__ import annotations
 
 import json
 
-import handeye
 import numpy as np
 import pytest
+
+import handeye
+from handeye.checks.plausibility import MIN_STATIONS_FOR_SIGMA, station_warnings
 from handeye.cli import main
-from handeye.noise import NoiseModel
-from handeye.plausibility import MIN_STATIONS_FOR_SIGMA, station_warnings
-from handeye.pose_readers import write_poses
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.solution import Status
+from handeye.geometry.se3 import inverse
+from handeye.io.pose_readers import write_poses
 from handeye.problems.axxb import simulate_stations
 from handeye.problems.axyb import PROBLEM as AXYB
-from handeye.se3 import inverse
-from handeye.solution import Status
 
 
 def noise(level: float) -> NoiseModel:
@@ -131,7 +132,7 @@ def test_duplicated_and_few_stations_warn(tmp_path, capsys):
 
 @pytest.mark.parametrize("problem", ["axyb", "axxb"])
 def test_solve_checks_files_of_absolute_poses(tmp_path, capsys, problem):
-    from handeye.io import save_data
+    from handeye.io.data_files import save_data
 
     st, _ = simulate_stations(10, seed=4, noise=noise(1.0))
     path = save_data(tmp_path / "stations.json", {"robot_poses": st["A"], "camera_poses": inverse(st["B"])},
@@ -153,10 +154,10 @@ def test_a_gross_pair_that_auto_leaves_out_is_not_an_implausible_fit(tmp_path, c
     """One camera pose rotated by 10 deg among 12 stations: auto lists and leaves it out; the
     plausibility check (trimmed RMS) must not call the fit unreliable for it."""
     from handeye import cli
-    from handeye.noise import NoiseModel
-    from handeye.pose_readers import write_poses
+    from handeye.estimation.noise import NoiseModel
+    from handeye.geometry.se3 import inverse, make_pose, so3_exp
+    from handeye.io.pose_readers import write_poses
     from handeye.problems.axxb import simulate_stations
-    from handeye.se3 import inverse, make_pose, so3_exp
 
     stations, _ = simulate_stations(12, seed=3, noise=NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)}))
     camera = inverse(stations["B"])
@@ -178,9 +179,9 @@ def test_a_far_board_seen_from_few_stations_is_not_taken_for_millimetres():
     'camera file in mm, not m' hypothesis shrank the board's distance to 3 mm, where almost any
     poses fit, and was suggested (this seed, before the distance guard). A camera calibrates from
     2 cm to 50 m: a unit hypothesis outside that is not tried."""
-    from handeye import plausibility as P
-    from handeye.kinematics import random_flange_poses
-    from handeye.se3 import make_pose, so3_exp
+    from handeye.checks import plausibility as P
+    from handeye.geometry.kinematics import random_flange_poses
+    from handeye.geometry.se3 import make_pose, so3_exp
 
     rng = np.random.default_rng(19)
     n = int(rng.integers(4, 8))

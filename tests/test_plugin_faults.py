@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye import registry
 from handeye.cli import main
+from handeye.framework import registry
 from handeye.problems.axyb import PROBLEM
 
 DIST = "handeye-faulty-plugin"

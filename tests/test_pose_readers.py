@@ -8,15 +8,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from handeye.errors import InputError
-from handeye.pose_formats import PRESETS, format_names, parse_format
-from handeye.pose_readers import (
+
+from handeye.framework.errors import InputError
+from handeye.geometry.se3 import random_poses
+from handeye.io.pose_formats import PRESETS, format_names, parse_format
+from handeye.io.pose_readers import (
     MAX_CORRECTION,
     poses_from_rows,
     read_poses,
     write_poses,
 )
-from handeye.se3 import random_poses
 
 FANUC_DIR = Path(__file__).resolve().parents[2] / "shared" / "data" / "robcalib_axyb_fanuc_poses"
 

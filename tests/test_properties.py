@@ -50,11 +50,15 @@ from hypothesis import strategies as st
 
 import handeye
 from handeye import Status
-from handeye.errors import HandEyeError
+from handeye.checks.self_check import (
+    DISTANCE_WARN,
+    PRECISION_ROTATION_DEG,
+    PRECISION_TRANSLATION,
+)
+from handeye.estimation.kronecker import translation_rms
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import HandEyeError
 from handeye.harness.campaign import KINDS, cases, solver_runs
-from handeye.noise import NoiseModel
-from handeye.kronecker import translation_rms
-from handeye.self_check import DISTANCE_WARN, PRECISION_ROTATION_DEG, PRECISION_TRANSLATION
 
 #: statuses under which a user may use the answer (the self-check turns them into unreliable)
 USABLE = (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED)

@@ -9,15 +9,16 @@ import re
 from html.parser import HTMLParser
 from pathlib import Path
 
-import handeye
 import numpy as np
 import pytest
-from handeye.cli import main
-from handeye.noise import NoiseModel
-from handeye.pose_readers import write_poses
-from handeye.problems.axxb import simulate_stations
-from handeye.se3 import inverse
 from scipy.spatial.transform import Rotation
+
+import handeye
+from handeye.cli import main
+from handeye.estimation.noise import NoiseModel
+from handeye.geometry.se3 import inverse
+from handeye.io.pose_readers import write_poses
+from handeye.problems.axxb import simulate_stations
 
 #: the corrupted station (0-based pair index; file row BAD + 1)
 BAD = 4
@@ -114,14 +115,14 @@ def test_report_never_imported_by_a_solve():
 
     code = ("import sys, handeye; d, t, m = handeye.examples.load_example('simulated'); "
             "handeye.solve('axyb', A=d['A'], B=d['B'], solver='kron-lstsq'); "
-            "assert 'matplotlib' not in sys.modules and 'handeye.quality_report' not in sys.modules")
+            "assert 'matplotlib' not in sys.modules and 'handeye.workflow.quality_report' not in sys.modules")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False)
     assert done.returncode == 0, done.stderr
 
 
 def test_advice_reads_the_precision_warnings():
     """The self-check's precision warnings become the report's advice (which axis to add)."""
-    from handeye.quality_report import advice
+    from handeye.workflow.quality_report import advice
 
     base = {"status": "optimal", "problem": "axyb", "item": "station", "unit": "mm", "warnings": [], "std": {},
             "residuals": {"rotation_deg": [0.1] * 12},

@@ -3,19 +3,20 @@ init handling. The shared suite (test_solvers.py) adds noise-free / noisy / inva
 
 from __future__ import annotations
 
-import handeye
 import numpy as np
 import pytest
-from handeye import nlls
-from handeye.errors import InputError, UnknownPluginError
-from handeye.noise import NoiseModel
+
+import handeye
+from handeye.estimation import nlls
+from handeye.estimation.noise import NoiseModel
+from handeye.estimation.whitening import estimate_sigmas
+from handeye.framework.errors import InputError, UnknownPluginError
+from handeye.geometry.se3 import make_pose, rotation_angle, so3_exp
 from handeye.plugins import refine as R
 from handeye.problems.axxb import PROBLEM as AXXB
 from handeye.problems.axxb_geometry import AXXBModel
 from handeye.problems.axyb import PROBLEM, random_truth
 from handeye.problems.axyb_geometry import AXYBModel
-from handeye.se3 import make_pose, rotation_angle, so3_exp
-from handeye.whitening import estimate_sigmas
 
 NOISE = NoiseModel({"B": (0.002, 0.5), "A": (0.0002, 0.05)})
 
@@ -475,7 +476,7 @@ def test_axbycz_is_served_with_three_start_poses():
 def test_axbycz_a_start_that_refuses_the_data_gives_way_to_the_next(monkeypatch):
     """Each axbycz start serves one data protocol: wu (both robots moving) refuses exact phase
     data, and the next start takes over, with a warning; a start asked for by name is not replaced."""
-    from handeye.errors import DegenerateDataError
+    from handeye.framework.errors import DegenerateDataError
     from handeye.problems.axbycz import PROBLEM as AXBYCZ
 
     data, truth = AXBYCZ.simulate(pairs=30, seed=5, protocol="phases")

@@ -8,12 +8,13 @@ import tomllib
 
 import numpy as np
 import pytest
+from conftest import ROOT, SolverPlugin
+from conftest import identity_run as _run
 
 import handeye
-from handeye import PluginRegistrationError, SolverSpec, UnknownPluginError, hookimpl, registry
+from handeye import PluginRegistrationError, SolverSpec, UnknownPluginError, hookimpl
+from handeye.framework import registry
 from handeye.problems.axyb import AXYB
-
-from conftest import ROOT, SolverPlugin, identity_run as _run
 
 
 class ProblemPlugin:

@@ -7,12 +7,13 @@ from __future__ import annotations
 
 import dataclasses
 
-import handeye
 import numpy as np
 import pytest
-from handeye.errors import InputError
-from handeye.nlls import retract
-from handeye.noise import NoiseModel
+
+import handeye
+from handeye.estimation.nlls import retract
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import InputError
 from handeye.vision.observations import Camera
 
 PROBLEM = handeye.get_registry().problem("axyb")

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from handeye.se3 import (
+from handeye.geometry.se3 import (
     gram_schmidt,
     inverse,
     make_pose,

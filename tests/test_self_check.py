@@ -11,12 +11,12 @@ import pytest
 
 import handeye
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye.checks.self_check import DISTANCE_FAIL, PRECISION_TRANSLATION
 from handeye.cli import main
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.registry import get_registry, register_plugin, unregister_plugin
 from handeye.harness import campaign
-from handeye.io import save_data
-from handeye.noise import NoiseModel
-from handeye.registry import get_registry, register_plugin, unregister_plugin
-from handeye.self_check import DISTANCE_FAIL, PRECISION_TRANSLATION
+from handeye.io.data_files import save_data
 
 AXYB = get_registry().problem("axyb")
 
@@ -48,9 +48,9 @@ def test_a_flipped_closed_form_on_a_pure_rotation_rig_is_unreliable():
     """The robot turns about its flange origin (no translations in A): the plain least squares of
     eq. 8 comes out near -(R_X, R_Y), whose projection is ~180 deg off; the flip leaves rotation
     residuals no noise explains. kron-lstsq now takes the sign that fits (`signed_blocks`)."""
+    from handeye.checks.self_check import assess
+    from handeye.geometry.se3 import make_pose, project_to_so3
     from handeye.problems.axyb import solve_translations, split_beta
-    from handeye.se3 import make_pose, project_to_so3
-    from handeye.self_check import assess
 
     case = campaign.make_case("pure-rotation", 4)
     data, truth = case.data("axyb")
@@ -84,8 +84,8 @@ def _weak(trans_noise: float, rot_noise: float):
     """Every robot rotation within ~0.02 rad of one orientation, translations over 300 mm."""
     rng = np.random.default_rng(3)
     n = 15
+    from handeye.geometry.se3 import inverse, make_pose, random_rotations, so3_exp
     from handeye.problems.axyb import PAPER_X, PAPER_Y
-    from handeye.se3 import inverse, make_pose, random_rotations, so3_exp
 
     R = random_rotations(1, rng)[0] @ so3_exp(0.02 * rng.standard_normal((n, 3)) / np.sqrt(3))
     t = np.array([300.0, 0.0, 400.0]) + rng.uniform(-150.0, 150.0, (n, 3))
@@ -122,8 +122,8 @@ def test_rotations_mostly_about_one_axis_name_that_axis():
     so."""
     rng = np.random.default_rng(0)
     m = 12
+    from handeye.geometry.se3 import inverse, make_pose, so3_exp
     from handeye.problems.axyb import PAPER_X, PAPER_Y
-    from handeye.se3 import inverse, make_pose, so3_exp
 
     wobble = so3_exp(0.02 * rng.standard_normal((m, 3)))
     A = make_pose(so3_exp(np.outer(rng.uniform(-2, 2, m), [0, 0, 1.0])) @ wobble, 300 * rng.standard_normal((m, 3)))
@@ -188,8 +188,8 @@ def test_the_cli_exits_1_on_an_unreliable_answer(tmp_path, capsys):
 def test_consecutive_logs_of_a_validated_stack_are_computed_once_and_stay_right():
     """Read-only (validated) stacks keep their consecutive rotation vectors while they live; a
     writable stack, or another stack, is computed afresh (a stale result would be silent)."""
-    from handeye import so3_fast
-    from handeye.se3 import random_poses
+    from handeye.geometry import so3_fast
+    from handeye.geometry.se3 import random_poses
 
     rng = np.random.default_rng(5)
     T = random_poses(12, rng)

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.noise import NoiseModel
+from handeye.estimation.noise import NoiseModel
+from handeye.geometry.se3 import random_rotations
 from handeye.plugins.shah import normalize_rotation
 from handeye.problems.axyb import PROBLEM, random_truth, regression_blocks
-from handeye.se3 import random_rotations
 
 if "opencv" not in handeye.get_registry().solver_names("axyb"):
     pytest.skip("the opencv reference plugin is not registered", allow_module_level=True)

@@ -8,14 +8,15 @@ from __future__ import annotations
 
 import importlib
 
-import handeye
 import numpy as np
 import pytest
+
+import handeye
 from handeye import InputError, Status
-from handeye.noise import NoiseModel
+from handeye.estimation.noise import NoiseModel
+from handeye.geometry.se3 import random_poses, random_rotations, rotation_angle
 from handeye.plugins import so3_sdp
 from handeye.problems.axyb import PROBLEM, random_truth, solve_translations
-from handeye.se3 import random_poses, random_rotations, rotation_angle
 
 NOISE = NoiseModel.on("B", 0.002, 0.5)
 HEAVY = NoiseModel.on("B", 0.02, 5.0)

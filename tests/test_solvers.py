@@ -31,8 +31,8 @@ from tolerances import (
 )
 
 import handeye
-from handeye.errors import InputError, UnknownPluginError
-from handeye.se3 import rotation_angle
+from handeye.framework.errors import InputError, UnknownPluginError
+from handeye.geometry.se3 import rotation_angle
 
 NOISE_FREE_SEEDS = (11, 12, 13)
 NOISE_FREE_PAIRS = 12

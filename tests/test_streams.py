@@ -16,13 +16,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from handeye import DegenerateDataError, InputError, solve
 from handeye.cli import main
-from handeye.kinematics import LR_MATE_200ID, LR_MATE_SIM_JOINTS
-from handeye.pose_readers import PoseStack, read_poses, write_poses
-from handeye.problem import pose_errors
+from handeye.framework.problem import pose_errors
+from handeye.geometry.kinematics import LR_MATE_200ID, LR_MATE_SIM_JOINTS
+from handeye.geometry.se3 import inverse, make_pose, rotation_angle, so3_exp
+from handeye.io.pose_readers import PoseStack, read_poses, write_poses
 from handeye.problems.axyb import PAPER_X, PAPER_Y, PROBLEM
-from handeye.se3 import inverse, make_pose, rotation_angle, so3_exp
 from handeye.streams import angular_speed, checked_stream, pair_streams, resample_poses
 
 ETH = Path(__file__).parents[2] / "shared" / "data" / "ethz_asl_handeye_2017"

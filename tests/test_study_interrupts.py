@@ -21,7 +21,9 @@ import time
 from pathlib import Path
 
 import pytest
-from handeye.errors import InputError
+
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import InputError
 from handeye.harness import (
     Spec,
     Study,
@@ -32,7 +34,6 @@ from handeye.harness import (
     write_report,
 )
 from handeye.harness.result import JOURNAL_SUFFIX, StudyJournal
-from handeye.noise import NoiseModel
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="signals and /proc: Linux")
 

@@ -9,14 +9,15 @@ import re
 import subprocess
 import sys
 
-import handeye
 import numpy as np
 import pytest
+
+import handeye
 from handeye import DegenerateDataError
 from handeye.cli import COMMANDS, build_parser, main
+from handeye.geometry.se3 import inverse, make_pose, so3_exp
 from handeye.plugins import classic_handeye, li, shah
 from handeye.problems.axyb import PROBLEM, AXYBData
-from handeye.se3 import inverse, make_pose, so3_exp
 
 #: what a user-facing text must not contain: equation numbers and references to our tracker
 FORBIDDEN = re.compile(r"\beqs?\.\s|\bequation \d|\bissue", re.IGNORECASE)
@@ -219,8 +220,8 @@ def test_a_wrong_column_layout_is_one_line(tmp_path, capsys, layout, message):
 
 def test_cli_errors_name_cli_flags_not_python_keywords(tmp_path, capsys):
     """A planar robot's data: the library says tz_X=..., the command line --tz-X VALUE."""
-    from handeye.io import save_data
-    from handeye.noise import NoiseModel
+    from handeye.estimation.noise import NoiseModel
+    from handeye.io.data_files import save_data
     from handeye.problems import planar
 
     stations, truth = planar.simulate_stations(12, seed=9, noise=NoiseModel.on(("A", "B"), 0.001, 0.1))

@@ -11,12 +11,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from handeye.errors import InputError
+from scipy.spatial.transform import Rotation
+
+from handeye.framework.errors import InputError
 from handeye.vision.boards import Board, parse_board
 from handeye.vision.detect import BoardNotFound, Detection, detect
 from handeye.vision.observations import Camera
 from handeye.vision.render import project, render, view_pose
-from scipy.spatial.transform import Rotation
 
 SPECS = {
     "chessboard": "chessboard:9x6:25mm",

@@ -15,14 +15,16 @@ import json
 from pathlib import Path
 
 import cv2
-import handeye
 import numpy as np
 import pytest
 import yaml
-from handeye.errors import InputError
-from handeye.io import from_poses
-from handeye.pose_readers import PoseStack, read_pose_dir
-from handeye.se3 import inverse, make_pose, rotation_angle
+from scipy.spatial.transform import Rotation
+
+import handeye
+from handeye.framework.errors import InputError
+from handeye.geometry.se3 import inverse, make_pose, rotation_angle
+from handeye.io.data_files import from_poses
+from handeye.io.pose_readers import PoseStack, read_pose_dir
 from handeye.vision.boards import parse_board
 from handeye.vision.camera_poses import board_pose, flag_outliers
 from handeye.vision.detect import BoardNotFound, Detection
@@ -34,7 +36,6 @@ from handeye.vision.image_set import (
 )
 from handeye.vision.intrinsics import K3_MIN_VIEWS, calibrate_camera, load_camera
 from handeye.vision.observations import Camera
-from scipy.spatial.transform import Rotation
 
 #: the simulated camera: 640 x 480, mild barrel distortion
 K_TRUE = np.array([[520.0, 0.0, 318.0], [0.0, 524.0, 243.0], [0.0, 0.0, 1.0]])

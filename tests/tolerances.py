@@ -58,7 +58,7 @@ from pathlib import Path
 from typing import Any
 
 import handeye
-from handeye.noise import NoiseModel
+from handeye.estimation.noise import NoiseModel
 
 NOISY_SEED = 2026
 #: The noisy reference case of each problem: (pairs, noise model). axyb: the paper's setting

@@ -37,10 +37,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 import handeye
-from handeye.io import save_data
-from handeye.noise import NoiseModel
+from handeye.estimation.noise import NoiseModel
+from handeye.geometry.se3 import make_pose, rotation_angle
+from handeye.io.data_files import save_data
 from handeye.problems.axyb import PROBLEM
-from handeye.se3 import make_pose, rotation_angle
 
 ROOT = Path(__file__).resolve().parents[1]
 ETH_DIR = Path("/work/shared/data/ethz_asl_handeye_2017/robot_arm")

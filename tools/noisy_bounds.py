@@ -26,8 +26,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-import handeye  # noqa: E402
 from tolerances import BOUND_FACTOR, BOUND_SEEDS, BOUNDS_FILE, measured_key, noisy_case  # noqa: E402
+
+import handeye  # noqa: E402
 
 
 def runs() -> list[tuple[str, str, str]]:

@@ -23,10 +23,17 @@ import sys
 import threading
 from collections.abc import Sequence
 
-from .. import __version__
-from ..errors import HandEyeError, SolverError
-from . import bench_cmd, calibrate_cmd, compare, list_cmd, simulate_cmd, solve_cmd
-from ._common import in_cli_words
+from handeye import __version__
+from handeye.cli import (
+    bench_cmd,
+    calibrate_cmd,
+    compare,
+    list_cmd,
+    simulate_cmd,
+    solve_cmd,
+)
+from handeye.cli._common import in_cli_words
+from handeye.framework.errors import HandEyeError, SolverError
 
 #: the subcommand modules, in the order ``handeye --help`` shows them
 COMMANDS = [list_cmd, simulate_cmd, solve_cmd, calibrate_cmd, compare, bench_cmd]

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from handeye.framework.errors import InputError
 
 #: how the library's messages spell a fact or an option (as a Python keyword) -> how this command
 #: line spells it (`in_cli_words`); the library's own "(CLI --flag)" asides are dropped
@@ -110,7 +110,7 @@ def time_limit(args: argparse.Namespace, problem: str, solver: str) -> float | N
     """The time limit of a solve, in seconds or None, from ``--time-limit`` and who provides the
     solver (`PLUGIN_TIME_LIMIT` for a third party's, so that a hanging plugin cannot hang the
     command). InputError for a negative or non-finite value."""
-    from ..registry import get_registry
+    from handeye.framework.registry import get_registry
 
     given = getattr(args, "time_limit", None)
     if given is not None:

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from handeye.framework.errors import InputError
 
 #: flag -> the keyword of handeye.solve
 FACTS = {"--tz-X": "tz_X", "--tz-Y": "tz_Y", "--camera-scale": "camera_scale"}

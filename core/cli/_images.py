@@ -23,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
-from ..pose_readers import PoseStack
-from ..registry import get_registry
+from handeye.framework.errors import InputError
+from handeye.framework.registry import get_registry
+from handeye.io.pose_readers import PoseStack
 
 #: the solver that refines on the corners' reprojection error, used by default when installed
 REPROJECTION_SOLVER = "reprojection"
@@ -93,9 +93,9 @@ def load(args: argparse.Namespace, read_robot: Callable[..., PoseStack]) -> Imag
     """The image path up to the camera stream: read the robot poses (`read_robot`, the command's
     reader), pair, detect, calibrate if needed, solve the board poses, print what happened (on
     stderr with --json)."""
-    from ..vision.boards import parse_board
-    from ..vision.image_set import images_and_poses
-    from ..vision.intrinsics import load_camera
+    from handeye.vision.boards import parse_board
+    from handeye.vision.image_set import images_and_poses
+    from handeye.vision.intrinsics import load_camera
 
     if args.max_dt is not None and IMAGE_MATCHES[args.match] != "time":
         raise InputError("--max-dt applies to --match time; drop it")

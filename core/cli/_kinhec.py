@@ -60,8 +60,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DegenerateDataError, HandEyeError, InputError, SolverError
-from ._kinhec_report import (
+from handeye.cli._kinhec_report import (
     AUTO,
     AXXB_PREFIX,
     AXYB_PREFIX,
@@ -74,6 +73,12 @@ from ._kinhec_report import (
     machine_line,
     track_summary,
     write_outputs,
+)
+from handeye.framework.errors import (
+    DegenerateDataError,
+    HandEyeError,
+    InputError,
+    SolverError,
 )
 
 #: the oldest KinHEC whose protocol this module follows
@@ -146,8 +151,8 @@ def handeye_entries(probe: bool = True) -> tuple[list[Entry], list[str]]:
     The probe solves a noise-free simulated problem once with each solver; it also imports what
     each solver needs, so the timings KinHEC takes do not include first-call import costs.
     """
-    from ..api import solve
-    from ..registry import get_registry
+    from handeye.framework.api import solve
+    from handeye.framework.registry import get_registry
 
     registry = get_registry()
     entries: list[Entry] = []
@@ -199,7 +204,7 @@ def adaptor(entry: Entry) -> Callable[[Sequence[np.ndarray], Any], dict[str, Any
     """
 
     def run(data: Sequence[np.ndarray], rng: Any = None) -> dict[str, Any]:
-        from ..api import solve
+        from handeye.framework.api import solve
 
         A_abs, B_abs, A_rel, B_rel = data
         A, B = (A_abs, B_abs) if entry.problem == "axyb" else (A_rel, B_rel)

@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
-from ._kinhec import import_kinhec
-from ._kinhec_report import REFERENCE
+from handeye.cli._kinhec import import_kinhec
+from handeye.cli._kinhec_report import REFERENCE
+from handeye.framework.errors import InputError
 
 
 def export_fixture(data_dir: str | Path, sequence_id: str, path: str | Path, sync: str = "oracle",

@@ -30,10 +30,10 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..output_files import new_file, write_text
+from handeye.io.output_files import new_file, write_text
 
 if TYPE_CHECKING:
-    from ._kinhec import KinhecRun
+    from handeye.cli._kinhec import KinhecRun
 
 #: KinHEC names of handeye's solvers: AX=YB on the absolute keyframe poses, AX=XB on the motions
 AXYB_PREFIX, AXXB_PREFIX = "handeye:", "handeye-axxb:"
@@ -232,7 +232,7 @@ def _write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:
 def machine_line(kinhec_version: str) -> str:
     """When and where: date, machine, load, versions (handeye's with its git commit when it runs
     from a checkout, ``+dirty`` with uncommitted changes: the figures belong to that code)."""
-    from .. import __version__
+    from handeye import __version__
 
     load = " ".join(f"{v:.2f}" for v in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
     return (f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; {platform.machine()}, {os.cpu_count()} cores, "

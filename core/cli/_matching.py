@@ -14,10 +14,14 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
-from ..pose_readers import PoseStack
-from ..station_matching import default_max_dt, match_by_name, match_by_time
-from . import _images, _streams
+from handeye.cli import _images, _streams
+from handeye.framework.errors import InputError
+from handeye.io.pose_readers import PoseStack
+from handeye.streams.station_matching import (
+    default_max_dt,
+    match_by_name,
+    match_by_time,
+)
 
 
 def stations(args: argparse.Namespace, from_images: bool, read: Callable[..., PoseStack]) -> tuple[Any, ...]:

@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from ..bag_readers import is_bag, read_bag_poses
-from ..errors import InputError
-from ..pose_readers import PoseStack
-from ..streams import MAX_OFFSET, MAX_PAIRS, MIN_ANGULAR_SPEED, pair_streams
+from handeye.framework.errors import InputError
+from handeye.io.bag_readers import is_bag, read_bag_poses
+from handeye.io.pose_readers import PoseStack
+from handeye.streams import MAX_OFFSET, MAX_PAIRS, MIN_ANGULAR_SPEED, pair_streams
 
 #: the --match value of this module
 INTERPOLATE = "interpolate"

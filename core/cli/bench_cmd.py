@@ -53,15 +53,15 @@ from typing import Any
 
 import numpy as np
 
-from .. import __version__
-from ..api import solve
-from ..errors import InputError, UnknownPluginError
-from ..noise import NoiseModel
-from ..output_files import check_writable, new_file
-from ..registry import get_registry
-from ..se3 import inverse
-from . import _kinhec
-from ._common import add_force_flag, check_new_file
+from handeye import __version__
+from handeye.cli import _kinhec
+from handeye.cli._common import add_force_flag, check_new_file
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.api import solve
+from handeye.framework.errors import InputError, UnknownPluginError
+from handeye.framework.registry import get_registry
+from handeye.geometry.se3 import inverse
+from handeye.io.output_files import check_writable, new_file
 
 NAME = "bench"
 DEFAULT_REPEATS = 7
@@ -296,7 +296,7 @@ def bench_data(problem: str, m: int, noise: NoiseModel, seed: int,
     pairs itself), so both solve the same data.
     """
     if problem == "axxb":
-        from ..problems.axxb import relative_motions, simulate_stations
+        from handeye.problems.axxb import relative_motions, simulate_stations
 
         n = int(np.ceil((1 + np.sqrt(1 + 8 * m)) / 2))
         stations, _ = simulate_stations(n, seed=seed, noise=noise)

@@ -66,21 +66,9 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..api import solve
-from ..errors import InputError
-from ..io import PAIRINGS, SETUPS, from_poses
-from ..output_files import write_text
-from ..plausibility import Streams, check
-from ..pose_formats import format_names, parse_format
-from ..pose_readers import UNITS, PoseStack, read_pose_dir, read_poses
-from ..quality_report import check_new_report, collect, report_files, write_report
-from ..registry import get_registry
-from ..report_images import image_entries
-from ..se3 import inverse
-from ..solution import Status, standard_deviations
-from ..station_matching import MATCHES
-from . import _facts, _images, _matching, _streams
-from ._common import (
+from handeye.checks.plausibility import Streams, check
+from handeye.cli import _facts, _images, _matching, _streams
+from handeye.cli._common import (
     _plain,
     add_force_flag,
     add_time_limit_flag,
@@ -92,7 +80,7 @@ from ._common import (
     parse_key_values,
     time_limit,
 )
-from .solve_cmd import (
+from handeye.cli.solve_cmd import (
     EQUATIONS,
     FRAMES,
     UNUSABLE,
@@ -100,6 +88,23 @@ from .solve_cmd import (
     default_solver,
     noise_lines,
 )
+from handeye.framework.api import solve
+from handeye.framework.errors import InputError
+from handeye.framework.registry import get_registry
+from handeye.framework.solution import Status, standard_deviations
+from handeye.geometry.se3 import inverse
+from handeye.io.data_files import PAIRINGS, SETUPS, from_poses
+from handeye.io.output_files import write_text
+from handeye.io.pose_formats import format_names, parse_format
+from handeye.io.pose_readers import UNITS, PoseStack, read_pose_dir, read_poses
+from handeye.streams.station_matching import MATCHES
+from handeye.workflow.quality_report import (
+    check_new_report,
+    collect,
+    report_files,
+    write_report,
+)
+from handeye.workflow.report_images import image_entries
 
 NAME = "calibrate"
 #: what the camera file holds: board-in-camera = T_cam_target (as solvePnP), camera-in-board = T_target_cam

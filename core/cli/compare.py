@@ -41,10 +41,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ..errors import InputError
-from ..noise import NoiseModel
-from ..registry import get_registry
-from ._common import add_force_flag, check_new_results
+from handeye.cli._common import add_force_flag, check_new_results
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import InputError
+from handeye.framework.registry import get_registry
 
 NAME = "compare"
 #: the noise levels (sigma_N, paper reading: rad and mm on A and B) when neither levels nor a
@@ -118,7 +118,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
     """The study and the output directory the arguments describe."""
-    from ..harness import (
+    from handeye.harness import (
         Study,
         Sweep,
         accuracy_study,
@@ -225,7 +225,7 @@ def open_journal(args: argparse.Namespace, study: Any, outdir: Path) -> Any:
     (its final files, if the report was being written when it stopped, are then rewritten);
     otherwise, as for every command, earlier results are not overwritten without --force, which
     also discards the journal and starts afresh. A journal of another study definition: exit 2."""
-    from ..harness.result import StudyJournal, journal_path
+    from handeye.harness.result import StudyJournal, journal_path
 
     path = journal_path(outdir, study.name)
     if args.force or not path.exists():
@@ -236,8 +236,8 @@ def open_journal(args: argparse.Namespace, study: Any, outdir: Path) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..harness import run_study, time_table, write_report
-    from ..harness.interrupts import (
+    from handeye.harness import run_study, time_table, write_report
+    from handeye.harness.interrupts import (
         Interrupted,
         StudyInterrupted,
         interruptible,
@@ -245,7 +245,7 @@ def run(args: argparse.Namespace) -> int:
     )
 
     if args.data or args.example:
-        from . import compare_data
+        from handeye.cli import compare_data
 
         return compare_data.run(args)
     for flag in ("folds", "setup"):

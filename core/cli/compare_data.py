@@ -17,11 +17,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from ..errors import InputError
-from ..io import PoseFile, from_poses, load_file, station_readers
-from ..registry import get_registry
-from ..se3 import inverse
-from ._common import check_new_results
+from handeye.cli._common import check_new_results
+from handeye.framework.errors import InputError
+from handeye.framework.registry import get_registry
+from handeye.geometry.se3 import inverse
+from handeye.io.data_files import PoseFile, from_poses, load_file, station_readers
 
 #: flags of the simulated studies that make no sense with --data / --example
 SIMULATION_FLAGS = ("paper", "accuracy", "study", "noise_levels", "noise_rot", "noise_trans", "noise_on",
@@ -36,8 +36,8 @@ CROSSVAL_FILES = ("_heldout.md", "_summary.json", "_folds.csv", "_pairs.csv", "_
 
 def read(args: argparse.Namespace) -> tuple[Any, str]:
     """(`CrossValData`, a description of the source) from --data or --example."""
-    from ..examples import load_example
-    from ..harness.crossval import CrossValData
+    from handeye.harness.crossval import CrossValData
+    from handeye.io.examples import load_example
 
     problem = args.problem
     get_registry().problem(problem)  # unknown problem: exit 2 listing the known ones
@@ -66,10 +66,10 @@ def read(args: argparse.Namespace) -> tuple[Any, str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..harness import default_specs, parse_specs
-    from ..harness.crossval import run_crossval
-    from ..harness.crossval_report import heldout_table, write_crossval
-    from ..harness.interrupts import Interrupted, interruptible, stop_on_signals
+    from handeye.harness import default_specs, parse_specs
+    from handeye.harness.crossval import run_crossval
+    from handeye.harness.crossval_report import heldout_table, write_crossval
+    from handeye.harness.interrupts import Interrupted, interruptible, stop_on_signals
 
     given = [f.replace("_", "-") for f in SIMULATION_FLAGS if getattr(args, f, None) not in (None, False)]
     if args.executor != "process":

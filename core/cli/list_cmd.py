@@ -8,8 +8,8 @@ import argparse
 import dataclasses
 from typing import Any
 
-from ..registry import get_registry
-from ._common import dump_json
+from handeye.cli._common import dump_json
+from handeye.framework.registry import get_registry
 
 NAME = "list"
 

@@ -23,19 +23,19 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from ..api import plugin_faults
-from ..errors import InputError
-from ..io import (
+from handeye.cli._common import add_force_flag, check_new_file
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.api import plugin_faults
+from handeye.framework.errors import InputError
+from handeye.framework.registry import get_registry
+from handeye.geometry.se3 import inverse
+from handeye.io.data_files import (
     DEFAULT_PAIRING,
     PAIRINGS,
     save_data,
     station_readers,
     supported_extensions,
 )
-from ..noise import NoiseModel
-from ..registry import get_registry
-from ..se3 import inverse
-from ._common import add_force_flag, check_new_file
 
 NAME = "simulate"
 #: Most pairs, motions or stations one simulated file holds. Measured: 10^5 pairs take 7 s, 0.23 GB
@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     options = {"pairing": args.pairing} if args.pairing is not None else {}
     if args.stations is not None:
         # the axyb simulator's stations: noise "A" on the robot poses, "B" on the camera poses
-        from ..problems.axxb import simulate_stations
+        from handeye.problems.axxb import simulate_stations
 
         stations, truth = simulate_stations(args.stations, seed=args.seed, noise=noise)
         data = {"robot_poses": stations["A"], "camera_poses": inverse(stations["B"])}

@@ -38,10 +38,24 @@ from typing import Any
 
 import numpy as np
 
-from ..api import solve
-from ..errors import InputError
-from ..examples import DEFAULT_EXAMPLE, list_examples, load_example
-from ..io import (
+from handeye.checks.plausibility import Streams, check
+from handeye.cli import _facts
+from handeye.cli._common import (
+    add_force_flag,
+    add_time_limit_flag,
+    check_outputs_apart,
+    dump_json,
+    format_pose,
+    in_cli_words,
+    parse_key_values,
+    time_limit,
+)
+from handeye.framework.api import solve
+from handeye.framework.errors import InputError
+from handeye.framework.registry import get_registry
+from handeye.framework.solution import Status, standard_deviations
+from handeye.geometry.se3 import inverse
+from handeye.io.data_files import (
     DEFAULT_PAIRING,
     PAIRINGS,
     SETUPS,
@@ -51,21 +65,12 @@ from ..io import (
     station_readers,
     supported_extensions,
 )
-from ..plausibility import Streams, check
-from ..quality_report import check_new_report, collect, report_files, write_report
-from ..registry import get_registry
-from ..se3 import inverse
-from ..solution import Status, standard_deviations
-from . import _facts
-from ._common import (
-    add_force_flag,
-    add_time_limit_flag,
-    check_outputs_apart,
-    dump_json,
-    format_pose,
-    in_cli_words,
-    parse_key_values,
-    time_limit,
+from handeye.io.examples import DEFAULT_EXAMPLE, list_examples, load_example
+from handeye.workflow.quality_report import (
+    check_new_report,
+    collect,
+    report_files,
+    write_report,
 )
 
 NAME = "solve"

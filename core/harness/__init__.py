@@ -17,10 +17,10 @@ docs/reproducing-the-paper.md the paper's study.
 
 from __future__ import annotations
 
-from .report import error_table, plot_study, time_table, write_report
-from .result import StudyResult, read_csv
-from .runner import data_seed, run_study, run_unit, units_of
-from .study import (
+from handeye.harness.report import error_table, plot_study, time_table, write_report
+from handeye.harness.result import StudyResult, read_csv
+from handeye.harness.runner import data_seed, run_study, run_unit, units_of
+from handeye.harness.study import (
     ACCURACY_NOISE,
     ACCURACY_PAIRS,
     CENTERS,

@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from ..kinematics import random_flange_poses
-from ..noise import NoiseModel
-from ..se3 import inverse, make_pose, random_rotations, so3_exp
+from handeye.estimation.noise import NoiseModel
+from handeye.geometry.kinematics import random_flange_poses
+from handeye.geometry.se3 import inverse, make_pose, random_rotations, so3_exp
 
 KINDS = ("heavy-noise", "pure-rotation", "tiny-cell", "weak-excitation", "planar", "outliers")
 
@@ -49,14 +49,14 @@ class Case:
         """The problem's data fields and truth: stations for axyb, all-pairs motions for axxb."""
         if problem == "axyb":
             return {"A": self.A, "B": self.B}, {"X": self.X, "Y": self.Y}
-        from ..problems.axxb import relative_motions
+        from handeye.problems.axxb import relative_motions
 
         A, B = relative_motions(self.A, self.B, "all")
         return {"A": A, "B": B}, {"X": self.X}
 
 
 def _truth(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    from ..problems.axyb import PAPER_X, PAPER_Y
+    from handeye.problems.axyb import PAPER_X, PAPER_Y
 
     return PAPER_X.copy(), PAPER_Y.copy()
 
@@ -128,7 +128,7 @@ def solver_runs(problem: str) -> list[tuple[str, str]]:
     """(solver, backend) of every registered solver of `problem` that can run here: the default
     backend, and every other backend of a solver whose backends solve different formulations
     (lmi-sdp's casadi)."""
-    from ..registry import get_registry
+    from handeye.framework.registry import get_registry
 
     reg = get_registry()
     out = []
@@ -147,9 +147,9 @@ def run_case(case: Case, problem: str, runs: list[tuple[str, str]]) -> list[dict
     unknowns), status, number of warnings, or the error type when it raised."""
     import warnings
 
-    from ..api import solve
-    from ..errors import HandEyeError
-    from ..registry import get_registry
+    from handeye.framework.api import solve
+    from handeye.framework.errors import HandEyeError
+    from handeye.framework.registry import get_registry
 
     prob = get_registry().problem(problem)
     data, truth = case.data(problem)

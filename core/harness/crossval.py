@@ -35,12 +35,12 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import HandEyeError, InputError
-from ..problem import StationReader
-from ..registry import get_registry
-from ..solution import Status
-from .runner import SolveTimeout, _progress, limited_solve
-from .study import Spec
+from handeye.framework.errors import HandEyeError, InputError
+from handeye.framework.problem import StationReader
+from handeye.framework.registry import get_registry
+from handeye.framework.solution import Status
+from handeye.harness.runner import SolveTimeout, _progress, limited_solve
+from handeye.harness.study import Spec
 
 #: the label of the reference row when the data carry a truth: the true unknowns' residuals on
 #: the same held-out pairs (the noise floor of the data)

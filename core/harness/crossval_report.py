@@ -15,9 +15,15 @@ import math
 from pathlib import Path
 from typing import Any
 
-from .crossval import TRUTH_LABEL, CrossValResult
-from .report import _ms
-from .result import _csv_value, _plain, environment, moved, staged_outputs
+from handeye.harness.crossval import TRUTH_LABEL, CrossValResult
+from handeye.harness.report import _ms
+from handeye.harness.result import (
+    _csv_value,
+    _plain,
+    environment,
+    moved,
+    staged_outputs,
+)
 
 
 def _unit(result: CrossValResult) -> str:

@@ -31,8 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
-from .study import Spec, Study
+from handeye.framework.errors import InputError
+from handeye.harness.study import Spec, Study
 
 GROUP_KEYS = ("sweep", "level", "pairs", "label")
 STATS = ("mean", "median", "std", "q25", "q75")
@@ -143,7 +143,7 @@ def describe(values: np.ndarray) -> dict[str, float]:
 
 def environment() -> dict[str, str]:
     """Versions that matter for timings and numbers."""
-    from .. import __version__
+    from handeye import __version__
 
     info = {"handeye": __version__, "python": platform.python_version(), "numpy": np.__version__,
             "machine": platform.machine(), "system": platform.system(), "processor": platform.processor()}

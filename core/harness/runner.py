@@ -51,19 +51,25 @@ from typing import Any
 
 import numpy as np
 
-from ..api import solve
-from ..errors import InputError
-from ..isolation import fork_available
-from ..processes import die_with_parent
-from ..registry import (
+from handeye.framework.api import solve
+from handeye.framework.errors import InputError
+from handeye.framework.isolation import fork_available
+from handeye.framework.processes import die_with_parent
+from handeye.framework.registry import (
     _extra as _runtime_plugins,  # run-time plugins, re-registered in workers
 )
-from ..registry import get_registry, register_plugin
-from ..se3 import random_poses
-from ..solution import Status
-from .interrupts import POLL, StudyInterrupted, check_stop, interruptible, stop_on_signals
-from .result import StudyJournal, StudyResult, UnitKey
-from .study import UNITS, Cell, Spec, Study
+from handeye.framework.registry import get_registry, register_plugin
+from handeye.framework.solution import Status
+from handeye.geometry.se3 import random_poses
+from handeye.harness.interrupts import (
+    POLL,
+    StudyInterrupted,
+    check_stop,
+    interruptible,
+    stop_on_signals,
+)
+from handeye.harness.result import StudyJournal, StudyResult, UnitKey
+from handeye.harness.study import UNITS, Cell, Spec, Study
 
 #: std of each translation axis of a random truth (mm), as `handeye.problems.axyb.random_truth`
 RANDOM_TRUTH_MM = 500.0

@@ -30,9 +30,9 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from ..errors import InputError, UnknownPluginError
-from ..noise import NoiseModel
-from ..registry import get_registry
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import InputError, UnknownPluginError
+from handeye.framework.registry import get_registry
 
 #: length units the harness can hand the data to the solvers in; the simulator works in mm, and
 #: `Study.units = "m"` divides every translation (data and truth) by 1000 before solving.

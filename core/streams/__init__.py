@@ -16,11 +16,16 @@ docs/streams.md is the user's guide; ``handeye calibrate --match interpolate`` t
 
 from __future__ import annotations
 
-from .offset import CoarseOffset, OffsetEstimate, coarse_offset, refine_offset
-from .pairing import MAX_OFFSET, StreamPairs, pair_streams
-from .resample import Resampled, angular_speed, resample_poses
-from .selection import MAX_PAIRS, MIN_ANGULAR_SPEED
-from .timeline import checked_stream, default_max_gap
+from handeye.streams.offset import (
+    CoarseOffset,
+    OffsetEstimate,
+    coarse_offset,
+    refine_offset,
+)
+from handeye.streams.pairing import MAX_OFFSET, StreamPairs, pair_streams
+from handeye.streams.resample import Resampled, angular_speed, resample_poses
+from handeye.streams.selection import MAX_PAIRS, MIN_ANGULAR_SPEED
+from handeye.streams.timeline import checked_stream, default_max_gap
 
 __all__ = [
     "MAX_OFFSET", "MAX_PAIRS", "MIN_ANGULAR_SPEED", "CoarseOffset", "OffsetEstimate", "Resampled",

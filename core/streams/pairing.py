@@ -17,13 +17,24 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import DegenerateDataError, InputError
-from ..pose_readers import PoseStack
-from ..se3 import inverse
-from .offset import OffsetEstimate, coarse_offset, refine_offset
-from .resample import angular_speed, resample_poses, valid_times
-from .selection import MAX_PAIRS, MIN_ANGULAR_SPEED, moving, position_spread, spread
-from .timeline import checked_stream, default_max_gap, median_interval, span_text
+from handeye.framework.errors import DegenerateDataError, InputError
+from handeye.geometry.se3 import inverse
+from handeye.io.pose_readers import PoseStack
+from handeye.streams.offset import OffsetEstimate, coarse_offset, refine_offset
+from handeye.streams.resample import angular_speed, resample_poses, valid_times
+from handeye.streams.selection import (
+    MAX_PAIRS,
+    MIN_ANGULAR_SPEED,
+    moving,
+    position_spread,
+    spread,
+)
+from handeye.streams.timeline import (
+    checked_stream,
+    default_max_gap,
+    median_interval,
+    span_text,
+)
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
 CAMERA_POSES = ("board-in-camera", "camera-in-board")
@@ -71,7 +82,7 @@ class StreamPairs:
 
     def data(self, problem: str = "axyb", *, setup: str, pairing: str | None = None) -> dict[str, Any]:
         """The problem's data fields (``A``, ``B``) via `handeye.io.from_poses`."""
-        from ..io import from_poses
+        from handeye.io.data_files import from_poses
 
         return from_poses(self.robot_poses, self.camera_poses, problem, setup=setup, pairing=pairing,
                           metadata={"units": self.unit}, source="streams").data

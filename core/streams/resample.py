@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
-from ..se3 import make_pose, rotation_angle
+from handeye.geometry.se3 import make_pose, rotation_angle
 
 
 @dataclasses.dataclass(frozen=True)

@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ..se3 import rotation_angle
+from handeye.geometry.se3 import rotation_angle
 
 #: default: a station counts as moving above this robot angular speed (rad/s)
 MIN_ANGULAR_SPEED = math.radians(1.0)

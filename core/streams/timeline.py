@@ -16,8 +16,8 @@ import dataclasses
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import InputError
-from ..pose_readers import PoseStack
+from handeye.framework.errors import InputError
+from handeye.io.pose_readers import PoseStack
 
 #: two poses at one stamp count as the same when they differ by less than this (rad; unit of the stream)
 SAME_POSE_TOL = 1e-9

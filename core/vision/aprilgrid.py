@@ -9,8 +9,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .boards import Board
-from .detect import BoardNotFound, Detection
+from handeye.vision.boards import Board
+from handeye.vision.detect import BoardNotFound, Detection
 
 #: Kalibr draws its tags with a 2-bit black border (kalibr_create_target_pdf, borderBits=2)
 BORDER_BITS = 2

@@ -30,8 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
-from ..input_files import load_json, load_yaml, number
+from handeye.framework.errors import InputError
+from handeye.io.input_files import load_json, load_yaml, number
 
 KINDS = ("chessboard", "charuco", "circles", "circlegrid", "aprilgrid")
 UNITS = {"mm": 1e-3, "m": 1.0}

@@ -19,9 +19,9 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from ..se3 import make_pose
-from .observations import Camera
+from handeye.framework.errors import InputError
+from handeye.geometry.se3 import make_pose
+from handeye.vision.observations import Camera
 
 #: an image is an outlier when its RMS exceeds this many times the median RMS ...
 OUTLIER_FACTOR = 5.0

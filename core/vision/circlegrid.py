@@ -19,8 +19,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .boards import BIG_DOT_RATIO, Board
-from .detect import BoardNotFound, Detection
+from handeye.vision.boards import BIG_DOT_RATIO, Board
+from handeye.vision.detect import BoardNotFound, Detection
 
 #: the big dot must look at least this much larger (diameter ratio to its two neighbours, relative
 #: to the other corners') to name the origin

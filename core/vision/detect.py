@@ -22,8 +22,8 @@ import dataclasses
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from .boards import Board, parse_board
+from handeye.framework.errors import InputError
+from handeye.vision.boards import Board, parse_board
 
 #: fewest ChArUco corners a detection may have unless the caller says otherwise (a homography and
 #: a pose need 4; 6 leaves a margin against a wrong interpolation)
@@ -84,11 +84,11 @@ def detect(image: np.ndarray, board: Board | str, *, min_corners: int | None = N
     elif board.kind == "charuco":
         found = _charuco(gray, board)
     elif board.kind in ("circles", "circlegrid"):
-        from .circlegrid import find_circles
+        from handeye.vision.circlegrid import find_circles
 
         found = find_circles(gray, board)
     else:
-        from .aprilgrid import find_aprilgrid
+        from handeye.vision.aprilgrid import find_aprilgrid
 
         found = find_aprilgrid(gray, board)
     if len(found) < needed:

@@ -40,14 +40,14 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from ..input_files import load_json, load_yaml, number
-from ..pose_readers import PoseStack, natural_key, read_pose_dir  # noqa: F401 (re-exported)
-from ..station_matching import default_max_dt, match_by_time
-from .boards import UNITS, Board
-from .camera_poses import board_pose, flag_outliers
-from .intrinsics import CameraCalibration, calibrate_camera
-from .observations import BoardObservations, Camera
+from handeye.framework.errors import InputError
+from handeye.io.input_files import load_json, load_yaml, number
+from handeye.io.pose_readers import PoseStack, natural_key, read_pose_dir  # noqa: F401 (re-exported)
+from handeye.streams.station_matching import default_max_dt, match_by_time
+from handeye.vision.boards import UNITS, Board
+from handeye.vision.camera_poses import board_pose, flag_outliers
+from handeye.vision.intrinsics import CameraCalibration, calibrate_camera
+from handeye.vision.observations import BoardObservations, Camera
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
 MATCH_METHODS = ("name", "index", "time")
@@ -339,7 +339,7 @@ def pair_images(files: Sequence[Path], robot: PoseStack, match: str, *, max_dt: 
 
 
 def _default_detector() -> Detector:
-    from .detect import detect
+    from handeye.vision.detect import detect
 
     return detect
 

@@ -31,9 +31,9 @@ from typing import Any, Protocol
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from ..input_files import load_json, load_yaml, number
-from .observations import Camera
+from handeye.framework.errors import InputError
+from handeye.io.input_files import load_json, load_yaml, number
+from handeye.vision.observations import Camera
 
 #: fewest images with the board found that `calibrate_camera` accepts
 MIN_VIEWS = 3

@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
-from ..se3 import inverse
-from ..validation import float_array
+from handeye.checks.validation import float_array
+from handeye.framework.errors import InputError
+from handeye.geometry.se3 import inverse
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
 

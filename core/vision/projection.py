@@ -16,8 +16,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ..se3 import skew
-from .observations import Camera
+from handeye.geometry.se3 import skew
+from handeye.vision.observations import Camera
 
 #: camera-frame depth below which a point counts as behind the camera
 MIN_DEPTH = 1e-12

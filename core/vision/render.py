@@ -20,9 +20,9 @@ import functools
 import cv2
 import numpy as np
 
-from ..errors import InputError
-from .boards import BIG_DOT_RATIO, Board
-from .observations import Camera
+from handeye.framework.errors import InputError
+from handeye.vision.boards import BIG_DOT_RATIO, Board
+from handeye.vision.observations import Camera
 
 #: rays per pixel along each axis
 SUPERSAMPLING = 3
@@ -248,7 +248,9 @@ def _draw_chessboard(texture: np.ndarray, board: Board, H: np.ndarray, ppu: floa
 
 
 def _draw_charuco(texture: np.ndarray, board: Board, H: np.ndarray, ppu: float) -> None:
-    from .detect import charuco_board  # one place builds OpenCV's board object
+    from handeye.vision.detect import (
+        charuco_board,  # one place builds OpenCV's board object
+    )
 
     cv_board = charuco_board(board)
     square = int(np.rint(board.spacing * ppu))

@@ -1,0 +1,586 @@
+"""The host's self-check of every answer, and how precisely the data determine it.
+
+A solver's status says it solved *its* problem. Under heavy noise, with few pairs, tiny
+translations or gross pairs, a closed form can solve its problem and still return a rotation
+tens of degrees off, with status ``optimal``. `handeye.solve` therefore checks every answer, any
+solver's (third parties' too), against the data it was computed from:
+
+1. **Residuals against the noise the data show.** The rotation angle and the screw pitch of a
+   motion are the same for the robot and the camera (A = X B X^-1 conjugates), so their
+   differences measure the noise without knowing X (`angle_noise`, `pitch_noise`). The median
+   residual rotation of a correct answer is about CHI3_MEDIAN times the angle noise, plus what a
+   fit trades for the translation noise (`expected_from_invariants`); an answer whose median
+   residual rotation exceeds `ROTATION_RESIDUAL_FACTOR` times that is broken.
+2. **Distance from the best fit.** From the answer, a local maximum-likelihood fit of the same
+   data (`handeye.nlls`, the engine of ``refine``; Cauchy loss when some pairs are far off the
+   others) gives the best answer near it and its covariance. The answer's distance from it in
+   standard deviations, d = sqrt(delta^T Sigma^-1 delta), is ~0-3 for a good estimator; beyond
+   `DISTANCE_WARN` a warning says how far and that ``auto`` fits better; beyond `DISTANCE_FAIL`
+   the answer is unreliable. (Sigma gets a floor of NUMERICAL_FLOOR so that noise-free data, where
+   every numerical solver is "infinitely many sigmas" from the exact answer at 1e-8, pass.)
+3. **Gross pairs.** Pairs whose whitened residual exceeds OUTLIER_CHI2 (`handeye.robust`) at the
+   least-squares fit, or pairs outside the data's largest group that agree with each other
+   (check 7), make the best fit of check 2 a robust (Cauchy) one, from the least-squares fit and
+   from the answer, the lower Cauchy cost kept (`_robust_fit`); the pairs still far off
+   at it, unless the solver reports having left them out (``diagnostics["outliers"]``, as
+   ``auto`` does), are named in check 2's message, as the reason its answer is pulled away.
+4. **Signs a solver reports of a broken estimate** (``diagnostics["rotation_blocks"]``: the
+   determinant and singular values of each rotation block before projection onto SO(3), see
+   `rotation_block_figures`): det <= 0 or singular values further apart than BLOCK_SPREAD.
+
+5. **Camera scale** (A X = Y B, A X = X B): the factor s the camera's translations need to fit
+   the robot's (`handeye.camera_scale`), from the best fit (`_camera_scale`): beyond a factor
+   SCALE_FAIL either way a failure (a unit mix-up, or a monocular camera: give
+   camera_scale="unknown"), beyond SCALE_WARN a warning; both only SCALE_SIGMAS standard
+   deviations from 1.
+6. **Camera scale fitted** (the data's camera_scale unknown, or fitted by ``auto``): noise in the
+   camera's translations biases the fitted scale toward zero (errors in variables), by up to
+   kappa (`handeye.camera_scale.noise_bias`), which its stated uncertainty leaves out
+   (`_camera_scale_noise`): beyond NOISE_BIAS_FAIL a failure (the data do not determine the
+   scale), beyond SCALE_WARN a warning; both only NOISE_BIAS_SIGMAS standard deviations of s.
+
+7. **A consistent majority** (A X = Y B, A X = X B): the largest group of pairs that agree with
+   each other, without X or Y (robot and camera rotation angles between them equal to
+   `handeye.validation.AGREEMENT_ANGLE`), must hold more than half the pairs (`MAJORITY`); else
+   at least half are gross and no fit can be trusted (a failure, named first).
+
+Then **observability**: the covariance of the best fit, at the noise the data show, says how
+precisely the data determine each unknown; where the 1-sigma of a rotation exceeds
+`PRECISION_ROTATION_DEG` or of a translation exceeds `PRECISION_TRANSLATION` of the data's lever
+arm (their RMS translation), a warning gives the figures and the worst direction, named when it
+is the robot's main rotation axis (few or nearly parallel rotation axes).
+
+A problem takes part through three optional methods of `handeye.problem.Problem`:
+``check_model`` (the least-squares model of check 2, with nuisance unknowns fitted),
+``expected_rotation_residual`` (check 1) and ``rotation_axes`` (for naming directions).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from handeye.checks.validation import AGREEMENT_ANGLE
+from handeye.estimation import camera_scale, nlls
+from handeye.estimation.robust import DEFAULT_LOSS_SCALE, MAD_TO_SIGMA, OUTLIER_CHI2
+from handeye.estimation.whitening import CHI3_MEDIAN, Whitening, estimate_sigmas
+from handeye.framework.errors import DegenerateDataError
+from handeye.geometry import so3_fast
+from handeye.geometry.linalg import median
+
+#: check 1: median residual rotation beyond this many times what the data's noise gives
+ROTATION_RESIDUAL_FACTOR = 10.0
+#: check 2: distance from the best fit (standard deviations) beyond which a warning is given ...
+DISTANCE_WARN = 5.0
+#: ... and beyond which the answer is unreliable. Between the two the answer is wrong beyond the
+#: data's uncertainty but not broken: the paper's lmi-sdp and li, whose Kronecker cost is not the
+#: likelihood, land at 20-70 sigma on ordinary data (0.01-0.1 deg, 1-5 mm from the best fit);
+#: the broken answers of the reliability campaign (docs/reliability.md) at 100-20000.
+DISTANCE_FAIL = 100.0
+#: rotation (rad), and translation relative to the data's lever arm, below which differences are
+#: exact for every practical purpose (numerical solvers stop at ~1e-8 on noise-free data, where
+#: the best fit's sigma is ~1e-13 and every such answer would otherwise be "many sigmas" off)
+NUMERICAL_FLOOR = 1e-6
+#: check 5: the camera's translations need a factor s to fit the robot's: a failure beyond a
+#: factor SCALE_FAIL either way (a unit mix-up, m against mm or inch, or a monocular camera), a
+#: warning beyond SCALE_WARN (1%: a board size or focal length off, or robot errors that mimic
+#: them: the bundled real circle-grid set, with robot errors dominating its pixel noise, fits
+#: best at 0.94), each only when s is SCALE_SIGMAS standard deviations from 1
+SCALE_FAIL = 1.5
+SCALE_WARN = 0.01
+SCALE_SIGMAS = 5.0
+#: ... and only when the factor explains the translation misfit: the RMS translation residual
+#: with s free is this many times smaller than at s = 1 (measured: a unit mix-up or a monocular
+#: camera at 0.37, 150-460; a 2% factor, 5-8; correct units, 1.0-1.5; systematic robot errors
+#: that a free s partly absorbs (kinhec small tier, mixed-000066, IRB 120 with DH errors, 8 deg
+#: rotations), 1.54 at s = 0.37, which is no unit error)
+SCALE_GAIN_FAIL = 3.0
+SCALE_GAIN_WARN = 2.0
+#: check 6 (the scale fitted): noise in the camera's translations biases the fitted scale toward
+#: zero by a relative amount up to kappa (`handeye.camera_scale.noise_bias`); flagged when that
+#: is NOISE_BIAS_SIGMAS standard deviations of the scale (and SCALE_WARN). Measured
+#: (docs/camera-scale.md): genuinely monocular data at most 2.2 sigma (KinHEC's 32 monocular
+#: sequences; 2.9 for its mixed monocular ones), simulated ones at most 1.0 (camera noise 5 mm)
+#: and 2.4 (robot noise 10 mm, where the bound is loose); metric data given camera_scale=
+#: 'unknown' with noisy camera depth 5.0-10.3 (KinHEC mixed-000015: 6.3, kappa 7.1%, the scale
+#: 7.2% short). A failure beyond NOISE_BIAS_FAIL: noise could span half the translations'
+#: spread, the scale is not determined (measured 0.57 to 2000 where it was meaningless; at most
+#: 0.34 elsewhere, 0.013 on the monocular sequences)
+NOISE_BIAS_SIGMAS = 4.0
+NOISE_BIAS_FAIL = 0.5
+#: check 4: largest ratio of the singular values of a rotation block before projection
+BLOCK_SPREAD = 2.0
+#: motions rotating less than this (rad) give no usable angle difference (check 1)
+MIN_ANGLE = 0.1
+#: fewest usable motions for check 1
+MIN_MOTIONS = 3
+#: check 7: the largest group of pairs that agree with each other must hold more than this share
+MAJORITY = 0.5
+#: observability: 1-sigma beyond which the data do not determine an unknown well enough
+PRECISION_ROTATION_DEG = 0.25
+PRECISION_TRANSLATION = 0.01
+#: ... and beyond which the answer is not to be used (a failure: status unreliable): no cell is
+#: calibrated to 2 deg, and a translation known to 10% of the lever arm moves what the camera sees
+#: by as much. Half the pairs gross gave answers 5-52 deg off with a 1-sigma of 4-10 deg, which
+#: is what this catches (docs/reliability.md)
+UNRELIABLE_ROTATION_DEG = 2.0
+UNRELIABLE_TRANSLATION = 0.10
+#: the rotations are "mostly about one axis" when the second eigenvalue of sum phi phi^T is below
+#: this share of the first (axes within ~35 deg of each other)
+AXIS_SHARE = 0.1
+#: a direction within this angle (deg) of the robot's main rotation axis is named as that axis
+AXIS_NAMING_DEG = 25.0
+#: iterations of the local fit (it starts at the answer; good answers converge in a few) and
+#: its tolerance: the fit stops when a Gauss-Newton step would lower the objective (~3m, in
+#: whitened units) by less than FIT_TOL of it, i.e. d^2 / 2 is known to ~1e-3 * 3m. Measured
+#: (shah, li, kron-lstsq at m = 10 and 50): d the same to 3-4 digits as at 1e-6, with one to
+#: two iterations fewer (a third of the check's time); the thresholds need d to ~10%.
+MAX_ITER = 50
+FIT_TOL = 1e-3
+
+
+@dataclasses.dataclass(frozen=True)
+class Assessment:
+    """What the self-check found: reliable (all checks passed), failures (why not, for the
+    user), warnings (weaker findings and precision), figures (JSON-ready, for diagnostics)."""
+
+    reliable: bool
+    failures: tuple[str, ...]
+    warnings: tuple[str, ...]
+    figures: Mapping[str, Any]
+
+
+def angle_noise(angle_A: np.ndarray, angle_B: np.ndarray) -> float | None:
+    """Robust standard deviation (rad) of the differences of the rotation angles of paired
+    motions (MAD_TO_SIGMA x their median absolute value), over the motions that rotate by more than
+    MIN_ANGLE on both sides; None with fewer than MIN_MOTIONS such motions."""
+    use = (angle_A > MIN_ANGLE) & (angle_B > MIN_ANGLE)
+    if use.sum() < MIN_MOTIONS:
+        return None
+    return MAD_TO_SIGMA * median(np.abs(angle_A[use] - angle_B[use]))
+
+
+def pitch_noise(phi_A: np.ndarray, t_A: np.ndarray, phi_B: np.ndarray, t_B: np.ndarray) -> float | None:
+    """Robust standard deviation (data units) of the differences of the screw pitches n . t
+    (translation along the rotation axis, invariant like the angle under A = X B X^-1, and under
+    inverting a pose) of paired motions, over those that rotate by more than MIN_ANGLE on both
+    sides; None with fewer than MIN_MOTIONS such motions. Motions given by rotation vectors phi
+    and translations t, (n, 3) each."""
+    angle_A, angle_B = np.linalg.norm(phi_A, axis=1), np.linalg.norm(phi_B, axis=1)
+    use = (angle_A > MIN_ANGLE) & (angle_B > MIN_ANGLE)
+    if use.sum() < MIN_MOTIONS:
+        return None
+    pitch_A = np.einsum("ij,ij->i", phi_A[use], t_A[use]) / angle_A[use]
+    pitch_B = np.einsum("ij,ij->i", phi_B[use], t_B[use]) / angle_B[use]
+    return MAD_TO_SIGMA * median(np.abs(pitch_A - pitch_B))
+
+
+def expected_from_invariants(angle_sigma: float | None, pitch_sigma: float | None, lever: float,
+                             stations_per_pair: float) -> float | None:
+    """Check 1's expected median rotation residual: `chi3_expected` of the angle noise, and of
+    the rotation a fit trades for translation noise (the pitch noise over the data's lever arm:
+    with exact rotations and noisy translations a good answer still leaves rotation residuals,
+    which the angles alone cannot show). None when the angles give nothing."""
+    if angle_sigma is None:
+        return None
+    coupled = (pitch_sigma or 0.0) / lever if lever > 0 else 0.0
+    return chi3_expected(math.hypot(angle_sigma, coupled), stations_per_pair)
+
+
+def main_axis(rotation_vectors: np.ndarray) -> np.ndarray | None:
+    """The unit axis the rotations (rotation vectors, (n, 3)) turn mostly about: the principal
+    eigenvector of sum phi phi^T (sign free), when its eigenvalue is at least 1 / AXIS_SHARE times
+    the next one (the rotations are mostly about one axis); else None."""
+    return main_axes(rotation_vectors)[0]
+
+
+def main_axes(*rotation_vectors: np.ndarray) -> list[np.ndarray | None]:
+    """`main_axis` of each set of rotation vectors (each (n, 3), the same n), in one call."""
+    phi = np.stack(rotation_vectors)
+    w, V = np.linalg.eigh(np.swapaxes(phi, 1, 2) @ phi)
+    return [V[b, :, 2] if w[b, 2] > MIN_ANGLE**2 and w[b, 1] < AXIS_SHARE * w[b, 2] else None
+            for b in range(len(phi))]
+
+
+def rotation_block_figures(M: np.ndarray) -> dict[str, Any]:
+    """What a solver reports of a 3x3 rotation block before projecting it onto SO(3): its
+    determinant and singular values, after scaling to |det| = 1 (check 4)."""
+    M = np.asarray(M, dtype=float)
+    det = float(np.linalg.det(M))
+    s = np.linalg.svd(M, compute_uv=False)
+    scale = abs(det) ** (1.0 / 3.0) if det != 0 and math.isfinite(det) else float(s.max() or 1.0)
+    return {"det": float(np.sign(det)), "singular_values": (s / scale).tolist()}
+
+
+def assess(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any]) -> Assessment:
+    """Run the checks of the module docstring on `unknowns`, the answer a solver gave for the
+    validated `data` of `problem` (with its `diagnostics`)."""
+    failures: list[str] = []
+    warnings: list[str] = []
+    figures: dict[str, Any] = {}
+    spec = problem.check_model(data, unknowns)
+    rotation = None
+    if spec is not None:
+        rotation = _local_fit(problem, data, spec, diagnostics, failures, warnings, figures)
+    _rotation_residual(problem, data, unknowns, failures, figures, rotation)
+    _rotation_blocks(diagnostics, failures, figures)
+    failures.sort(key=lambda f: not f.startswith("the answer leaves"))  # check 1 first: it says the most
+    _majority(data, failures, figures)  # first of all when it fails: no answer can be right
+    return Assessment(not failures, tuple(failures), tuple(warnings), figures)
+
+
+def _majority(data: Any, failures: list[str], figures: dict[str, Any]) -> None:
+    """Check 7: the data's largest group of mutually agreeing pairs (`data.agreeing_share`, where
+    the problem's data have it: `handeye.validation.agreeing_share`) must be a majority."""
+    share = getattr(data, "agreeing_share", None)
+    if share is None:
+        return
+    figures["agreeing_share"] = share
+    if share <= MAJORITY:
+        failures.insert(0, f"no majority of consistent pairs exists: the largest group of pairs that agree with each "
+                           f"other (the robot's and the camera's rotations between them, to "
+                           f"{math.degrees(AGREEMENT_ANGLE):g} deg) holds {share:.0%} of them, so at least half are "
+                           "gross errors (failed detections, mismatched poses) and no fit can tell the right answer "
+                           "from a wrong one: check the pairing and the detections, and record more stations")
+
+
+def _rotation_residual(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], failures: list[str],
+                       figures: dict[str, Any], rotation: np.ndarray | None = None) -> None:
+    """Check 1 (`expected_from_invariants`); `rotation`: the pairs' rotation residuals at the
+    answer when the local fit already has them (the angle of the rotation residual of its model
+    is the problem's residual rotation), else they are computed."""
+    expected = problem.expected_rotation_residual(data)
+    if expected is None:
+        return
+    typical = median(rotation if rotation is not None else problem.residuals(data, unknowns)["rotation"])
+    ratio = typical / max(expected, NUMERICAL_FLOOR)
+    figures["rotation_residual"] = {"median_deg": math.degrees(typical), "expected_deg": math.degrees(expected),
+                                    "ratio": ratio}
+    if typical > NUMERICAL_FLOOR and ratio > ROTATION_RESIDUAL_FACTOR:
+        failures.append(
+            f"the answer leaves a median rotation residual of {math.degrees(typical):.3g} deg per pair, "
+            f"{ratio:.3g} times what the noise of these data gives ({math.degrees(expected):.2g} deg, from the "
+            "rotation angles of robot and camera motions, which must agree)")
+
+
+def _rotation_blocks(diagnostics: Mapping[str, Any], failures: list[str], figures: dict[str, Any]) -> None:
+    """Check 4."""
+    blocks = diagnostics.get("rotation_blocks") or {}
+    for name, block in blocks.items():
+        s = np.asarray(block.get("singular_values", []), dtype=float)
+        det = float(block.get("det", 1.0))
+        if det <= 0 or (len(s) and s.min() * BLOCK_SPREAD < s.max()):
+            failures.append(
+                f"the solver's rotation of {name} before projection was far from a rotation (determinant "
+                f"{'<= 0' if det <= 0 else '> 0'}, singular values {', '.join(f'{v:.2g}' for v in s)} where a "
+                "rotation has 1, 1, 1): its linear system does not determine the rotation with this noise")
+    if blocks:
+        figures["rotation_blocks"] = dict(blocks)
+
+
+def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...], tuple[str, ...]],
+               diagnostics: Mapping[str, Any], failures: list[str], warnings: list[str],
+               figures: dict[str, Any]) -> np.ndarray | None:
+    """Checks 2, 3 and 5, and the observability warnings; returns the rotation residuals of the
+    data's pairs at the answer (for check 1) when the model is on those pairs, else None."""
+    model, poses, interest = spec
+    try:
+        fit, cov, flagged, res, at_answer, factor = _best_fit(model, poses, _disagreeing(data))
+    except DegenerateDataError:
+        failures.append("the data do not determine the unknowns near this answer (the least-squares fit from it "
+                        "is singular)")
+        return None
+    if not flagged.any():
+        _camera_scale(model, res, cov, failures, warnings, figures)
+    _camera_scale_noise(model, res, factor, failures, warnings, figures)
+    names = model.unknowns
+    delta = _difference(poses, fit)
+    keep = np.concatenate([np.arange(6 * j, 6 * j + 6) for j, n in enumerate(names) if n in interest])
+    floor = np.tile(np.r_[np.full(3, NUMERICAL_FLOOR), np.full(3, NUMERICAL_FLOOR * model.scale)], len(keep) // 6)
+    sigma = cov[np.ix_(keep, keep)] + np.diag(floor**2)
+    d = math.sqrt(max(float(delta[keep] @ np.linalg.solve(sigma, delta[keep])), 0.0))
+    figures["distance_sigmas"] = d
+    gap_text = "; ".join(
+        f"{n} differs by {math.degrees(float(np.linalg.norm(delta[6 * j:6 * j + 3]))):.2g} deg / "
+        f"{float(np.linalg.norm(poses[j][:3, 3] - fit[j][:3, 3])):.3g}"
+        for j, n in enumerate(names) if n in interest) + ", translations in the data's length unit"
+    left_out = {int(o["index"]) for o in diagnostics.get("outliers", []) if isinstance(o, Mapping) and "index" in o}
+    used = [int(i) for i in np.flatnonzero(flagged) if int(i) not in left_out]
+    figures["far_off_pairs"] = np.flatnonzero(flagged).tolist()
+    why = ""
+    if used:
+        listing = ", ".join(f"no. {i + 1} (index {i})" for i in used[:8]) + (" ..." if len(used) > 8 else "")
+        why = (f"; {len(used)} of the {model.m} {'stations' if model.m != problem_pairs(data) else 'pairs'} "
+               f"({listing}) are far off the others (gross errors: a failed detection, a mismatched pair) and "
+               "this solver used them")
+    if d > DISTANCE_FAIL:
+        failures.append(f"the answer is {d:.3g} standard deviations from the best fit of these data ({gap_text}){why}")
+    elif d > DISTANCE_WARN:
+        warnings.append(f"self-check: the answer is {d:.3g} standard deviations from the best fit of these data "
+                        f"({gap_text}), so the data support it far less than that fit{why}; solver 'auto' returns "
+                        "the best fit")
+    figures["std"] = _precision(problem, data, model, fit, cov, interest, warnings, figures)
+    _imprecise(figures["std"], model.scale, failures)
+    # the rotation residuals of the data's own pairs at the answer, when the model is on them
+    return np.linalg.norm(at_answer[:, :3], axis=1) if model.m == problem_pairs(data) else None
+
+
+def _disagreeing(data: Any) -> bool:
+    """Whether some pairs lie outside the data's largest group of pairs that agree with each
+    other (`data.agreeing_share`, where the problem's data have it), which is a majority (else
+    check 7 fails the answer whatever the fit, and a robust fit of such data is slow and moot)."""
+    return MAJORITY < getattr(data, "agreeing_share", 1.0) < 1.0
+
+
+def _best_fit(model: Any, poses: tuple[np.ndarray, ...], disagreeing: bool = False
+              ) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray, Any, np.ndarray, float]:
+    """The best fit near the answer `poses`: (fit, its covariance (6k, 6k), the pairs flagged far
+    off at it, the engine's result there, the residuals at the answer itself, the variance
+    factor of the covariance). The local least-squares fit with estimated weights (`nlls`,
+    refine's engine, to FIT_TOL), and when pairs are far off at it, or some pairs disagree with
+    the others (`disagreeing`: many gross pairs can pull the fit so far that none looks far off
+    at it), a robust (Cauchy) one: from that fit and from the answer, the lower Cauchy cost kept
+    (`_robust_fit`)."""
+    loss = "linear"
+    res = nlls.levenberg_marquardt(model, poses, None, loss, DEFAULT_LOSS_SCALE, MAX_ITER, FIT_TOL)
+    at_answer = res.e0
+    flagged = _beyond(res.e, model.scale)
+    if flagged.any() or disagreeing:
+        loss = "cauchy"
+        res = _robust_fit(model, res.poses, poses)
+        flagged = _beyond(res.e, model.scale)
+    cov, factor = nlls.covariance(res, loss, DEFAULT_LOSS_SCALE, estimated=True)
+    return res.poses, cov, flagged, res, at_answer, factor
+
+
+def _robust_fit(model: Any, least_squares: tuple[np.ndarray, ...], answer: tuple[np.ndarray, ...]) -> Any:
+    """The Cauchy fit from the least-squares fit and the one from the answer, whichever has the
+    lower Cauchy cost under the sharper of their noise scales. Many gross pairs (40%, measured)
+    pull the least-squares fit into another basin, where a Cauchy fit from it stays (1-sigma
+    9 deg for an answer 0.05 deg off, which auto found by leaving those pairs out); the answer
+    itself is the other start, and the cost, not the start, decides."""
+    fits = [nlls.levenberg_marquardt(model, start, None, "cauchy", DEFAULT_LOSS_SCALE, MAX_ITER, FIT_TOL)
+            for start in (least_squares, answer)]
+    scales = [estimate_sigmas(f.e, model.scale, robust=True) for f in fits]
+    W = Whitening(min(s.sigma_rot for s in scales), min(s.sigma_trans for s in scales))
+    cost = [nlls.cost_of(model, f.poses, W, "cauchy", DEFAULT_LOSS_SCALE) for f in fits]
+    return fits[1] if cost[1] < cost[0] else fits[0]
+
+
+def camera_scale_verdict(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray]) -> dict[str, Any] | None:
+    """Check 5 alone, for a solver that wants to know whether the data demand a camera scale
+    (`auto`): the figures of `_camera_scale` with "verdict" "fail", "warn" or None, or None when
+    the check does not apply (no camera, the scale already unknown, pairs far off the others,
+    the fit singular)."""
+    spec = problem.check_model(data, unknowns)
+    if spec is None:
+        return None
+    model, poses, _ = spec
+    try:
+        _, cov, flagged, res, _, _ = _best_fit(model, poses)
+    except DegenerateDataError:
+        return None
+    if flagged.any():
+        return None
+    failures: list[str] = []
+    warnings: list[str] = []
+    figures: dict[str, Any] = {}
+    _camera_scale(model, res, cov, failures, warnings, figures)
+    if "camera_scale" not in figures:
+        return None
+    verdict = "fail" if failures else "warn" if warnings else None
+    return {**figures["camera_scale"], "verdict": verdict}
+
+
+def camera_scale_screen(model: Any, poses: tuple[np.ndarray, ...], e: np.ndarray, W: Any,
+                        cov: np.ndarray) -> tuple[float, float] | None:
+    """Check 5's screen: (s, its standard deviation) for the scale of the camera's translations
+    in one Gauss-Newton step from a least-squares fit (`poses`, its residuals e, per-group
+    weights W, covariance cov as `handeye.nlls.covariance` gives it); exact in s, which the
+    residual is linear in, with the poses stationary at the fit. None where the data do not
+    determine s (the Schur complement of s is not positive)."""
+    g = model.camera_direction(poses)
+    gw, ew = W.residual(g).ravel(), W.residual(e).ravel()
+    if model.m >= model.sums_min_pairs:  # J^T W g in closed form: g lives on the translation rows only
+        b = model.translation_gradient(poses, g[:, 3:]) / W.sigma_trans ** 2
+    else:
+        J = W.jacobian(model.jacobian(poses, e))
+        b = J.reshape(-1, J.shape[2]).T @ gw  # cov is P (P^T H P)^-1 P^T: b stays in the full 6k
+    factor = float(ew @ ew) / max(ew.size - len(b), 1)  # the variance factor of cov
+    schur = float(gw @ gw) - float(b @ cov @ b) / factor
+    if not schur > 0.0:
+        return None
+    return 1.0 - float(gw @ ew) / schur, math.sqrt(factor / schur)
+
+
+def scale_suspect(s: float, std: float) -> bool:
+    """Whether a screened scale needs the fit with s free (`_camera_scale`): it moved by more
+    than SCALE_WARN and two standard deviations."""
+    return abs(s - 1.0) > SCALE_WARN and abs(s - 1.0) > 2.0 * std
+
+
+def _camera_scale(model: Any, res: Any, cov: np.ndarray, failures: list[str], warnings: list[str],
+                  figures: dict[str, Any]) -> None:
+    """Check 5: do the camera's translations fit the robot's at scale 1? Screened in one
+    Gauss-Newton step from the best fit for the scale s of the camera's translations
+    (`handeye.camera_scale`; the residual is linear in s and the fit stationary in the poses),
+    with its standard deviation from the Schur complement of s in the information matrix; where
+    s moves by more than SCALE_WARN and two standard deviations, the fit is redone with s free
+    (the residuals at s = 1 carry the misfit of a wrong scale, which inflates the noise and
+    would hide it) and s judged there. Models without a camera, or whose camera scale is
+    already unknown, are skipped."""
+    if not hasattr(model, "camera_direction") or res.W.L is not None:
+        return
+    screen = camera_scale_screen(model, res.poses, res.e, res.W, cov)
+    if screen is None:
+        return
+    s, std = screen
+    gain = 1.0
+    if scale_suspect(s, std):
+        try:
+            free = camera_scale.ScaledCameraModel(model)
+            fit = nlls.levenberg_marquardt(free, res.poses, None, "linear", DEFAULT_LOSS_SCALE, MAX_ITER, FIT_TOL)
+            figures_s = camera_scale.scale_figures(free, fit.poses, fit.W.sigma_rot, fit.W.sigma_trans,
+                                                   nlls.covariance(fit, "linear", DEFAULT_LOSS_SCALE, True)[1])
+        except DegenerateDataError:
+            return
+        s, std = figures_s["camera_scale"], figures_s["camera_scale_std"]
+        gain = math.sqrt(float(np.sum(res.e[:, 3:] ** 2)) / max(float(np.sum(fit.e[:, 3:] ** 2)), 1e-300))
+    if not s > SCALE_SIGMAS * std:  # the robot's translations do not fix the camera's scale (e.g. none)
+        return
+    z = (s - 1.0) / std
+    figures["camera_scale"] = {"scale": s, "std": std, "sigmas": z, "translation_fit_gain": gain}
+    text = (f"the camera's translations fit the robot's best when multiplied by {s:.4g} (+-{std:.2g}, "
+            f"{abs(z):.3g} standard deviations from 1; the translation residuals {gain:.3g} times smaller)")
+    if abs(math.log(s)) > math.log(SCALE_FAIL) and abs(z) > SCALE_SIGMAS and gain > SCALE_GAIN_FAIL:
+        failures.append(f"{text}: are both in one length unit (m against mm)? For a camera whose translations are "
+                        "known only up to scale (monocular SLAM), give camera_scale='unknown'")
+    elif abs(s - 1.0) > SCALE_WARN and abs(z) > SCALE_SIGMAS and gain > SCALE_GAIN_WARN:
+        warnings.append(f"self-check: {text}: check the board's size and the camera's focal length (a PnP pose's "
+                        "distance scales with both); camera_scale='unknown' fits the factor")
+
+
+def _camera_scale_noise(model: Any, res: Any, factor: float, failures: list[str], warnings: list[str],
+                        figures: dict[str, Any]) -> None:
+    """Check 6, where the camera's scale is unknown (fitted with the answer): could noise in the
+    camera's translations have biased the fitted scale s toward zero by more than its stated
+    uncertainty (`handeye.camera_scale.noise_bias`)? A failure beyond NOISE_BIAS_FAIL (the data
+    do not determine s), a warning beyond SCALE_WARN; both only NOISE_BIAS_SIGMAS standard
+    deviations of s. Skipped for models whose scale is known."""
+    if not isinstance(model, camera_scale.ScaledCameraModel) or res.W.L is not None:
+        return
+    try:
+        f = camera_scale.noise_bias(model, res.poses, res.W.sigma_rot, res.W.sigma_trans, factor)
+    except DegenerateDataError:
+        return
+    s, std, bias, sigmas = f["camera_scale"], f["camera_scale_std"], f["bias"], f["bias_sigmas"]
+    figures["camera_scale_noise"] = {"scale": s, "std": std, "bias": bias, "bias_sigmas": sigmas}
+    if not sigmas > NOISE_BIAS_SIGMAS:
+        return
+    rms = float(np.sqrt(np.mean(np.sum(res.e[:, 3:] ** 2, axis=1))))
+    spread = (f"the translation residuals ({rms:.3g} RMS, in the robot's length unit) are large against the spread of "
+              "the camera's translations that fixes its scale, and noise in those translations pulls a fitted scale "
+              "toward zero")
+    advice = ("record poses whose camera-to-target distance varies more, or less noisy camera poses; if the camera's "
+              "translations are metric, solve with the scale known")
+    if bias > NOISE_BIAS_FAIL:
+        share = "all" if bias >= 1.0 else f"{bias:.0%}"
+        failures.append(f"the data do not determine the camera's scale: {spread}; noise as large as the residuals "
+                        f"could account for {share} of that spread, so the fitted {s:.4g} (+-{std:.2g}) may be far "
+                        f"too small: {advice}")
+    elif bias > SCALE_WARN:
+        warnings.append(f"self-check: the camera's scale {s:.4g} (+-{std:.2g}) may be up to {bias:.1%} too small, "
+                        f"{sigmas:.3g} standard deviations that its stated uncertainty (and X's and Y's) leaves out: "
+                        f"{spread}; {advice}")
+
+
+def problem_pairs(data: Any) -> int | None:
+    """The number of pairs of the problem's own data (to tell when the check's model is on
+    stations rather than pairs), None if the data do not say."""
+    return getattr(data, "m", None)
+
+
+def _beyond(e: np.ndarray, scale: float) -> np.ndarray:
+    """Pairs whose residual, whitened by median-based scales, is beyond OUTLIER_CHI2."""
+    ew = estimate_sigmas(e, scale, robust=True).residual(e)
+    return np.einsum("ni,ni->n", ew, ew) > OUTLIER_CHI2
+
+
+def _difference(poses: Any, fit: Any) -> np.ndarray:
+    """xi_j with T_j = F_j exp(xi_j) (to first order in the translation) for every answer T_j and
+    fit F_j (k of each, or one pose each), stacked (6k,): (omega, v) in F_j's frame (one batched
+    log for all of them)."""
+    T, F = np.reshape(poses, (-1, 4, 4)), np.reshape(fit, (-1, 4, 4))
+    RFt = np.swapaxes(F[:, :3, :3], 1, 2)
+    omega = so3_fast.log(RFt @ T[:, :3, :3])
+    v = np.einsum("kij,kj->ki", RFt, T[:, :3, 3] - F[:, :3, 3])
+    return np.concatenate([omega, v], axis=1).ravel()
+
+
+def _precision(problem: Any, data: Any, model: Any, fit: tuple[np.ndarray, ...], cov: np.ndarray,
+               interest: tuple[str, ...], warnings: list[str], figures: dict[str, Any]) -> dict[str, Any]:
+    """1-sigma per unknown (rotation deg, translation; the worst direction in the frame the
+    unknown is expressed in: R v for the principal eigenvector v of its 3x3 covariance block in
+    its own frame) from the covariance of the best fit; warnings beyond the precision."""
+    axes = problem.rotation_axes(data)
+    out: dict[str, Any] = {}
+    chosen = [j for j, name in enumerate(model.unknowns) if name in interest]
+    blocks = np.stack([cov[i:i + 3, i:i + 3] for j in chosen for i in (6 * j, 6 * j + 3)])
+    w, V = np.linalg.eigh(0.5 * (blocks + np.swapaxes(blocks, 1, 2)))  # one call for every block
+    for n, j in enumerate(chosen):
+        name, R = model.unknowns[j], fit[j][:3, :3]
+        rot_deg = math.degrees(math.sqrt(max(float(w[2 * n, 2]), 0.0)))
+        trans = math.sqrt(max(float(w[2 * n + 1, 2]), 0.0))
+        rot_dir, trans_dir = R @ V[2 * n, :, 2], R @ V[2 * n + 1, :, 2]
+        out[name] = {"rotation_deg": rot_deg, "rotation_axis": rot_dir.tolist(),
+                     "translation": trans, "translation_direction": trans_dir.tolist()}
+        limit = PRECISION_TRANSLATION * model.scale
+        if rot_deg > PRECISION_ROTATION_DEG:
+            warnings.append(f"the data determine the rotation of {name} only to {rot_deg:.2g} deg (1-sigma, about "
+                            f"{_direction(rot_dir, axes.get(name))} in the frame {name} is expressed in); "
+                            f"{_advice(rot_dir, axes.get(name))}")
+        if trans > limit:
+            warnings.append(f"the data determine the translation of {name} only to {trans:.3g} in their length unit (1-sigma, along "
+                            f"{_direction(trans_dir, axes.get(name))} in the frame {name} is expressed in; "
+                            f"{PRECISION_TRANSLATION:.0%} of the data's lever arm is {limit:.3g}); "
+                            f"{_advice(trans_dir, axes.get(name))}")
+    return out
+
+
+def _imprecise(std: Mapping[str, Any], lever: float, failures: list[str]) -> None:
+    """A failure for every unknown whose 1-sigma exceeds UNRELIABLE_ROTATION_DEG or
+    UNRELIABLE_TRANSLATION of the lever arm: the data do not determine it well enough to use."""
+    limit = UNRELIABLE_TRANSLATION * lever
+    for name, s in std.items():
+        if s["rotation_deg"] > UNRELIABLE_ROTATION_DEG or s["translation"] > limit:
+            failures.append(
+                f"the data determine {name} only to {s['rotation_deg']:.2g} deg and {s['translation']:.3g} in their "
+                f"length unit (1-sigma), beyond what can be used ({UNRELIABLE_ROTATION_DEG:g} deg, or "
+                f"{UNRELIABLE_TRANSLATION:.0%} of the lever arm: {limit:.3g}): too few consistent stations, too much "
+                "noise, or many gross pairs")
+
+
+def _direction(v: np.ndarray, axis: np.ndarray | None) -> str:
+    text = "(" + ", ".join(f"{c:+.2f}" for c in v) + ")"
+    if axis is not None and abs(float(v @ axis)) > math.cos(math.radians(AXIS_NAMING_DEG)):
+        text += ", the robot's main rotation axis"
+    return text
+
+
+def _advice(v: np.ndarray, axis: np.ndarray | None) -> str:
+    if axis is not None and abs(float(v @ axis)) > math.cos(math.radians(AXIS_NAMING_DEG)):
+        return "the robot rotates mostly about one axis: add stations that rotate about other axes"
+    return "add stations (larger rotations about different axes), or reduce the noise"
+
+
+def chi3_expected(angle_sigma: float, stations_per_pair: float) -> float:
+    """Expected median norm of a pair's rotation residual (rad) when the angle differences of
+    motions have robust standard deviation `angle_sigma` and each pair's residual carries the
+    noise of `stations_per_pair` stations (a motion's angle difference carries two): the
+    per-axis noise of a station is angle_sigma / sqrt(2) (the angle difference is the noise's
+    component along the motion's axis, from two stations)."""
+    return CHI3_MEDIAN * angle_sigma * math.sqrt(stations_per_pair / 2.0)

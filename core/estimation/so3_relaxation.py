@@ -1,0 +1,223 @@
+"""A quadratic cost over k rotations minimised under exact SO(3) constraints: the QCQP, its Shor
+relaxation's constraints, the extraction of rotations, the Gauss-Newton polish on SO(3)^k and the
+certificate of global optimality. Shared by `so3-sdp` for every problem (k = 1 for ``axxb``,
+2 for ``axyb``, 3 for AX B = Y C Z); the SDP solvers themselves are the plugin's.
+
+Variable y = [vec R_1; ...; vec R_k; h] (9k + 1, column-major vec), cost y^T M y
+(`handeye.rotation_cost.RotationCost.matrix`). Constraints y^T A_j y = b_j, per rotation
+(cf. Heller et al., ICRA 2014, and Giamou et al., RA-L 2019, for one rotation; Briales &
+Gonzalez-Jimenez, CVPR 2017, for the redundant ones):
+
+- columns orthonormal, c_i . c_j = delta_ij h^2 (6);
+- rows orthonormal (redundant), rho_i . rho_j = delta_ij h^2 without |rho_3|^2, which the others
+  imply (5);
+- handedness (redundant), c_i x c_j = h c_k for (i, j, k) cyclic (9): excludes det = -1;
+
+and h^2 = 1 once: 20k + 1 constraints (6k + 1 without the redundant ones), linearly independent.
+The relaxation: minimise <M, Z> over Z PSD with <A_j, Z> = b_j; every feasible Z has
+trace Z = 3k + 1.
+
+Certificate (`certificate`): the SDP's multipliers nu, corrected by least squares so that
+S(nu) y = 0 holds exactly at the returned y (S(nu) = M - sum_j nu_j A_j), give
+<M, Z> >= b^T nu + (3k + 1) min(0, lambda_min(S)) for every feasible Z: a lower bound on the
+global minimum computed in float64, independent of the SDP solver's accuracy. `is_certified`:
+eigenvalue ratio lambda_2 / lambda_1 of Z below RATIO_THRESHOLD and relative gap below
+GAP_THRESHOLD (their basis: docs/solvers/so3-sdp.md).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from handeye.estimation.rotation_cost import (
+    RotationCost,
+    rotation_blocks,
+    rotations_vector,
+    signed_rotations,
+    sphere_least_squares,
+)
+from handeye.framework.errors import SolverError
+from handeye.geometry import so3_fast
+from handeye.geometry.se3 import project_to_so3, skew
+
+#: Certificate thresholds (docs/solvers/so3-sdp.md: 1400 solves of ``axyb`` at m = 3, simulated
+#: with noise 1x, 10x, 100x the accuracy study's and unrelated A, B; checked on ``axxb``).
+#: lambda_2 / lambda_1 of the SDP solution: <= 1.3e-6 in every certified case, >= 0.18 when the
+#: default (redundant) relaxation is not tight.
+RATIO_THRESHOLD = 1e-3
+#: (cost - certified lower bound) / max(cost, COST_FLOOR * |M|) must be below this: <= 3.1e-8
+#: when certified, >= 8.9e-4 when not (also without the redundant constraints, where Z can be
+#: rank one at a reflection: ratio ~1e-9, so only the gap shows it).
+GAP_THRESHOLD = 1e-6
+#: Costs below COST_FLOOR * |M|_F count as zero for the relative gap (noise-free data), where the
+#: gap is only the float64 rounding of the eigenvalues of M (~1e-15 |M|).
+COST_FLOOR = 1e-7
+
+#: Gauss-Newton polish: stop when the step is below this (rad), or after POLISH_MAX_ITER steps.
+POLISH_STEP_TOL = 1e-14
+POLISH_MAX_ITER = 30
+#: polish steps below this (rad) change the cost by less than its rounding: they are taken
+#: without the cost test, which could only judge the rounding (and would make the answer depend
+#: on it: unit invariance to ~1e-10 instead of ~1e-14).
+POLISH_SMALL_STEP = 1e-9
+
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+_LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0
+_LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
+_GENERATORS = skew(np.eye(3))  # (3, 3, 3): [e_j]_x
+
+
+def dimension(rotations: int) -> int:
+    """Size of y = [vec R_1; ...; vec R_k; h]: 9k + 1 (h is its last entry, index 9k)."""
+    return 9 * rotations + 1
+
+
+def trace_z(rotations: int) -> float:
+    """trace Z of every feasible Z: 3 unit columns per rotation, plus Z_hh = 1."""
+    return 3.0 * rotations + 1.0
+
+
+def _entry(offset: int, row: int, col: int) -> int:
+    """Index in y of R[row, col] for the rotation stored at y[offset: offset + 9]."""
+    return offset + 3 * col + row
+
+
+@functools.cache
+def constraint_matrices(rotations: int, redundant: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """A: (K, 9k+1, 9k+1) symmetric and b: (K,) with y^T A_j y = b_j for y = [vec R_1; ...;
+    vec R_k; 1], every R_i in SO(3). K = 20k + 1 with the redundant constraints, 6k + 1 without;
+    linearly independent (interior-point solvers need that). Read-only arrays."""
+    if isinstance(rotations, bool) or not isinstance(rotations, int) or rotations < 1:
+        raise ValueError(f"rotations must be an integer >= 1, got {rotations!r}")
+    dim = dimension(rotations)
+    hom = dim - 1
+    mats: list[np.ndarray] = []
+
+    def quadratic(pairs: list[tuple[int, int, float]]) -> None:
+        A = np.zeros((dim, dim))
+        for p, q, c in pairs:
+            A[p, q] += 0.5 * c
+            A[q, p] += 0.5 * c
+        mats.append(A)
+
+    for off in range(0, 9 * rotations, 9):
+        for i in range(3):  # columns orthonormal: c_i . c_j = delta_ij h^2
+            for j in range(i, 3):
+                quadratic([(_entry(off, a, i), _entry(off, a, j), 1.0) for a in range(3)]
+                          + ([(hom, hom, -1.0)] if i == j else []))
+        if not redundant:
+            continue
+        for i in range(3):  # rows orthonormal: rho_i . rho_j = delta_ij h^2, except |rho_3|^2
+            for j in range(i, 3):  # = h^2, which is implied (trace R^T R = trace R R^T)
+                if i == j == 2:
+                    continue
+                quadratic([(_entry(off, i, a), _entry(off, j, a), 1.0) for a in range(3)]
+                          + ([(hom, hom, -1.0)] if i == j else []))
+        for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):  # handedness: c_i x c_j = h c_k
+            for row in range(3):
+                terms = [(_entry(off, a, i), _entry(off, b, j), _LEVI_CIVITA[row, a, b])
+                         for a in range(3) for b in range(3) if _LEVI_CIVITA[row, a, b]]
+                quadratic(terms + [(_entry(off, row, k), hom, -1.0)])
+    quadratic([(hom, hom, 1.0)])  # h^2 = 1
+    A = np.stack(mats)
+    b = np.zeros(len(mats))
+    b[-1] = 1.0
+    A.flags.writeable = False
+    b.flags.writeable = False
+    return A, b
+
+
+def extract_rotations(Z: np.ndarray, rotations: int) -> tuple[list[np.ndarray], np.ndarray]:
+    """The k rotations of the dominant eigenvector of Z: (9k+1, 9k+1), scaled to h = 1 and
+    projected onto SO(3); and the eigenvalues of Z in descending order."""
+    eigenvalues, vectors = np.linalg.eigh(Z)
+    v = vectors[:, -1]
+    hom = dimension(rotations) - 1
+    if abs(v[hom]) < 1e-6 * np.max(np.abs(v)):
+        raise SolverError("so3-sdp: the dominant eigenvector of the SDP solution has no "
+                          "homogeneous component; the relaxation gives no rotation estimate")
+    y = v / v[hom]
+    return [project_to_so3(M) for M in rotation_blocks(y[:hom])], eigenvalues[::-1]
+
+
+def polish(cost: RotationCost, rotations: list[np.ndarray]) -> tuple[list[np.ndarray], int]:
+    """Gauss-Newton on SO(3)^k for |S r(R_1, ..., R_k) - s|^2, R_i <- R_i exp([d_i]_x).
+
+    Returns the rotations and the number of accepted steps. A step is kept only if it does not
+    increase the cost (or is below POLISH_SMALL_STEP, where the cost cannot tell), so the result
+    is never worse than the start beyond rounding.
+    """
+    Rs = list(rotations)
+    k = len(Rs)
+    current = cost.value(rotations_vector(*Rs))
+    steps = 0
+    for _ in range(POLISH_MAX_ITER):
+        e = cost.S @ rotations_vector(*Rs) - cost.s
+        D = np.zeros((9 * k, 3 * k))
+        for j, R in enumerate(Rs):
+            D[9 * j:9 * j + 9, 3 * j:3 * j + 3] = (R @ _GENERATORS).transpose(0, 2, 1).reshape(3, 9).T  # vec(R [e]_x)
+        delta, *_ = np.linalg.lstsq(cost.S @ D, -e, rcond=None)
+        new_Rs = [R @ so3_fast.exp(delta[3 * j:3 * j + 3]) for j, R in enumerate(Rs)]
+        new = cost.value(rotations_vector(*new_Rs))
+        if new > current and np.max(np.abs(delta)) > POLISH_SMALL_STEP:
+            break
+        Rs, current = new_Rs, new
+        steps += 1
+        if np.max(np.abs(delta)) < POLISH_STEP_TOL:
+            break
+    return Rs, steps
+
+
+def certificate(M: np.ndarray, y: np.ndarray, nu: np.ndarray, redundant: bool) -> dict[str, float]:
+    """Lower bound on the global minimum of y^T M y from multipliers nu, made exact at y.
+
+    M: (9k+1, 9k+1); y: (9k+1,) feasible (rotations in SO(3), y_h = 1); nu: (K,) from the SDP's
+    dual. nu is moved by the least-norm correction that makes S(nu) y = 0 (first-order optimality
+    at y); then y'^T M y' = b^T nu + y'^T S y' >= b^T nu + (3k + 1) min(0, lambda_min(S)) for every
+    feasible y' (indeed every feasible Z of the relaxation), while y^T M y = b^T nu + y^T S y.
+    """
+    rotations = (len(y) - 1) // 9
+    A, b = constraint_matrices(rotations, redundant)
+    L = np.einsum("kij,j->ik", A, y)  # (9k+1, K): columns A_j y
+    correction, *_ = np.linalg.lstsq(L, M @ y - L @ nu, rcond=None)
+    nu = nu + correction
+    S = M - np.einsum("k,kij->ij", nu, A)
+    lam = np.linalg.eigvalsh(S)
+    lam_min = float(lam[0])
+    value = float(y @ M @ y)
+    lower = float(nu @ b + trace_z(rotations) * min(0.0, lam_min))
+    # y is feasible, so the global minimum is <= value: a bound above it is rounding (~1e-15 |M|)
+    return {"value": value, "lower_bound": min(lower, value), "dual_slack_min_eigenvalue": lam_min,
+            "certificate_margin": float(lam[1]), "stationarity_residual": float(np.linalg.norm(S @ y))}
+
+
+def local_minimum(cost: RotationCost) -> tuple[list[np.ndarray], int]:
+    """A local minimum of the QCQP without the SDP: the minimiser of |S r - s|^2 on the sphere
+    |r|^2 = 3k (`sphere_least_squares`, exact), its blocks projected onto SO(3) with the sign
+    that costs less (`signed_rotations`), then `polish`. Returns (rotations, polish steps).
+    Whether it is the global minimum is for `local_certificate` to say."""
+    start, _ = signed_rotations(cost, sphere_least_squares(cost).x)
+    return polish(cost, start)
+
+
+def local_certificate(M: np.ndarray, y: np.ndarray) -> dict[str, float]:
+    """`certificate` of y (a local minimum, feasible) with the multipliers of the first-order
+    conditions: the SDP is not solved. Only the non-redundant constraints (columns orthonormal,
+    h^2 = 1) are used: their 6k + 1 multipliers are unique, the least squares of M y = sum_j
+    nu_j A_j y (9k + 1 equations), where the redundant set's 20k + 1 would leave a family to
+    search (an SDP again). The bound then holds over the columns-orthonormal set, which
+    contains SO(3)^k, so a certified y is the global minimum over rotations as well; it is
+    certified less often than the SDP's answer (docs/solvers/so3-sdp.md, "Local certificate":
+    where a reflection of the answer costs less, this relaxation is not tight). Adds
+    "certificate_margin": the second smallest eigenvalue of the dual slack S (its smallest is
+    0, along y), the room the certificate has."""
+    rotations = (len(y) - 1) // 9
+    K = len(constraint_matrices(rotations, redundant=False)[1])
+    return certificate(M, y, np.zeros(K), redundant=False)
+
+
+def is_certified(eigenvalue_ratio: float, relative_gap: float) -> bool:
+    """Z rank one (ratio) and the answer's cost within GAP_THRESHOLD of the certified bound."""
+    return eigenvalue_ratio < RATIO_THRESHOLD and relative_gap < GAP_THRESHOLD

@@ -1,0 +1,61 @@
+"""Forward kinematics of serial arms (standard Denavit-Hartenberg), for simulating robot poses.
+
+`LR_MATE_200ID` approximates a FANUC LR Mate 200iD (the robot of the seed paper, Sec. IV):
+J1-J2 offset 50 mm, base height 330 mm, upper arm 330 mm, elbow offset 35 mm, forearm 335 mm,
+flange 80 mm. The joint box `LR_MATE_SIM_JOINTS` is the range the simulator samples from: a
+workspace in front of the robot, wrist away from its singularity, wide enough to excite every
+rotation axis.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from handeye.geometry.se3 import Array
+
+
+@dataclasses.dataclass(frozen=True)
+class DHArm:
+    """Standard DH parameters per joint: a (length), alpha (rad), d (length), theta offset (rad)."""
+
+    a: tuple[float, ...]
+    alpha: tuple[float, ...]
+    d: tuple[float, ...]
+    offset: tuple[float, ...]
+
+    def forward(self, q: np.ndarray) -> Array:
+        """Flange poses T_base_flange for joint vectors q: (n, joints) rad -> (n, 4, 4)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        T = np.broadcast_to(np.eye(4), (len(q), 4, 4)).copy()
+        for j, (a, alpha, d, off) in enumerate(zip(self.a, self.alpha, self.d, self.offset)):
+            th = q[:, j] + off
+            ct, st, ca, sa = np.cos(th), np.sin(th), np.cos(alpha), np.sin(alpha)
+            L = np.zeros((len(q), 4, 4))
+            L[:, 0, 0], L[:, 0, 1], L[:, 0, 2], L[:, 0, 3] = ct, -st * ca, st * sa, a * ct
+            L[:, 1, 0], L[:, 1, 1], L[:, 1, 2], L[:, 1, 3] = st, ct * ca, -ct * sa, a * st
+            L[:, 2, 1], L[:, 2, 2], L[:, 2, 3] = sa, ca, d
+            L[:, 3, 3] = 1.0
+            T = T @ L
+        return T
+
+
+_deg = np.pi / 180.0
+LR_MATE_200ID = DHArm(
+    a=(50.0, 330.0, 35.0, 0.0, 0.0, 0.0),
+    alpha=(-np.pi / 2, 0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, 0.0),
+    d=(330.0, 0.0, 0.0, 335.0, 0.0, 80.0),
+    offset=(0.0, -np.pi / 2, 0.0, 0.0, 0.0, 0.0),
+)
+#: (low, high) per joint, radians
+LR_MATE_SIM_JOINTS = np.array(
+    [(-45, 45), (-30, 40), (-30, 30), (-90, 90), (-100, -20), (-90, 90)], dtype=float
+) * _deg
+
+
+def random_flange_poses(n: int, rng: np.random.Generator, arm: DHArm = LR_MATE_200ID,
+                        joints: np.ndarray = LR_MATE_SIM_JOINTS) -> Array:
+    """n flange poses from joint values drawn uniformly in the box `joints`: (n, 4, 4)."""
+    q = rng.uniform(joints[:, 0], joints[:, 1], size=(n, len(joints)))
+    return arm.forward(q)

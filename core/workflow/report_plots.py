@@ -1,0 +1,168 @@
+"""The plots of the quality report (handeye.quality_report), as PNG bytes, drawn with matplotlib's
+Agg backend (imported here, lazily: ``import handeye`` and the solvers never import matplotlib).
+
+- ``residuals``: the per-pair residuals of the problem's equation (eqs. 32-33: rotation angle in
+  deg, translation distance in the data unit) as bars, the outliers auto left out in red;
+- ``poses``: a 3D view, in the robot's base frame and unit, of the flange positions (the robot
+  poses' translations), the base frame and the solved frames as axis triads (x red, y green,
+  z blue): the frames A_i X at each station (eye-in-hand: the camera; eye-to-hand axyb: the
+  target) and the fixed unknown (Y, or X = T_base_cam for axxb eye-to-hand).
+
+Long recordings are drawn in bounded time and memory: dots instead of bars beyond `BARS_UP_TO`
+pairs, the solved frame's axes at `TRIADS_UP_TO` evenly spread stations.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+INLIER_COLOUR = "#4c72b0"
+OUTLIER_COLOUR = "#d62728"
+AXIS_COLOURS = ("#d62728", "#2ca02c", "#1f77b4")
+DPI = 100
+#: the stations are numbered (file rows) in the 3D plot up to this many
+LABELS_UP_TO = 25
+#: residuals are bars up to this many pairs, dots beyond (a bar per pair of a 12,000-station
+#: recording took minutes and gigabytes to draw)
+BARS_UP_TO = 200
+#: the 3D plot draws the solved frame's axes at this many stations at most, evenly spread
+TRIADS_UP_TO = 100
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _png(fig: Any) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=DPI, bbox_inches="tight")
+    _pyplot().close(fig)
+    return buf.getvalue()
+
+
+def draw_all(r: Mapping[str, Any]) -> dict[str, bytes]:
+    """name -> PNG bytes of every plot the report's data `r` allows: the residuals, the poses,
+    and for an image run the corner overlays of its worst images (``overlay1``, ...;
+    `handeye.report_images.overlay_png`)."""
+    images = {"residuals": residual_plot(r)}
+    if r.get("robot_poses") is not None:
+        images["poses"] = pose_plot(r)
+    if r.get("images"):
+        from handeye.workflow.report_images import overlay_png
+
+        for k, entry in enumerate(r["images"].get("overlays", [])):
+            png = overlay_png(entry)
+            if png is not None:
+                images[f"overlay{k + 1}"] = png
+    return images
+
+
+def residual_plot(r: Mapping[str, Any]) -> bytes:
+    plt = _pyplot()
+    rot = np.asarray(r["residuals"]["rotation_deg"], dtype=float)
+    trans = np.asarray(r["residuals"]["translation"], dtype=float)
+    m = len(rot)
+    outliers = set(r.get("outliers") or [])
+    colours = [OUTLIER_COLOUR if k in outliers else INLIER_COLOUR for k in range(m)]
+    fig, axes = plt.subplots(2, 1, figsize=(max(6.0, min(14.0, 0.25 * m + 3)), 5.0), sharex=True)
+    unit = r.get("unit") or "data units"
+    index = np.arange(m)
+    flagged = np.zeros(m, dtype=bool)
+    flagged[[k for k in outliers if 0 <= k < m]] = True
+    for ax, values, label in ((axes[0], rot, "rotation [deg]"), (axes[1], trans, f"translation [{unit}]")):
+        if m <= BARS_UP_TO:
+            ax.bar(index, values, color=colours, width=0.8)
+        else:
+            ax.plot(index[~flagged], values[~flagged], ".", ms=2, color=INLIER_COLOUR)
+            ax.plot(index[flagged], values[flagged], ".", ms=4, color=OUTLIER_COLOUR)
+        ax.axhline(float(np.median(values)), color="#555", lw=0.8, ls="--", label="median")
+        ax.set_ylabel(label)
+        ax.grid(axis="y", alpha=0.3)
+    step = max(1, int(np.ceil(m / 40)))
+    axes[1].set_xticks(np.arange(0, m, step))
+    axes[1].set_xlabel(r["item"])
+    from matplotlib.patches import Patch
+
+    handles = [Patch(color=INLIER_COLOUR, label=r["item"])]
+    if outliers:
+        handles.append(Patch(color=OUTLIER_COLOUR, label="outlier (left out)"))
+    handles.append(next(line for line in axes[0].get_lines() if line.get_label() == "median"))
+    axes[0].legend(handles=handles, loc="upper right", fontsize="small")
+    axes[0].set_title(f"residuals per {r['item']} ({'A_i X = X B_i' if r['problem'] == 'axxb' else 'A_i X = Y B_i'})")
+    fig.tight_layout()
+    return _png(fig)
+
+
+def _child(frame: str | None, default: str) -> str:
+    """'T_flange_cam' -> 'cam'."""
+    if not frame or not frame.startswith("T_") or frame.count("_") < 2:
+        return default
+    return frame.split("_", 2)[2]
+
+
+def _triad(ax: Any, T: np.ndarray, size: float, label: str | None = None, lw: float = 1.5) -> None:
+    o = T[:3, 3]
+    for k in range(3):
+        e = o + size * T[:3, k]
+        ax.plot([o[0], e[0]], [o[1], e[1]], [o[2], e[2]], color=AXIS_COLOURS[k], lw=lw)
+    if label:
+        ax.text(o[0], o[1], o[2], " " + label, fontsize=8)
+
+
+def pose_plot(r: Mapping[str, Any]) -> bytes:
+    plt = _pyplot()
+    A = np.asarray(r["robot_poses"], dtype=float)
+    U = {k: np.asarray(v, dtype=float) for k, v in r["unknowns"].items()}
+    frames = {k: v[0] for k, v in r.get("frames", {}).items()}
+    setup, problem = r.get("setup"), r["problem"]
+    per_station, fixed = {}, {}
+    if problem == "axxb" and setup == "eye-to-hand":
+        fixed[_child(frames.get("X"), "X")] = U["X"]  # X = T_base_cam
+    else:
+        per_station[_child(frames.get("X"), "A_i X")] = A @ U["X"]
+        if "Y" in U:
+            fixed[_child(frames.get("Y"), "Y")] = U["Y"]
+    points = [A[:, :3, 3], np.zeros((1, 3)), *(T[:, :3, 3] for T in per_station.values()),
+              *(T[None, :3, 3] for T in fixed.values())]
+    allp = np.concatenate(points)
+    span = float(np.max(np.ptp(allp, axis=0))) or 1.0
+    size = 0.08 * span
+    fig = plt.figure(figsize=(7.0, 6.0))
+    ax = fig.add_subplot(projection="3d")
+    ax.plot(*A[:, :3, 3].T, color="#888", lw=0.6, alpha=0.6)
+    ax.scatter(*A[:, :3, 3].T, color="k", s=14, label="flange positions (robot poses)", depthshade=False)
+    if len(A) <= LABELS_UP_TO:
+        for k, p in enumerate(A[:, :3, 3]):
+            ax.text(*p, f" {k + 1}", fontsize=7, color="#444")
+    _triad(ax, np.eye(4), 1.5 * size, "base", lw=2.5)
+    shown = np.unique(np.linspace(0, len(A) - 1, min(len(A), TRIADS_UP_TO)).round().astype(int))
+    for name, stack in per_station.items():
+        for T in stack[shown]:
+            _triad(ax, T, 0.6 * size, lw=1.0)
+        ax.scatter(*stack[:, :3, 3].T, color="#9467bd", s=8, label=f"{name} at each station (A_i X)",
+                   depthshade=False)
+    for name, T in fixed.items():
+        _triad(ax, T, 1.5 * size, name, lw=2.5)
+    centre = 0.5 * (allp.max(axis=0) + allp.min(axis=0))
+    half = 0.55 * span
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+    ax.set_box_aspect((1, 1, 1))
+    unit = r.get("unit") or "data units"
+    ax.set_xlabel(f"x [{unit}]")
+    ax.set_ylabel(f"y [{unit}]")
+    ax.set_zlabel(f"z [{unit}]")
+    ax.set_title("robot base frame: flange positions and the solved frames\n(axes: x red, y green, z blue)",
+                 fontsize=10)
+    ax.legend(loc="upper left", fontsize="small")
+    return _png(fig)
