@@ -67,6 +67,7 @@ from handeye.cli._kinhec_report import (
     HANDEYE_FILES,
     REFERENCE,
     SCALE_SUFFIX,
+    KinhecRun,
     auto_vs_best,
     auto_vs_best_table,
     head_to_head,
@@ -317,25 +318,6 @@ def select_solvers(selection: str | None, available: Sequence[str], references: 
 # ---------------------------------------------------------------------------------------------
 # the run
 # ---------------------------------------------------------------------------------------------
-
-@dataclasses.dataclass
-class KinhecRun:
-    """What `run_kinhec` produced: KinHEC's rows (with the ``handeye_*`` columns), handeye's
-    tables, the output folder and the notes (solvers left out)."""
-
-    rows: list[dict[str, Any]]
-    head_to_head: list[dict[str, Any]]
-    tracks: list[dict[str, Any]]
-    auto_vs_best: list[dict[str, Any]]
-    out_dir: Path
-    solvers: list[str]
-    references: list[str]
-    skipped: list[str]
-    seconds: float
-    kinhec_version: str
-    #: `machine_line` taken when the run started (the code a long run uses is the code at its start)
-    machine: str
-
 
 def run_kinhec(data_dir: str | Path, out_dir: str | Path | None = None, *, tracks: Sequence[str] | None = None,
                max_sequences: int | None = None, solvers: str | None = None, workers: int = 1,

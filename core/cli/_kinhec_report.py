@@ -21,6 +21,7 @@ module with no dependency on its siblings; handeye.cli._kinhec registers the sol
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import os
 import platform
@@ -28,12 +29,29 @@ import statistics
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from handeye.io.output_files import new_file, write_text
 
-if TYPE_CHECKING:
-    from handeye.cli._kinhec import KinhecRun
+
+@dataclasses.dataclass
+class KinhecRun:
+    """What `run_kinhec` produced: KinHEC's rows (with the ``handeye_*`` columns), handeye's
+    tables, the output folder and the notes (solvers left out)."""
+
+    rows: list[dict[str, Any]]
+    head_to_head: list[dict[str, Any]]
+    tracks: list[dict[str, Any]]
+    auto_vs_best: list[dict[str, Any]]
+    out_dir: Path
+    solvers: list[str]
+    references: list[str]
+    skipped: list[str]
+    seconds: float
+    kinhec_version: str
+    #: `machine_line` taken when the run started (the code a long run uses is the code at its start)
+    machine: str
+
 
 #: KinHEC names of handeye's solvers: AX=YB on the absolute keyframe poses, AX=XB on the motions
 AXYB_PREFIX, AXXB_PREFIX = "handeye:", "handeye-axxb:"

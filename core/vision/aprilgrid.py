@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 from handeye.vision.boards import Board
-from handeye.vision.detect import BoardNotFound, Detection
+from handeye.vision.detection import BoardNotFound, Detection
 
 #: Kalibr draws its tags with a 2-bit black border (kalibr_create_target_pdf, borderBits=2)
 BORDER_BITS = 2

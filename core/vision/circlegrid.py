@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from handeye.vision.boards import BIG_DOT_RATIO, Board
-from handeye.vision.detect import BoardNotFound, Detection
+from handeye.vision.detection import BoardNotFound, Detection
 
 #: the big dot must look at least this much larger (diameter ratio to its two neighbours, relative
 #: to the other corners') to name the origin

@@ -17,56 +17,18 @@ points) or raises `BoardNotFound` with a one-line reason. One OpenCV detector pe
 
 from __future__ import annotations
 
-import dataclasses
-
 import cv2
 import numpy as np
 
 from handeye.framework.errors import InputError
 from handeye.vision.boards import Board, parse_board
+from handeye.vision.detection import BoardNotFound, Detection
 
 #: fewest ChArUco corners a detection may have unless the caller says otherwise (a homography and
 #: a pose need 4; 6 leaves a margin against a wrong interpolation)
 CHARUCO_MIN_CORNERS = 6
 #: fewest aprilgrid corners by default (two tags)
 APRILGRID_MIN_CORNERS = 8
-
-
-class BoardNotFound(InputError):
-    """The board is not in the image (or not enough of it, or not unambiguously): the message
-    says why in one line."""
-
-
-@dataclasses.dataclass(frozen=True)
-class Detection:
-    """Points of `board` found in one image: ids (n,) into board.object_points(), image_points
-    (n, 2) float64 sub-pixel pixels, object_points (n, 3) = board.object_points()[ids]. Read-only."""
-
-    ids: np.ndarray
-    image_points: np.ndarray
-    object_points: np.ndarray
-
-    def __post_init__(self) -> None:
-        ids = np.asarray(self.ids, dtype=np.int64).ravel()
-        image_points = np.asarray(self.image_points, dtype=np.float64).reshape(-1, 2)
-        object_points = np.asarray(self.object_points, dtype=np.float64).reshape(-1, 3)
-        if not len(ids) == len(image_points) == len(object_points):
-            raise InputError(f"Detection needs as many ids, image points and board points, got {len(ids)}, "
-                             f"{len(image_points)} and {len(object_points)}")
-        for name, value in (("ids", ids), ("image_points", image_points), ("object_points", object_points)):
-            value.setflags(write=False)
-            object.__setattr__(self, name, value)
-
-    def __len__(self) -> int:
-        return len(self.ids)
-
-    @classmethod
-    def of(cls, board: Board, ids: np.ndarray, image_points: np.ndarray) -> Detection:
-        """The detection of `board` with these ids and pixels, sorted by id."""
-        ids = np.asarray(ids, dtype=np.int64).ravel()
-        order = np.argsort(ids, kind="stable")
-        points = np.asarray(image_points, dtype=np.float64).reshape(-1, 2)[order]
-        return cls(ids[order], points, board.object_points()[ids[order]])
 
 
 def detect(image: np.ndarray, board: Board | str, *, min_corners: int | None = None) -> Detection:

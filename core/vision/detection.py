@@ -1,0 +1,50 @@
+"""What a board detector returns: the points of a board found in one image (`Detection`), or
+why the board was not found (`BoardNotFound`). Shared by the detectors of every board kind
+(`handeye.vision.detect`, `circlegrid`, `aprilgrid`), which import it and not each other.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from handeye.framework.errors import InputError
+from handeye.vision.boards import Board
+
+
+class BoardNotFound(InputError):
+    """The board is not in the image (or not enough of it, or not unambiguously): the message
+    says why in one line."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Detection:
+    """Points of `board` found in one image: ids (n,) into board.object_points(), image_points
+    (n, 2) float64 sub-pixel pixels, object_points (n, 3) = board.object_points()[ids]. Read-only."""
+
+    ids: np.ndarray
+    image_points: np.ndarray
+    object_points: np.ndarray
+
+    def __post_init__(self) -> None:
+        ids = np.asarray(self.ids, dtype=np.int64).ravel()
+        image_points = np.asarray(self.image_points, dtype=np.float64).reshape(-1, 2)
+        object_points = np.asarray(self.object_points, dtype=np.float64).reshape(-1, 3)
+        if not len(ids) == len(image_points) == len(object_points):
+            raise InputError(f"Detection needs as many ids, image points and board points, got {len(ids)}, "
+                             f"{len(image_points)} and {len(object_points)}")
+        for name, value in (("ids", ids), ("image_points", image_points), ("object_points", object_points)):
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    @classmethod
+    def of(cls, board: Board, ids: np.ndarray, image_points: np.ndarray) -> Detection:
+        """The detection of `board` with these ids and pixels, sorted by id."""
+        ids = np.asarray(ids, dtype=np.int64).ravel()
+        order = np.argsort(ids, kind="stable")
+        points = np.asarray(image_points, dtype=np.float64).reshape(-1, 2)[order]
+        return cls(ids[order], points, board.object_points()[ids[order]])
