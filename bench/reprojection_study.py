@@ -1,7 +1,7 @@
 """Image data: the reprojection-error fit against the pose-based answer, with a known truth.
 
 Per setup (eye-in-hand, eye-to-hand) and seed: 20 stations of a 9 x 6 board seen by a
-1280 x 960 camera (`handeye.problems.axyb_images`), 0.3 px Gaussian noise on the corners, B the
+1280 x 960 camera (`handeye.problems.axyb.images`), 0.3 px Gaussian noise on the corners, B the
 PnP poses of the noisy corners, random X, Y. Three answers:
 
 - (a) ``auto`` on the PnP poses (pose-based maximum likelihood, isotropic pose noise);
@@ -32,7 +32,7 @@ import numpy as np
 import handeye
 from handeye.estimation.noise import NoiseModel
 from handeye.geometry.se3 import inverse
-from handeye.problems import axyb_images
+from handeye.problems.axyb import images as axyb_images
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
 METHODS = ("auto (poses)", "reprojection", "reprojection from truth")

@@ -62,6 +62,10 @@ _MOVED = {
     "station_matching": "streams.station_matching",
     **{m: f"workflow.{m}" for m in ("quality_report", "report_layout", "report_render", "report_images",
                                     "report_plots")},
+    # the problems' modules before one package per problem
+    "problems.axyb_geometry": "problems.axyb.geometry", "problems.axyb_images": "problems.axyb.images",
+    "problems.axxb_geometry": "problems.axxb.geometry", "problems.axbycz_geometry": "problems.axbycz.geometry",
+    "problems.axbycz_kronecker": "problems.axbycz.kronecker",
 }
 
 

@@ -93,7 +93,7 @@ def drift(data: Any, options: Any, backend: str, output: SolverOutput,
         return output
     from handeye.problems.axxb import PROBLEM as AXXB
     from handeye.problems.axxb import relative_motions
-    from handeye.problems.axyb_geometry import fitted_Y
+    from handeye.problems.axyb.geometry import fitted_Y
 
     scale_unknown = bool(data.camera_scale_unknown)
     e = (at or residuals_at(data, output))[1][:, 3:]

@@ -29,7 +29,7 @@ Translations. Given the rotations, the translation part of A X B = Y C Z is line
 
     R_Ai t_X - t_Y - R_Y R_Ci t_Z = R_Y t_Ci - t_Ai - R_Ai R_X t_Bi      (3 rows per triple),
 
-solved by least squares (Wu et al.'s eq. 38, `handeye.problems.axbycz_kronecker.solve_translations`,
+solved by least squares (Wu et al.'s eq. 38, `handeye.problems.axbycz.kronecker.solve_translations`,
 shared with the other axbycz solvers).
 
 Start (``init``). Gauss-Newton needs one, and from far away it stalls or stops in a local minimum
@@ -70,7 +70,7 @@ from handeye.framework.errors import (
 from handeye.framework.options import check_int, check_positive
 from handeye.geometry.se3 import make_pose, project_to_so3, skew, so3_exp, vee
 from handeye.problems.axbycz import AXBYCZData
-from handeye.problems.axbycz_kronecker import solve_translations
+from handeye.problems.axbycz.kronecker import solve_translations
 
 #: the start of ``init="grid"``: the 60 rotations of the icosahedral group
 GRID = Rotation.create_group("I").as_matrix()

@@ -29,7 +29,7 @@ the authors' MATLAB code (github.com/drliaowu/AXBYCZ), which we read to understa
    cell's Y is one); we take the leading singular pair of the matrix (its nearest rank-one matrix),
    which is the same on exact data. The sign of the pair is irrelevant (q and -q are one rotation).
 4. Translations: least squares given the rotations over all triples (eq. 38,
-   `handeye.problems.axbycz_kronecker.solve_translations`).
+   `handeye.problems.axbycz.kronecker.solve_translations`).
 
 ``all_triples=True`` (our extension): after the paper's estimate, every triple's sign is the sign
 of <q_A q_X q_B, q_Y q_C q_Z> and the 20 x 20 eigenproblem is solved again over all triples.
@@ -60,7 +60,7 @@ from handeye.geometry.dualquat import (
 )
 from handeye.geometry.se3 import make_pose, rotation_angle
 from handeye.problems.axbycz import AXBYCZData
-from handeye.problems.axbycz_kronecker import solve_translations
+from handeye.problems.axbycz.kronecker import solve_translations
 
 #: the paper's number of sign triples and of sign patterns compared by their residual
 SIGN_TRIPLES = 10

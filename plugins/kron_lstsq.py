@@ -15,7 +15,7 @@ sign is free where the translations carry no scale), and t_X re-solved given R_X
 (`solve_translation`).
 
 ``axbycz`` (A_i X B_i = Y C_i Z, docs/solvers/kron-lstsq.md): the lifted Kronecker system of
-`handeye.problems.axbycz_kronecker` (X linear, Y and Z through their products), whose rotation
+`handeye.problems.axbycz.kronecker` (X linear, Y and Z through their products), whose rotation
 rows are homogeneous like those of AX = XB: minimise |H beta - w|^2 subject to |r|^2 = 12 (r the
 lifted rotation unknowns; the translation-side unknowns minimised out), exactly as a trust-region
 subproblem; R_X from r, R_Y and R_Z from the nearest rank-one factors of the lifted products, SVD
@@ -108,7 +108,7 @@ def run_axxb(data: AXXBData, options: Options, backend: str) -> SolverOutput:
 def run_axbycz(data: Any, options: Options, backend: str) -> SolverOutput:
     """``axbycz``: least squares of the lifted system on |r|^2 = 12 (module docstring)."""
     from handeye.checks.self_check import rotation_block_figures
-    from handeye.problems import axbycz_kronecker as lifted
+    from handeye.problems.axbycz import kronecker as lifted
 
     lifted.check_triples(data, "kron-lstsq")
     gap = lifted.check_rotations(data, "kron-lstsq")
@@ -198,7 +198,7 @@ SPEC_AXXB = dataclasses.replace(
 )
 
 
-#: ``axbycz``: the lifted system (problems/axbycz_kronecker.py), the same options.
+#: ``axbycz``: the lifted system (problems/axbycz/kronecker.py), the same options.
 SPEC_AXBYCZ = dataclasses.replace(
     SPEC,
     problems=("axbycz",),

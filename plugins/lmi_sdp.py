@@ -79,7 +79,7 @@ homogeneous), as a tight SDP over a 10 x 10 Z; same backends and options, plus `
 
 Problem ``axbycz`` (A_i X B_i = Y C_i Z): a third spec, `SPEC_AXBYCZ`, runs
 `handeye.plugins.lmi_sdp_axbycz` on the lifted Kronecker system of
-`handeye.problems.axbycz_kronecker`: the scale of the lifted rotations fixed by |r|^2 = 12 as a
+`handeye.problems.axbycz.kronecker`: the scale of the lifted rotations fixed by |r|^2 = 12 as a
 tight SDP (default, from 10 triples) or eq. 14 as it is (``scale="translations"``, from 15
 triples); its options and spec live there (`AXBYCZOptions`: defaults normalize=True,
 translations="resolve").
@@ -104,6 +104,7 @@ from typing import Any
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye.estimation.kronecker import KroneckerSystem
 from handeye.estimation.rotation_cost import signed_blocks
 from handeye.framework.errors import DegenerateDataError, InputError, SolverError, shown
 from handeye.framework.options import check_choice
@@ -118,12 +119,7 @@ from handeye.plugins._cvxpy_solvers import (  # noqa: F401 (sdp_cvxpy_solvers re
 from handeye.plugins.lmi_sdp_casadi import check_starts
 from handeye.plugins.lmi_sdp_clarabel import SOLVER as CLARABEL
 from handeye.plugins.lmi_sdp_clarabel import solve_eq14
-from handeye.problems.axyb import (
-    AXYBData,
-    KroneckerSystem,
-    solve_translations,
-    split_beta,
-)
+from handeye.problems.axyb import AXYBData, solve_translations, split_beta
 
 ORTHOGONALIZERS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
     "gram-schmidt": gram_schmidt,

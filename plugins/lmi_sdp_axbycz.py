@@ -1,6 +1,6 @@
 """`lmi-sdp` for ``axbycz`` (A_i X B_i = Y C_i Z): the paper's LMI-SDP (Pan et al., IEEE T-ASE
 2022, eqs. 9-14) carried over to the lifted Kronecker system of
-`handeye.problems.axbycz_kronecker` (beta = [r; tau], 132 unknowns, r = [vec R_X; vec(vec R_Y
+`handeye.problems.axbycz.kronecker` (beta = [r; tau], 132 unknowns, r = [vec R_X; vec(vec R_Y
 vec R_Z^T)] the 90 rotation unknowns). A helper module, not an entry point: `handeye.plugins.lmi_sdp`
 registers its ``axbycz`` spec with `run`. docs/solvers/lmi-sdp.md, section AXB = YCZ.
 
@@ -87,8 +87,8 @@ from handeye.plugins.lmi_sdp import (
 )
 from handeye.plugins.lmi_sdp_clarabel import SOLVER as CLARABEL
 from handeye.plugins.lmi_sdp_clarabel import solve_axbycz
-from handeye.problems import axbycz_kronecker as lifted
 from handeye.problems.axbycz import AXBYCZData
+from handeye.problems.axbycz import kronecker as lifted
 
 #: What the SDP is, for error messages.
 WHAT = "the semidefinite program of AXB=YCZ"

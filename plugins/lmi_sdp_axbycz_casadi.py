@@ -2,7 +2,7 @@
 constraints on R_X, R_Y, R_Z, as a CasADi NLP solved by IPOPT (what `lmi_sdp_casadi` does for
 ``axyb`` and ``axxb``). A helper module, not an entry point (`handeye.plugins.lmi_sdp_axbycz`).
 
-1. Cost. |H beta(v) - w|^2 of the lifted system (`handeye.problems.axbycz_kronecker`) at the
+1. Cost. |H beta(v) - w|^2 of the lifted system (`handeye.problems.axbycz.kronecker`) at the
    structured beta(v) of v = [vec R_X; vec R_Y; vec R_Z; t_X; t_Y; t_Z] (36): beta's lifted
    entries are the products vec R_Y vec R_Z^T, vec R_Y t_Z^T of v. At such a beta the cost is
    sum_i |top(A_i X B_i - Y C_i Z)|_F^2, the algebraic error of the equation over its 3 x 4 top
@@ -44,8 +44,8 @@ from handeye.plugins.lmi_sdp_casadi import (
     check_starts,
     run_starts,
 )
-from handeye.problems import axbycz_kronecker as lifted
 from handeye.problems.axbycz import AXBYCZData
+from handeye.problems.axbycz import kronecker as lifted
 
 _CACHE: dict[tuple, Any] = {}
 _LOCK = threading.Lock()

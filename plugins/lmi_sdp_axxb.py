@@ -8,7 +8,7 @@ give, and nothing when all motions rotate about one point (docs/solvers/kron-lst
 is therefore kept and the scale fixed as `kron-lstsq` fixes it, |r|^2 = 3 (r = vec R_X):
 
 1. Translations minimised out in closed form (`handeye.rotation_cost`, from the normal equations
-   of problems/axxb.py): |H beta - w|^2 = |T t + U r - u|^2 + y^T M y + rest, y = [r; 1],
+   of problems/axxb/data.py): |H beta - w|^2 = |T t + U r - u|^2 + y^T M y + rest, y = [r; 1],
    M = [[P, -p], [-p^T, c]] (10 x 10, PSD), t(r) = T^-1 (u - U r).
 2. The QCQP min y^T M y s.t. |r|^2 = 3, h^2 = 1 lifted to Z = y y^T: the SDP
 

@@ -20,8 +20,8 @@ given poses) and the registration. The machinery is shared and lives below it:
   likelihood over the two variances, IRLS with median-based scales, "initial"), convergence
   rules, covariance with its variance factor, diagnostics; `handeye.whitening` and
   `handeye.robust`: weights and losses; `handeye.so3_fast`: the SO(3) helpers;
-- `handeye.problems.axyb_geometry`, `handeye.problems.axxb_geometry`,
-  `handeye.problems.axbycz_geometry`: each problem's residuals and analytic Jacobians (and, for
+- `handeye.problems.axyb.geometry`, `handeye.problems.axxb.geometry`,
+  `handeye.problems.axbycz.geometry`: each problem's residuals and analytic Jacobians (and, for
   A X = Y B at large m, closed-form normal equations).
 
 A_i X B_i = Y C_i Z has no certifiable start; its starts (STARTS["axbycz"]) each serve the data
@@ -62,11 +62,11 @@ from handeye.framework.errors import BackendUnavailableError, InputError, Solver
 from handeye.framework.options import check_choice, check_positive
 from handeye.framework.solution import jsonable
 from handeye.problems.axbycz import AXBYCZData
-from handeye.problems.axbycz_geometry import AXBYCZModel
+from handeye.problems.axbycz.geometry import AXBYCZModel
 from handeye.problems.axxb import AXXBData
-from handeye.problems.axxb_geometry import AXXBModel
+from handeye.problems.axxb.geometry import AXXBModel
 from handeye.problems.axyb import AXYBData
-from handeye.problems.axyb_geometry import AXYBModel
+from handeye.problems.axyb.geometry import AXYBModel
 
 #: the problems refine serves: validated data type -> (problem name, model of `handeye.nlls`)
 MODELS: dict[type, tuple[str, type[nlls.PoseModel]]] = {AXYBData: ("axyb", AXYBModel), AXXBData: ("axxb", AXXBModel),

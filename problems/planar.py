@@ -379,7 +379,7 @@ def simulate(problem: str, stations: int, *, pairing: str = "all", **options: An
     if problem == "axyb":
         return data, truth
     if problem == "axxb":
-        from handeye.problems.axxb import relative_motions
+        from handeye.geometry.motions import relative_motions
 
         A, B = relative_motions(data["A"], data["B"], pairing)
         return {"A": A, "B": B}, {"X": truth["X"]}

@@ -1,5 +1,5 @@
 """The linear and convex solvers of A_i X B_i = Y C_i Z: the lifted Kronecker system
-(problems/axbycz_kronecker.py), `kron-lstsq`, `lmi-sdp` (cvxpy, picos, casadi) and `wu`
+(problems/axbycz/kronecker.py), `kron-lstsq`, `lmi-sdp` (cvxpy, picos, casadi) and `wu`
 (plugins/axbycz_wu.py). The shared suite (test_solvers.py) runs them too; here: the system's
 algebra, exact recovery with each method's protocol, accuracy on noisy data against the truth,
 the LMI = least-squares equivalence, and the errors on data they cannot solve.
@@ -23,8 +23,8 @@ from handeye.estimation.noise import NoiseModel
 from handeye.estimation.trust_region import solve_trust_region
 from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.geometry.dualquat import quat_from_rotation, quat_multiply
-from handeye.problems import axbycz_kronecker as lifted
 from handeye.problems.axbycz import PROBLEM
+from handeye.problems.axbycz import kronecker as lifted
 
 NOISE = NoiseModel.on(("A", "B", "C"), 0.002, 0.2)
 SDP_BACKENDS = ("cvxpy", "picos")

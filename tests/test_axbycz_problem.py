@@ -1,5 +1,5 @@
-"""Problem ``axbycz`` (A_i X B_i = Y C_i Z, problems/axbycz.py) and its least-squares model
-(problems/axbycz_geometry.py): validation and degeneracy, residuals, the simulator's protocols,
+"""Problem ``axbycz`` (A_i X B_i = Y C_i Z, problems/axbycz/) and its least-squares model
+(problems/axbycz/geometry.py): validation and degeneracy, residuals, the simulator's protocols,
 the analytic Jacobian, identifiability, the self-check hooks, `refine` and `auto` on it, and the
 harness's protocol sweeps. The shared suite (test_solvers.py) runs every axbycz solver as well."""
 
@@ -18,8 +18,8 @@ from handeye.framework.errors import (
 )
 from handeye.geometry.se3 import inverse, make_pose, so3_exp
 from handeye.plugins import refine as R
-from handeye.problems import axbycz_geometry as G
 from handeye.problems.axbycz import PROBLEM
+from handeye.problems.axbycz import geometry as G
 
 NOISE = NoiseModel.on(("A", "B", "C"), 0.002, 0.2)
 UNKNOWNS = ("X", "Y", "Z")

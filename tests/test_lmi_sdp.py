@@ -443,7 +443,7 @@ def test_axbycz_clarabel_matches_the_least_squares_and_cvxpy():
     trust-region solution after the polish)."""
     from handeye.estimation.kronecker import reduce_normal_equations
     from handeye.problems import axbycz
-    from handeye.problems import axbycz_kronecker as lifted
+    from handeye.problems.axbycz import kronecker as lifted
 
     raw, _ = axbycz.PROBLEM.simulate(pairs=20, seed=8, noise=NoiseModel.on(("A", "B", "C"), 0.002, 0.2))
     data = axbycz.PROBLEM.validate(**raw)

@@ -14,9 +14,9 @@ from handeye.framework.errors import InputError, UnknownPluginError
 from handeye.geometry.se3 import make_pose, rotation_angle, so3_exp
 from handeye.plugins import refine as R
 from handeye.problems.axxb import PROBLEM as AXXB
-from handeye.problems.axxb_geometry import AXXBModel
+from handeye.problems.axxb.geometry import AXXBModel
 from handeye.problems.axyb import PROBLEM, random_truth
-from handeye.problems.axyb_geometry import AXYBModel
+from handeye.problems.axyb.geometry import AXYBModel
 
 NOISE = NoiseModel({"B": (0.002, 0.5), "A": (0.0002, 0.05)})
 

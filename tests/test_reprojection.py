@@ -1,5 +1,5 @@
 """The reprojection-error solver (plugins/reprojection.py) on simulated board images
-(`handeye.problems.axyb_images`: 9 x 6 corners, 1280 x 960 camera with distortion, B = the PnP
+(`handeye.problems.axyb.images`: 9 x 6 corners, 1280 x 960 camera with distortion, B = the PnP
 poses of the noisy corners). The shared suite (test_solvers.py) runs it too, through the
 simulator option its SolverSpec declares."""
 

@@ -1,6 +1,6 @@
 """The Kronecker cost |H beta - w|^2 with the translations minimised out in closed form.
 
-Every Kronecker system here (``axyb``: eq. 8 of the paper; ``axxb``: its analogue, problems/axxb.py)
+Every Kronecker system here (``axyb``: eq. 8 of the paper; ``axxb``: its analogue, problems/axxb/data.py)
 has beta = [r; t] with r = [vec R_1; ...; vec R_k] (9k entries, column-major vec) followed by the
 k translations t (3k). For given rotations the cost is a linear least squares in t, so
 

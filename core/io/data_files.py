@@ -41,6 +41,7 @@ from handeye.checks.validation import float_array, pose_stack
 from handeye.framework.errors import HandEyeError, InputError, shown
 from handeye.framework.problem import StationReader
 from handeye.framework.registry import get_registry
+from handeye.geometry.motions import PAIRINGS
 from handeye.io.input_files import check_not_looping, load_json
 from handeye.io.npz import load_npz
 from handeye.io.output_files import new_file
@@ -51,10 +52,10 @@ METADATA_KEYS = ("units", "setup", "pairing", "description", "source", "license"
 UNITS = ("m", "cm", "mm")
 #: accepted values of the ``setup`` metadata (see docs/conventions.md)
 SETUPS = ("eye-in-hand", "eye-to-hand")
-#: accepted values of the ``pairing`` metadata: which stations' absolute poses form a motion
-#: (``consecutive``: station i with i + 1; ``all``: every i < j, as OpenCV's calibrateHandEye)
-PAIRINGS = ("consecutive", "all")
-#: pairing used for absolute poses when neither the file nor the caller names one
+#: the accepted values of the ``pairing`` metadata, which stations' absolute poses form a motion
+#: (``consecutive``: station i with i + 1; ``all``: every i < j, as OpenCV's calibrateHandEye),
+#: are `handeye.geometry.motions.PAIRINGS`; the pairing used for absolute poses when neither the
+#: file nor the caller names one
 DEFAULT_PAIRING = "all"
 #: the absolute poses of the stations, the alternative to a problem's data fields (docs/formats.md):
 #: robot_poses = T_base_flange, camera_poses = T_cam_target (the board pose solvePnP gives)

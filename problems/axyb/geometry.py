@@ -26,9 +26,9 @@ import copy
 import numpy as np
 
 from handeye.estimation import camera_scale
+from handeye.estimation.kronecker import PosePairs
 from handeye.estimation.nlls import PoseModel, Poses
 from handeye.geometry import so3_fast
-from handeye.problems.axyb import AXYBData
 
 #: from this many pairs on, the normal equations are summed in closed form (`normal_equations`)
 #: instead of from the (m, 6, 12) Jacobian: measured 0.38 vs 0.08 ms at m = 16, 0.84 vs 0.52 ms
@@ -52,7 +52,7 @@ class AXYBModel(PoseModel):
     profile_min_pairs = PROFILE_MIN_PAIRS
     sums_min_pairs = SUMS_MIN_PAIRS
 
-    def __init__(self, data: AXYBData) -> None:
+    def __init__(self, data: PosePairs) -> None:
         RA, RB = data.A[:, :3, :3], data.B[:, :3, :3]
         m = len(RA)
         self.m, self.scale = m, data.translation_scale
@@ -192,7 +192,7 @@ def consecutive_motions(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.nd
             np.linalg.norm(phi_right, axis=1))
 
 
-def expected_rotation_residual(data: AXYBData) -> float | None:
+def expected_rotation_residual(data: PosePairs) -> float | None:
     """`Problem.expected_rotation_residual` for A_i X = Y B_i: from the angle and pitch
     differences of consecutive motions (A_k^-1 A_k+1 X = X B_k^-1 B_k+1); a station's residual
     carries one station's noise."""
@@ -210,7 +210,7 @@ def expected_rotation_residual(data: AXYBData) -> float | None:
     return expected_from_invariants(sigma, pitch, data.translation_scale, 1.0)
 
 
-def rotation_axes(data: AXYBData) -> dict[str, np.ndarray]:
+def rotation_axes(data: PosePairs) -> dict[str, np.ndarray]:
     """The robot's main rotation axis in X's frame (the flange: motions A_k^-1 A_k+1) and in Y's
     (the base: A_k+1 A_k^-1)."""
     from handeye.checks.self_check import main_axes
@@ -222,7 +222,7 @@ def rotation_axes(data: AXYBData) -> dict[str, np.ndarray]:
     return {k: v for k, v in axes.items() if v is not None}
 
 
-def check_model(data: AXYBData, unknowns: dict[str, np.ndarray]) -> tuple[AXYBModel, tuple[np.ndarray, ...], tuple[str, ...]]:
+def check_model(data: PosePairs, unknowns: dict[str, np.ndarray]) -> tuple[AXYBModel, tuple[np.ndarray, ...], tuple[str, ...]]:
     """`Problem.check_model` for A_i X = Y B_i: this model at the answer (X, Y)."""
     return (camera_scale.model_for(data, data.pose_model),
             (np.asarray(unknowns["X"], dtype=float), np.asarray(unknowns["Y"], dtype=float)), ("X", "Y"))

@@ -31,10 +31,10 @@ from __future__ import annotations
 import numpy as np
 
 from handeye.estimation import camera_scale
+from handeye.estimation.kronecker import PosePairs
 from handeye.estimation.nlls import Poses
 from handeye.geometry import so3_fast
-from handeye.problems.axxb import AXXBData
-from handeye.problems.axyb_geometry import AXYBModel
+from handeye.problems.axyb.geometry import AXYBModel
 
 #: fewest motions for the profile likelihood: the translation residuals (3m numbers) depend on 6
 #: parameters (R_X, t_X), so with m = 2 they can be fitted exactly and the likelihood with an
@@ -48,7 +48,7 @@ class AXXBModel(AXYBModel):
     unknowns = ("X",)
     profile_min_pairs = PROFILE_MIN_PAIRS
 
-    def __init__(self, data: AXXBData) -> None:
+    def __init__(self, data: PosePairs) -> None:
         super().__init__(data)  # the same fields A, B and translation_scale
 
     def residuals(self, poses: Poses) -> np.ndarray:
@@ -92,7 +92,7 @@ class AXXBModel(AXYBModel):
 
 # --------------------------------------------------------------------------- the host's self-check
 
-def expected_rotation_residual(data: AXXBData) -> float | None:
+def expected_rotation_residual(data: PosePairs) -> float | None:
     """`Problem.expected_rotation_residual` for A_i X = X B_i: from the angle and pitch differences
     of the motions themselves; a motion's residual carries two stations' noise, as its angle
     difference."""
@@ -107,7 +107,7 @@ def expected_rotation_residual(data: AXXBData) -> float | None:
     return expected_from_invariants(angle_noise(*data.angles), pitch, data.translation_scale, 2.0)
 
 
-def rotation_axes(data: AXXBData) -> dict[str, np.ndarray]:
+def rotation_axes(data: PosePairs) -> dict[str, np.ndarray]:
     """The robot's main rotation axis in X's frame: that of the motions A_i."""
     from handeye.checks.self_check import main_axis
 
@@ -115,13 +115,13 @@ def rotation_axes(data: AXXBData) -> dict[str, np.ndarray]:
     return {} if axis is None else {"X": axis}
 
 
-def check_model(data: AXXBData, unknowns: dict[str, np.ndarray]) -> tuple[AXYBModel, tuple[np.ndarray, ...], tuple[str, ...]]:
+def check_model(data: PosePairs, unknowns: dict[str, np.ndarray]) -> tuple[AXYBModel, tuple[np.ndarray, ...], tuple[str, ...]]:
     """`Problem.check_model` for A_i X = X B_i. Motions made from every pair of n stations share
     their noise, so a motion model would count each station n - 1 times: when the stations are
     recoverable (`AXXBData.stations`) the model is A_k X = Y B_k on them, with Y (the pose of
     station 0, a nuisance) fitted to the answer's X; else the motion model."""
-    from handeye.problems.axyb import AXYBData
-    from handeye.problems.axyb_geometry import fitted_Y
+    from handeye.problems.axyb.data import AXYBData
+    from handeye.problems.axyb.geometry import fitted_Y
 
     X = np.asarray(unknowns["X"], dtype=float)
     if data.stations is not None:

@@ -34,7 +34,7 @@ the check does not exclude a coupled degeneracy of special data, which the engin
 normal matrix would then report. The phase protocol meets this with at least 3 poses of each
 robot while the other holds still (m >= 5): robot 2 still, (A_j^-1 A_i) X = X (B_j B_i^-1)
 gives X (AX=XB); robot 1 still, (C_j^-1 C_i) Z = Z (B_j^-1 B_i) gives Z; then any triple gives
-Y. `AXBYCZData.still_groups` finds those phases (`handeye.problems.axbycz_geometry` uses their conjugate motions, whose
+Y. `AXBYCZData.still_groups` finds those phases (`handeye.problems.axbycz.geometry` uses their conjugate motions, whose
 rotation angles must agree, for the host's self-check), `diagnose` reports the figures.
 
 The simulator (`AXBYCZ.simulate`) puts two arms of the paper's kind (`handeye.kinematics`)
@@ -52,18 +52,12 @@ from typing import Any
 
 import numpy as np
 
-from handeye import hookimpl
-from handeye.checks.validation import pose_stack
 from handeye.estimation.kronecker import (
     scaled_stacks,
     translation_rms,
     validated_stacks,
 )
-from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import DegenerateDataError, InputError
-from handeye.framework.problem import Problem, pose_discrepancy
-from handeye.geometry.kinematics import random_flange_poses
-from handeye.geometry.se3 import inverse, make_pose, project_to_so3, so3_exp
+from handeye.geometry.se3 import make_pose, project_to_so3, so3_exp
 
 FIELDS = ("A", "B", "C")
 PROTOCOLS = ("free", "phases")
@@ -185,111 +179,3 @@ class AXBYCZData:
     def scaled(self, s: float) -> AXBYCZData:
         """The same data with every translation divided by s."""
         return type(self)(*scaled_stacks((self.A, self.B, self.C), s))
-
-
-class AXBYCZ(Problem):
-    """A_i X B_i = Y C_i Z: two robots, or hand-eye with tool-flange and robot-robot at once."""
-
-    name = "axbycz"
-    summary = "A_i X B_i = Y C_i Z: dual-robot calibration (hand-eye X, robot-robot Y, tool-flange Z)"
-    unknowns = ("X", "Y", "Z")
-    data_fields = FIELDS
-    min_pairs = 3
-
-    def validate(self, **data: Any) -> AXBYCZData:
-        """The validated data; `DegenerateDataError` when a stack's rotations are about fewer than
-        two axes, so that the data cannot separate the two unknowns it ties (module docstring)."""
-        out = AXBYCZData.validated(self.name, data, self.min_pairs)
-        for name, (what, pair, product, advice) in STACKS.items():
-            moving, spread = out.rotation_spread[name]
-            if moving >= 2 and spread >= DEGENERATE_AXIS_SPREAD:
-                continue
-            T = getattr(out, name)
-            if np.abs(T - T[0]).max() <= 1e-12 * max(out.translation_scale, 1.0):
-                how = f"are the same pose in all {out.m} triples, so {product}"
-                what_not = f"the rotations and translations of {pair} separately"
-            elif moving == 0:
-                how, what_not = "do not rotate (they only translate)", f"the translations of {pair} separately"
-            else:
-                how = (f"rotate about one axis only ({moving} of {out.m} poses rotated from the first, "
-                       f"axis spread {np.rad2deg(spread):.2g} deg)")
-                what_not = f"the translations of {pair} along that axis separately"
-            raise DegenerateDataError(f"{what} {how}: these triples do not determine {what_not}. "
-                                      f"{advice[0].upper()}{advice[1:]}")
-        return out
-
-    def diagnose(self, data: AXBYCZData) -> dict[str, Any]:
-        """Figures: which unknowns each stack's motions separate, per stack the poses rotated from
-        the first and their axis spread (deg), and the triples where robot 1 / robot 2 hold still (the phases; how well the data determine the
-        unknowns at their noise is the host's self-check, not a threshold here)."""
-        still = {name: [g.tolist() for g in data.still_groups(name)] for name in ("A", "C")}
-        return {
-            "pairs": data.m,
-            "separates": {name: pair for name, (_, pair, _, _) in STACKS.items()},  # what each stack's motions excite
-            "rotated_poses": {k: v[0] for k, v in data.rotation_spread.items()},
-            "axis_spread_deg": {k: float(np.rad2deg(v[1])) for k, v in data.rotation_spread.items()},
-            "robot1_still_triples": still["A"],
-            "robot2_still_triples": still["C"],
-            "protocol": ("phases" if still["A"] and still["C"] else
-                         "robot 2 still in part" if still["C"] else "robot 1 still in part" if still["A"] else "free"),
-            "warnings": [],
-        }
-
-    def residuals(self, data: AXBYCZData, unknowns: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """Per triple: rotation angle of (A_i X B_i)(Y C_i Z)^-1, |t(A_i X B_i) - t(Y C_i Z)|."""
-        X, Y, Z = (np.asarray(unknowns[n], dtype=float) for n in self.unknowns)
-        return pose_discrepancy(data.A @ X @ data.B, Y @ data.C @ Z)
-
-    def check_model(self, data: AXBYCZData, unknowns: Mapping[str, np.ndarray]) -> tuple[Any, tuple[np.ndarray, ...], tuple[str, ...]]:
-        from handeye.problems import axbycz_geometry
-
-        return axbycz_geometry.check_model(data, unknowns)
-
-    def expected_rotation_residual(self, data: AXBYCZData) -> float | None:
-        from handeye.problems import axbycz_geometry
-
-        return axbycz_geometry.expected_rotation_residual(data)
-
-    def rotation_axes(self, data: AXBYCZData) -> dict[str, np.ndarray]:
-        from handeye.problems import axbycz_geometry
-
-        return axbycz_geometry.rotation_axes(data)
-
-    def simulate(self, *, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
-                 X: np.ndarray | None = None, Y: np.ndarray | None = None, Z: np.ndarray | None = None,
-                 protocol: str = "free", **options: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
-        """`pairs` triples of two facing arms: A_i, C_i flange poses at random joints (mm),
-        B_i = X^-1 A_i^-1 Y C_i Z, then noise on A, B, C (`NoiseModel`, drawn in that order).
-
-        protocol "free": both arms move at every triple; "phases": the first ceil(pairs / 2)
-        triples keep robot 2 at one pose (C constant) while robot 1 moves, the others keep robot 1
-        at one pose (A constant) while robot 2 moves (what the two-step methods need).
-        """
-        if options:
-            raise InputError(f"unknown simulate option(s) {sorted(options)}; known: pairs, seed, noise, X, Y, Z, protocol")
-        if pairs < 1:
-            raise InputError(f"pairs must be >= 1, got {pairs}")
-        if protocol not in PROTOCOLS:
-            raise InputError(f"protocol={protocol!r} is not one of {', '.join(PROTOCOLS)}")
-        rng = np.random.default_rng(seed)
-        X, Y, Z = (default if given is None else pose_stack(np.asarray(given)[None], name)[0]
-                   for name, given, default in (("X", X, DEFAULT_X), ("Y", Y, DEFAULT_Y), ("Z", Z, DEFAULT_Z)))
-        A = random_flange_poses(pairs, rng)
-        C = random_flange_poses(pairs, rng)
-        if protocol == "phases":
-            half = (pairs + 1) // 2
-            C[:half] = C[0]
-            A[half:] = A[0]
-        B = inverse(X) @ inverse(A) @ Y @ C @ Z
-        noise = noise or NoiseModel()
-        noise_rng = np.random.default_rng(rng.integers(2**63))
-        noisy = {name: noise.apply(name, T, noise_rng) for name, T in (("A", A), ("B", B), ("C", C))}
-        return noisy, {"X": X.copy(), "Y": Y.copy(), "Z": Z.copy()}
-
-
-PROBLEM = AXBYCZ()
-
-
-@hookimpl
-def register_problems(register):
-    register(PROBLEM)

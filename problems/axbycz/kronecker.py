@@ -61,7 +61,7 @@ from handeye.estimation.kronecker import overflow_error
 from handeye.estimation.trust_region import TrustRegionSolution, solve_trust_region
 from handeye.framework.errors import DegenerateDataError, SolverError
 from handeye.geometry.se3 import project_to_so3
-from handeye.problems.axbycz import AXBYCZData
+from handeye.problems.axbycz.data import AXBYCZData
 
 #: beta = [r; tau]: where each unknown sits
 R_X, P_YZ = slice(0, 9), slice(9, 90)

@@ -18,28 +18,21 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from handeye import hookimpl
 from handeye.checks.validation import (
     AGREEMENT_STATIONS,
     agreeing_group,
-    check_motion_beyond_noise,
     pose_stack,
 )
-from handeye.estimation import camera_scale
 from handeye.estimation.kronecker import (
     KroneckerSystem,
     PosePairs,
     reduce_normal_equations,
 )
-from handeye.estimation.noise import NoiseModel
 from handeye.framework.errors import DegenerateDataError, InputError
-from handeye.framework.problem import Problem, StationReader, pose_discrepancy
-from handeye.geometry.kinematics import random_flange_poses
 from handeye.geometry.se3 import inverse, make_pose, project_to_so3
 from handeye.problems import planar as planar_mode
 
@@ -100,7 +93,7 @@ class AXYBData(PosePairs):
     def pose_model(self) -> Any:
         """The engine's model of these data (`axyb_geometry.AXYBModel`), built once: the solver's
         refinement, its outlier step and the host's self-check all use it (read-only)."""
-        from handeye.problems import axyb_geometry
+        from handeye.problems.axyb import geometry as axyb_geometry
 
         return axyb_geometry.AXYBModel(self)
 
@@ -108,7 +101,7 @@ class AXYBData(PosePairs):
     def consecutive_motions(self) -> tuple[np.ndarray, ...]:
         """`axyb_geometry.consecutive_motions` of the stations, computed once (the self-check's
         noise estimate and its naming of directions both use them)."""
-        from handeye.problems import axyb_geometry
+        from handeye.problems.axyb import geometry as axyb_geometry
 
         return axyb_geometry.consecutive_motions(self.A, self.B)
 
@@ -232,10 +225,6 @@ def station_angles(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return angles(A), angles(B)
 
 
-def random_truth(rng: np.random.Generator, translation_scale: float = 500.0) -> dict[str, np.ndarray]:
-    """Random X, Y: uniform rotations, translations N(0, scale^2) per axis (data units)."""
-    return PROBLEM.random_unknowns(rng, translation_scale)
-
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
 
@@ -251,110 +240,3 @@ def pairs_from_stations(robot_poses: Any, camera_poses: Any, setup: str = "eye-i
     robot = pose_stack(robot_poses, "robot_poses")
     camera = pose_stack(camera_poses, "camera_poses")
     return {"A": np.array(robot), "B": inverse(camera) if setup == "eye-in-hand" else np.array(camera)}
-
-
-class AXYB(Problem):
-    """A_i X = Y B_i: simultaneous hand-eye (X) and robot-world (Y) calibration."""
-
-    name = "axyb"
-    summary = "robot-world and hand-eye calibration, A_i X = Y B_i"
-    unknowns = ("X", "Y")
-    data_fields = ("A", "B")
-    min_pairs = 3
-    #: a planar robot's translation along its rotation axis (one of them; `AXYBData.planar`), and
-    #: the board's image observations behind B (`AXYBData.images`)
-    optional_fields = ("tz_X", "tz_Y", "images", "camera_scale")
-    station_reader = StationReader(pairs_from_stations)
-
-    def validate(self, **data: Any) -> AXYBData:
-        """The validated data; ``tz_X`` or ``tz_Y`` (data units) for a robot whose rotations share
-        one axis (`handeye.problems.planar`: required then, refused otherwise)."""
-        images = data.pop("images", None)
-        facts = planar_mode.take_facts(data, ("tz_X", "tz_Y"))
-        unknown_scale = camera_scale.take(data)
-        out = AXYBData.validated(self.name, data, self.min_pairs)
-        if images is not None:
-            from handeye.vision.observations import checked
-
-            out = dataclasses.replace(out, images=checked(images, out.m))
-        planar = planar_mode.for_axyb(out.A, out.translation_scale, facts)
-        if planar is not None and unknown_scale:
-            raise InputError("camera_scale='unknown' is not supported for a robot that rotates about one axis: "
-                             "record poses that rotate about at least two axes, or give the camera's scale")
-        if planar is not None:  # rotations about one axis: the translations fix their gauge
-            return dataclasses.replace(out, planar=planar)
-        if unknown_scale:
-            out = dataclasses.replace(out, camera_scale_unknown=True)
-        excitation = out.rotation_excitation
-        if excitation < DEGENERATE_EXCITATION:
-            raise DegenerateDataError(
-                f"the robot poses rotate about fewer than two different axes (or not at all), so "
-                f"the rotations of X and Y cannot be determined (rotation excitation {excitation:.1e} "
-                f"< {DEGENERATE_EXCITATION:g}). Record poses that rotate about at least two different axes"
-            )
-        check_motion_beyond_noise(*station_angles(out.A, out.B), "stations")
-        return out
-
-    def diagnose(self, data: AXYBData) -> dict[str, Any]:
-        return {"pairs": data.m, "rotation_excitation": data.rotation_excitation, "warnings": []}
-
-    def residuals(self, data: AXYBData, unknowns: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """Per pair: rotation angle of (A_i X)(Y B_i)^-1 (eq. 32), |t(A_i X) - t(Y B_i)| (eq. 33)."""
-        return pose_discrepancy(data.A @ np.asarray(unknowns["X"], dtype=float),
-                                np.asarray(unknowns["Y"], dtype=float) @ data.B)
-
-    def check_model(self, data: AXYBData, unknowns: Mapping[str, np.ndarray]) -> tuple[Any, tuple[np.ndarray, ...], tuple[str, ...]]:
-        from handeye.problems import axyb_geometry
-
-        return axyb_geometry.check_model(data, unknowns)
-
-    def expected_rotation_residual(self, data: AXYBData) -> float | None:
-        from handeye.problems import axyb_geometry
-
-        return axyb_geometry.expected_rotation_residual(data)
-
-    def rotation_axes(self, data: AXYBData) -> dict[str, np.ndarray]:
-        from handeye.problems import axyb_geometry
-
-        return axyb_geometry.rotation_axes(data)
-
-    def simulate(self, *, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
-                 X: np.ndarray | None = None, Y: np.ndarray | None = None,
-                 **options: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
-        """Sec. IV-A: A_i = forward kinematics of an LR Mate 200iD-like arm at random joints (mm),
-        B_i = Y^-1 A_i X, then noise (`handeye.noise.NoiseModel`) on A and/or B.
-
-        images: a mapping (``setup``, ``pixel_noise``) to simulate board images instead
-        (`handeye.problems.axyb_images`): data A, B and ``images``, B the PnP poses of the corners.
-
-        X, Y default to the paper's `PAPER_X`, `PAPER_Y`. The random stream is drawn in a fixed
-        order (poses, then noise on A, then on B), so a seed gives the same poses at every noise
-        level.
-        """
-        images = options.pop("images", None)
-        if options:
-            raise InputError(f"unknown simulate option(s) {sorted(options)}; known: pairs, seed, noise, X, Y, images")
-        if pairs < 1:
-            raise InputError(f"pairs must be >= 1, got {pairs}")
-        rng = np.random.default_rng(seed)
-        X = PAPER_X if X is None else pose_stack(np.asarray(X)[None], "X")[0]
-        Y = PAPER_Y if Y is None else pose_stack(np.asarray(Y)[None], "Y")[0]
-        noise = noise or NoiseModel()
-        if images is not None:  # stations seen in board images (problems/axyb_images.py)
-            from handeye.problems import axyb_images
-
-            return axyb_images.simulate(pairs, rng, noise, X, Y, images), {"X": np.array(X), "Y": np.array(Y)}
-        A = random_flange_poses(pairs, rng)
-        B = inverse(Y) @ A @ X
-        pose_rng = np.random.default_rng(rng.integers(2**63))
-        A_noisy = noise.apply("A", A, pose_rng)
-        B_noisy = noise.apply("B", B, pose_rng)
-        return {"A": A_noisy, "B": B_noisy}, {"X": np.array(X), "Y": np.array(Y)}
-
-
-PROBLEM = AXYB()
-
-
-@hookimpl
-def register_problems(register):
-    register(PROBLEM)

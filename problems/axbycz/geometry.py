@@ -37,7 +37,7 @@ import numpy as np
 
 from handeye.estimation.nlls import PoseModel, Poses
 from handeye.geometry import so3_fast
-from handeye.problems.axbycz import AXBYCZData
+from handeye.problems.axbycz.data import AXBYCZData
 
 #: fewest triples for the profile likelihood. The translation residuals (3m numbers) depend on 15
 #: parameters (R_X, t_X, R_Y, t_Y, t_Z; R_Z does not enter them), so up to m = 5 they can in
