@@ -20,8 +20,8 @@ Formulation (docs/solvers/so3-sdp.md has the details and the measurements):
    studying tightness). Backends: `clarabel` (default) and `cvxpy` (Clarabel, or option
    ``cvxpy_solver``) pose its Lagrangian dual, max b^T nu with M - sum_j nu_j A_j PSD (20k + 1
    unknowns, one PSD cone; Z is the cone's dual). `clarabel` states it in Clarabel's own API
-   (`handeye.plugins._clarabel_sdp`: the constant data built once per (constraint set, k) and
-   cached, a solve only forms svec M), the same conic program cvxpy hands Clarabel without
+   (`handeye.plugins._sdp_backends.DualSDP`: the constant data built once per (constraint set,
+   k) and cached, a solve only forms svec M), the same conic program cvxpy hands Clarabel without
    cvxpy's per-solve overhead (~3-4 ms a call); `cvxpy` builds it once per (constraint
    set, cvxpy solver, k) with M a Parameter; `picos` (cvxopt) the primal. None depends on m.
 3. Extraction: the dominant eigenvector of Z scaled to h = 1, rotations projected onto SO(3), then
@@ -44,10 +44,7 @@ first, which balances rotation and translation rows and makes the answer indepen
 from __future__ import annotations
 
 import dataclasses
-import threading
-import time
 import types
-import warnings
 from collections.abc import Mapping
 from typing import Any
 
@@ -76,12 +73,16 @@ from handeye.estimation.so3_relaxation import (
 from handeye.framework.errors import DegenerateDataError, InputError, SolverError, shown
 from handeye.geometry.linalg import frobenius_norm
 from handeye.geometry.se3 import make_pose, rotation_angle
-from handeye.plugins._clarabel_sdp import DualSDP
-from handeye.plugins._cvxpy_solvers import (
+from handeye.plugins._sdp_backends import (
+    SCS_TIGHT,
+    CvxpyProblem,
+    DualSDP,
     ProblemCache,
     check_backend_options,
-    compile_seconds,
+    check_dpp,
     resolve_cvxpy_solver,
+    solve_cvxpy,
+    solve_picos,
 )
 from handeye.problems.axxb import AXXBData
 from handeye.problems.axyb import AXYBData
@@ -105,7 +106,7 @@ CLARABEL_SETTINGS: Mapping[str, Any] = types.MappingProxyType({
 #: Clarabel's time (docs/solvers/so3-sdp.md, "Other cvxpy solvers").
 CVXPY_SETTINGS: Mapping[str, Mapping[str, Any]] = types.MappingProxyType({
     "CLARABEL": CLARABEL_SETTINGS,
-    "SCS": types.MappingProxyType({"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iters": 100_000}),
+    "SCS": SCS_TIGHT,
 })
 #: option -> the backends it applies to (given with another backend it is an InputError)
 BACKEND_ONLY_OPTIONS: dict[str, tuple[str, ...]] = {"cvxpy_solver": ("cvxpy",)}
@@ -135,8 +136,6 @@ class Options:
 # SDP backends: each returns (Z, nu, info) with nu such that S(nu) = M - sum_j nu_j A_j is the
 # dual slack (PSD at the dual optimum) and b^T nu the dual objective.
 
-_CLARABEL_PROBLEMS: dict[tuple[bool, int], DualSDP] = {}
-_CLARABEL_BUILD_LOCK = threading.Lock()
 #: How many times the Clarabel data were built (once per constraint set and number of rotations
 #: per process).
 clarabel_builds = 0
@@ -144,16 +143,19 @@ clarabel_builds = 0
 
 def clarabel_problem(redundant: bool, rotations: int = 2) -> DualSDP:
     """The relaxation's Lagrangian dual for `rotations` rotations (2: ``axyb``, 1: ``axxb``) in
-    Clarabel's form (`handeye.plugins._clarabel_sdp`): everything but M, built once per
-    (constraint set, rotations) and cached. Immutable, so solves need no lock."""
+    Clarabel's form (`handeye.plugins._sdp_backends.DualSDP`): everything but M, built once per
+    (constraint set, rotations) and cached (`CLARABEL_CACHE`). Immutable, so solves need no lock."""
+    return CLARABEL_CACHE.get(redundant, rotations)
+
+
+def _build_clarabel_problem(redundant: bool, rotations: int) -> DualSDP:
     global clarabel_builds
-    key = (redundant, rotations)
-    with _CLARABEL_BUILD_LOCK:
-        cached = _CLARABEL_PROBLEMS.get(key)
-        if cached is None:
-            cached = _CLARABEL_PROBLEMS[key] = DualSDP.build(*constraint_matrices(rotations, redundant))
-            clarabel_builds += 1
-        return cached
+    clarabel_builds += 1  # under the cache's lock
+    return DualSDP.build(*constraint_matrices(rotations, redundant))
+
+
+#: One Clarabel problem per (constraint set, number of rotations) in this process.
+CLARABEL_CACHE = ProblemCache(_build_clarabel_problem)
 
 
 def _solve_clarabel(M: np.ndarray, redundant: bool,
@@ -170,13 +172,10 @@ def _solve_clarabel(M: np.ndarray, redundant: bool,
 
 
 @dataclasses.dataclass
-class _CvxpyProblem:
-    problem: Any
+class _CvxpyProblem(CvxpyProblem):
     M: Any  # cvxpy Parameter (9k+1, 9k+1), symmetric
     nu: Any  # cvxpy Variable (K,): the multipliers
     slack: Any  # the constraint M - sum_j nu_j A_j >> 0; its dual value is Z
-    lock: threading.Lock
-    compiled: bool = False  # cvxpy compiles the problem on its first solve
 
 
 def cvxpy_problem(redundant: bool, solver: str, rotations: int = 2) -> _CvxpyProblem:
@@ -203,53 +202,32 @@ def _build_cvxpy_problem(redundant: bool, solver: str, rotations: int) -> _Cvxpy
     A_cols = A.reshape(len(A), dim * dim).T  # (dim^2, K); A_j symmetric: any vec order
     slack = M - cp.reshape(A_cols @ nu, (dim, dim), order="F") >> 0
     problem = cp.Problem(cp.Maximize(b @ nu), [slack])
-    assert problem.is_dpp()
-    return _CvxpyProblem(problem, M, nu, slack, threading.Lock())
+    return _CvxpyProblem(M, nu, slack, problem=check_dpp(problem, "so3-sdp", "the relaxation"))
 
 
 #: One problem per (constraint set, cvxpy solver, number of rotations) in this process.
 CVXPY_CACHE = ProblemCache(_build_cvxpy_problem)
 
 
-def _solve_with_settings(problem: Any, solver: str) -> None:
-    """problem.solve with `solver` and a copy of its CVXPY_SETTINGS made for this call. An older
-    Clarabel without the faer factorisation rejects the settings ("Bad settings: ...
-    direct_solve_method"); this call then retries without that one setting. Nothing is
-    remembered: every solve starts from the same settings, and without a warm start (cvxpy's
-    default would start SCS from the previous solve's point, making an answer depend on what
-    was solved before)."""
-    settings = dict(CVXPY_SETTINGS.get(solver, {}))
-    try:
-        problem.solve(solver=solver, warm_start=False, **settings)
-    except Exception as exc:
-        if "direct_solve_method" not in str(exc) or settings.pop("direct_solve_method", None) is None:
-            raise
-        problem.solve(solver=solver, warm_start=False, **settings)
-
-
 def _solve_cvxpy(M: np.ndarray, redundant: bool, solver: str,
                  rotations: int) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """The relaxation on cvxpy `solver` with its `CVXPY_SETTINGS` (an older Clarabel without faer:
+    retried without it, `handeye.plugins._sdp_backends.solve_cvxpy`); "solution may be
+    inaccurate" is reported as sdp_status, and the certificate decides."""
     import cvxpy as cp
 
-    cached = cvxpy_problem(redundant, solver, rotations)
-    with cached.lock, warnings.catch_warnings():
-        # "solution may be inaccurate" is reported as sdp_status; the certificate decides
-        warnings.simplefilter("ignore", UserWarning)
-        cached.M.value = 0.5 * (M + M.T)
-        start = time.perf_counter()
-        try:
-            _solve_with_settings(cached.problem, solver)
-        except cp.error.SolverError as exc:
-            raise SolverError(f"so3-sdp: cvxpy/{solver} failed on the relaxation: {exc}") from exc
-        status = cached.problem.status
-        Z = cached.slack.dual_value
-        if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or Z is None or cached.nu.value is None:
-            raise SolverError(f"so3-sdp: cvxpy/{solver} returned status {status!r} for the relaxation")
-        Z = np.array(Z, dtype=float)
-        nu = np.array(cached.nu.value, dtype=float)
-        info = {"sdp_solver": solver, "sdp_status": status, "sdp_objective": float(cached.problem.value),
-                "sdp_iterations": cached.problem.solver_stats.num_iters,
-                "compile_seconds": compile_seconds(cached, start)}
+    def read(cached: _CvxpyProblem) -> tuple[Any, np.ndarray | None, np.ndarray | None, Any]:
+        Z, nu = cached.slack.dual_value, cached.nu.value
+        return (cached.problem.status, None if Z is None else np.array(Z, dtype=float),
+                None if nu is None else np.array(nu, dtype=float), cached.problem.value)
+
+    (status, Z, nu, value), record = solve_cvxpy(
+        cvxpy_problem(redundant, solver, rotations), solver, CVXPY_SETTINGS.get(solver, {}), {"M": 0.5 * (M + M.T)},
+        read, "so3-sdp", "the relaxation", chain=True)
+    if status not in (cp.OPTIMAL, cp.OPTIMAL_INACCURATE) or Z is None or nu is None:
+        raise SolverError(f"so3-sdp: cvxpy/{solver} returned status {status!r} for the relaxation")
+    info = {"sdp_solver": solver, "sdp_status": status, "sdp_objective": float(value),
+            "sdp_iterations": record.iterations, "compile_seconds": record.compile_seconds}
     return Z, nu, info
 
 
@@ -265,10 +243,7 @@ def _solve_picos(M: np.ndarray, redundant: bool,
     equality = P.add_constraint(A_vec * Z.vec == picos.Constant("b", b))
     P.add_constraint(Z >> 0)
     P.set_objective("min", picos.Constant("M", M) | Z)
-    try:
-        solution = P.solve(solver="cvxopt", primals=True, duals=True)
-    except picos.SolutionFailure as exc:
-        raise SolverError(f"so3-sdp: picos/cvxopt failed on the relaxation: {exc}") from exc
+    solution, _ = solve_picos(P, {}, "so3-sdp", "the relaxation", primals=True, duals=True, chain=True)
     if solution.claimedStatus != picos.modeling.solution.SS_OPTIMAL or Z.value is None:
         raise SolverError(f"so3-sdp: picos/cvxopt returned {solution.claimedStatus!r} for the relaxation")
     Zv = np.array(Z.value, dtype=float)

@@ -193,7 +193,8 @@ def test_lmi_sdp_options():
 def test_cvxpy_problems_compiled_once_per_process(monkeypatch):
     """lmi-sdp's SDP and so3-sdp's one-rotation relaxation: built and compiled on their first
     solve (compile_seconds > 0), then reused with new parameters only."""
-    from handeye.plugins import lmi_sdp_axxb, so3_sdp
+    from handeye.plugins import so3_sdp
+    from handeye.plugins.lmi_sdp import axxb as lmi_sdp_axxb
 
     monkeypatch.setattr(lmi_sdp_axxb.CVXPY_CACHE, "problems", {})
     monkeypatch.setattr(so3_sdp.CVXPY_CACHE, "problems", {})

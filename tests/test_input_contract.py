@@ -29,7 +29,7 @@ from handeye.framework.options import check_int, check_positive, parse_options
 from handeye.geometry.se3 import rotation_angle
 from handeye.io.data_files import load_data, save_data
 from handeye.io.pose_readers import poses_from_rows, read_poses
-from handeye.plugins.lmi_sdp_casadi import MAX_MULTISTART
+from handeye.plugins.lmi_sdp.casadi import MAX_MULTISTART
 from handeye.problems.axxb import motions, simulate_stations
 
 PROBLEMS = ("axyb", "axxb")

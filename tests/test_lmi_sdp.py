@@ -1,5 +1,5 @@
-"""`lmi-sdp` (plugins/lmi_sdp.py): the paper's LMI of eq. 14 on clarabel (native,
-plugins/lmi_sdp_clarabel.py), cvxpy and picos.
+"""`lmi-sdp` (plugins/lmi_sdp/): the paper's LMI of eq. 14 on clarabel (native,
+plugins/lmi_sdp/clarabel.py), cvxpy and picos.
 
 The shared suite (test_solvers.py) covers recovery, noisy accuracy and bad input for every
 backend; here: the SDP optimum is the least squares of eq. 8, the options, the diagnostics, the
@@ -28,8 +28,9 @@ from handeye import Status
 from handeye.estimation.noise import NoiseModel
 from handeye.framework.errors import BackendUnavailableError, InputError, SolverError
 from handeye.geometry.se3 import gram_schmidt, project_to_so3, rotation_angle
-from handeye.plugins import lmi_sdp, lmi_sdp_clarabel
-from handeye.plugins._clarabel_sdp import svec
+from handeye.plugins import lmi_sdp
+from handeye.plugins._sdp_backends import svec
+from handeye.plugins.lmi_sdp import clarabel as lmi_sdp_clarabel
 from handeye.problems.axyb import PROBLEM, solve_translations, split_beta
 
 SDP_BACKENDS = ("clarabel", "cvxpy", "picos")
@@ -246,7 +247,7 @@ def test_cached_problem_is_thread_safe(noisy, backend):
 
 
 # --------------------------------------------------------------------------------------------
-# backend clarabel (plugins/lmi_sdp_clarabel.py): the same eq. 14 in Clarabel's own API
+# backend clarabel (plugins/lmi_sdp/clarabel.py): the same eq. 14 in Clarabel's own API
 
 
 def test_clarabel_is_the_default_backend(noisy):
@@ -294,7 +295,7 @@ def test_clarabel_structure_built_once_per_n(noisy):
 @pytest.mark.parametrize("s", [1e-6, 1e-3, 1e3, 1e6])
 @pytest.mark.parametrize("backend", ["clarabel", "cvxpy"])
 def test_beta_is_least_squares_in_any_unit(backend, s):
-    """Every translation times s, noisy and noise-free data (module docstring of lmi_sdp,
+    """Every translation times s, noisy and noise-free data (module docstring of lmi_sdp.axyb,
     Numerics: c capped at 1 for Clarabel). Measured: <= 3e-14 (clarabel), 6e-12 (cvxpy)."""
     noise_free, _ = PROBLEM.simulate(pairs=12, seed=3, **PROBLEM.random_unknowns(np.random.default_rng(3)))
     noisy_raw, _ = PROBLEM.simulate(pairs=16, seed=4, noise=NOISE)

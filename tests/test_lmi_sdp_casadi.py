@@ -1,4 +1,4 @@
-"""Backend ``casadi`` of lmi-sdp (plugins/lmi_sdp_casadi.py): eq. 8 under exact SO(3), IPOPT.
+"""Backend ``casadi`` of lmi-sdp (plugins/lmi_sdp/casadi.py): eq. 8 under exact SO(3), IPOPT.
 
 Called directly on validated data (`PROBLEM.validate`), so these tests do not depend on how the
 lmi-sdp plugin wires the backend. The eq. 8 cost is recomputed here from the explicit per-pair
@@ -14,7 +14,7 @@ from handeye import Status
 from handeye.estimation.noise import NoiseModel
 from handeye.framework.errors import InputError, SolverError
 from handeye.plugins import kron_lstsq
-from handeye.plugins import lmi_sdp_casadi as lc
+from handeye.plugins.lmi_sdp import casadi as lc
 from handeye.problems.axyb import (
     PROBLEM,
     random_truth,

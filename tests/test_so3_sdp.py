@@ -261,7 +261,7 @@ def test_cvxpy_solver_scs_is_certified_only_when_its_numbers_say_so(monkeypatch)
 
 
 def test_cvxpy_solver_option_is_checked():
-    from handeye.plugins._cvxpy_solvers import sdp_cvxpy_solvers
+    from handeye.plugins._sdp_backends import sdp_cvxpy_solvers
 
     data, _ = simulate(4, seed=12)
     with pytest.raises(InputError, match="no_such_solver.*not an installed cvxpy solver") as info:
@@ -287,7 +287,7 @@ def test_cvxpy_solver_option_is_checked():
 def test_clarabel_svec_convention_on_sdps_with_known_answers():
     """svec: upper triangle column by column, off-diagonals times sqrt(2) (Clarabel's
     PSDTriangleConeT); a wrong order or scale fails the off-diagonal constraints below."""
-    from handeye.plugins._clarabel_sdp import DualSDP, svec, unsvec
+    from handeye.plugins._sdp_backends import DualSDP, svec, unsvec
 
     rng = np.random.default_rng(0)
     n = 5

@@ -1,5 +1,5 @@
-"""`lmi-sdp` for ``axxb`` (A_i X = X B_i): the paper's LMI-SDP carried over to AX = XB. A helper
-module, not an entry point: `handeye.plugins.lmi_sdp` registers its ``axxb`` spec with `run`.
+"""`lmi-sdp` for ``axxb`` (A_i X = X B_i): the paper's LMI-SDP carried over to AX = XB.
+`handeye.plugins.lmi_sdp` registers its ``axxb`` spec with `run`.
 
 The paper's eq. 14 minimises |H beta - w|^2 with no constraint: for ``axyb`` its optimum is the
 least squares of eq. 8. For ``axxb`` the rotation rows (R_B kron R_A - I) vec R_X = 0 are
@@ -39,19 +39,16 @@ is therefore kept and the scale fixed as `kron-lstsq` fixes it, |r|^2 = 3 (r = v
    optimal beta) or re-solved given R_X (``"resolve"``).
 
 Backends: ``clarabel`` (default; the SDP in Clarabel's own API, its constant data built once:
-`handeye.plugins.lmi_sdp_clarabel.solve_axxb`), ``cvxpy`` (the SDP built once per cvxpy solver
+`handeye.plugins.lmi_sdp.clarabel.solve_axxb`), ``cvxpy`` (the SDP built once per cvxpy solver
 with M a Parameter, DPP, cached here), ``picos`` (CVXOPT, built per call); ``casadi`` is
-`lmi_sdp_casadi.solve_casadi_axxb` (exact SO(3), IPOPT; ``polish`` does not apply). Options: those of `lmi-sdp`
-(`handeye.plugins.lmi_sdp.Options`) plus ``polish`` (`handeye.plugins.lmi_sdp.AXXBOptions`).
+`handeye.plugins.lmi_sdp.casadi.solve_casadi_axxb` (exact SO(3), IPOPT; ``polish`` does not
+apply). Options: those of `lmi-sdp` (`handeye.plugins.lmi_sdp.Options`) plus ``polish``
+(`handeye.plugins.lmi_sdp.AXXBOptions`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import threading
-import time
-import warnings
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -62,38 +59,39 @@ from handeye.estimation.trust_region import refine_trust_region
 from handeye.framework.errors import SolverError
 from handeye.geometry.linalg import frobenius_norm
 from handeye.geometry.se3 import make_pose
-from handeye.plugins._cvxpy_solvers import (
+from handeye.plugins._sdp_backends import (
+    CvxpyProblem,
     ProblemCache,
+    SolveRecord,
     check_backend_options,
-    compile_seconds,
+    check_dpp,
     resolve_cvxpy_solver,
+    solve_cvxpy,
+    solve_picos,
 )
-from handeye.plugins.lmi_sdp import (
+from handeye.plugins.lmi_sdp.casadi import solve_casadi_axxb
+from handeye.plugins.lmi_sdp.clarabel import solve_axxb
+from handeye.plugins.lmi_sdp.common import (
     BACKEND_ONLY_OPTIONS,
+    CVXPY_SETTINGS,
     ORTHOGONALIZERS,
     PICOS_SETTINGS,
+    POLISH_NOT_CERTIFIED,
     AXXBOptions,
-    _status,
+    check_finite,
+    polish_figures,
+    record_figures,
+    sdp_status,
 )
-from handeye.plugins.lmi_sdp_clarabel import SOLVER as CLARABEL
-from handeye.plugins.lmi_sdp_clarabel import solve_axxb
 from handeye.problems.axxb import AXXBData, solve_translation
 
 #: Eigenvalue ratio lambda_2 / lambda_1 of Z above which Z counts as rank two (the trust-region
 #: hard case, point 3 of the module docstring). Measured: <= 1e-9 on simulated data with
 #: Clarabel and CVXOPT, 1/3 in the hard case (W = 3 v v^T, r0 = 0).
 RANK_TWO_RATIO = 1e-3
-#: What the SDP is, for error messages.
+#: What the SDP is, for error messages (`FAILED_ON`: when its solver fails).
 WHAT = "the semidefinite program of AX=XB"
-#: Settings per cvxpy solver (others: their defaults). Clarabel: gap and feasibility tolerances
-#: 1e-12, as for eq. 14: the SDP's r within 6e-7 of the trust-region solution on the noisy
-#: study (docs/solvers/lmi-sdp.md; at its default tolerances up to 6e-5), reported mostly as
-#: "optimal_inaccurate"; the polish then takes it to rounding and decides the status.
-CVXPY_SETTINGS: dict[str, dict[str, Any]] = {
-    "CLARABEL": {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12, "tol_ktratio": 1e-10},
-    "SCS": {"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iters": 100_000},
-    "CVXOPT": {"abstol": 1e-10, "reltol": 1e-10},
-}
+FAILED_ON = "the SDP of AX=XB"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -101,10 +99,7 @@ class SDPResult:
     Z: np.ndarray  # (10, 10)
     value: float  # <M, Z> of the scaled M
     status: Status
-    solver_status: str
-    backend_solver: str
-    iterations: int | None
-    compile_seconds: float = 0.0
+    record: SolveRecord
 
 
 # --------------------------------------------------------------------------------------------
@@ -112,14 +107,11 @@ class SDPResult:
 
 
 @dataclasses.dataclass
-class CvxpySDP:
+class CvxpySDP(CvxpyProblem):
     """The cached cvxpy problem (parameter M (10, 10); variable Z (10, 10) PSD)."""
 
-    problem: Any
     M: Any
     Z: Any
-    lock: threading.Lock
-    compiled: bool = False
 
 
 def cvxpy_problem(solver: str) -> CvxpySDP:
@@ -134,9 +126,7 @@ def _build_cvxpy_problem(solver: str) -> CvxpySDP:
     M = cp.Parameter((10, 10), symmetric=True, name="M")
     Z = cp.Variable((10, 10), PSD=True, name="Z")
     problem = cp.Problem(cp.Minimize(cp.trace(M @ Z)), [cp.trace(Z[:9, :9]) == 3, Z[9, 9] == 1])
-    if not problem.is_dpp():  # pragma: no cover - a cvxpy change would break the cache
-        raise SolverError("lmi-sdp: the cvxpy formulation of the AX=XB SDP is not DPP")
-    return CvxpySDP(problem, M, Z, threading.Lock())
+    return CvxpySDP(M, Z, problem=check_dpp(problem, "lmi-sdp", "the AX=XB SDP"))
 
 
 #: One problem per cvxpy solver in this process.
@@ -144,28 +134,12 @@ CVXPY_CACHE = ProblemCache(_build_cvxpy_problem)
 
 
 def _solve_cvxpy(M: np.ndarray, solver: str) -> SDPResult:
-    import cvxpy as cp
-
-    cached = cvxpy_problem(solver)
-    with cached.lock, warnings.catch_warnings():
-        # "solution may be inaccurate" is the status optimal_inaccurate; the polish decides
-        warnings.simplefilter("ignore", UserWarning)
-        cached.M.value = 0.5 * (M + M.T)
-        start = time.perf_counter()
-        try:
-            cached.problem.solve(solver=solver, warm_start=False, **CVXPY_SETTINGS.get(solver, {}))
-        except cp.error.SolverError as exc:
-            raise SolverError(f"lmi-sdp: cvxpy/{solver} failed on the SDP of AX=XB: {exc}") from None
-        status = str(cached.problem.status)
-        Z = cached.Z.value
-        value = cached.problem.value
-        iterations = cached.problem.solver_stats.num_iters
-        setup = compile_seconds(cached, start)
-    result_status = _status(status, {cp.OPTIMAL}, {cp.OPTIMAL_INACCURATE}, f"cvxpy/{solver}", WHAT)
-    if Z is None:
-        raise SolverError(f"lmi-sdp: cvxpy/{solver} reported {status!r} but gave no solution")
-    return SDPResult(np.array(Z, dtype=float), float(value), result_status, status, solver,
-                     None if iterations is None else int(iterations), setup)
+    # "solution may be inaccurate" is the status optimal_inaccurate; the polish decides
+    (Z, value), record = solve_cvxpy(cvxpy_problem(solver), solver, CVXPY_SETTINGS.get(solver, {}),
+                                     {"M": 0.5 * (M + M.T)}, lambda cached: (cached.Z.value, cached.problem.value),
+                                     "lmi-sdp", FAILED_ON)
+    status = sdp_status("cvxpy", record, Z is not None, WHAT)
+    return SDPResult(np.array(Z, dtype=float), float(value), status, record)
 
 
 # --------------------------------------------------------------------------------------------
@@ -181,18 +155,9 @@ def _solve_picos(M: np.ndarray) -> SDPResult:
     P.add_constraint(picos.trace(Z[:9, :9]) == 3)
     P.add_constraint(Z[9, 9] == 1)
     P.set_objective("min", picos.Constant("M", 0.5 * (M + M.T)) | Z)
-    try:
-        solution = P.solve(solver="cvxopt", primals=None, duals=False, **PICOS_SETTINGS)
-    except picos.SolutionFailure as exc:
-        raise SolverError(f"lmi-sdp: picos/cvxopt failed on the SDP of AX=XB: {exc}") from None
-    status = str(solution.claimedStatus)
-    result_status = _status(status, {picos.modeling.solution.SS_OPTIMAL}, set(), "picos/cvxopt", WHAT)
-    if Z.value is None:
-        raise SolverError(f"lmi-sdp: picos/cvxopt reported {status!r} but gave no solution")
-    raw = solution.info.get("cvxopt_sol", {}) if isinstance(solution.info, Mapping) else {}
-    iterations = raw.get("iterations")
-    return SDPResult(np.array(Z.value, dtype=float), float(P.value), result_status, status, "cvxopt",
-                     None if iterations is None else int(iterations))
+    _, record = solve_picos(P, PICOS_SETTINGS, "lmi-sdp", FAILED_ON)
+    status = sdp_status("picos", record, Z.value is not None, WHAT)
+    return SDPResult(np.array(Z.value, dtype=float), float(P.value), status, record)
 
 
 # --------------------------------------------------------------------------------------------
@@ -209,14 +174,12 @@ def solve_sdp(cost: RotationCost, backend: str, cvxpy_solver: str | None = None)
         result = _solve_cvxpy(M / norm, resolve_cvxpy_solver(cvxpy_solver))
     elif backend == "clarabel":
         Z, value, native = solve_axxb(0.5 * (M + M.T) / norm, WHAT)
-        result = SDPResult(Z, value, native.status, native.solver_status, CLARABEL, native.iterations)
+        result = SDPResult(Z, value, native.status, native.record)
     elif backend == "picos":
         result = _solve_picos(M / norm)
     else:
         raise ValueError(f"lmi-sdp: {backend!r} is not an SDP backend")
-    if not np.all(np.isfinite(result.Z)):
-        raise SolverError(f"lmi-sdp: {backend}/{result.backend_solver} returned a non-finite Z "
-                          f"(status {result.solver_status!r})")
+    check_finite(backend, result.record, "Z", result.Z)
     return result.Z, result, norm
 
 
@@ -268,8 +231,7 @@ def run(data: AXXBData, options: AXXBOptions, backend: str) -> SolverOutput:
     beta.flags.writeable = False
     notes = []
     if polished is not None and not polished.global_optimum:
-        notes.append("lmi-sdp: the Newton polish after the SDP did not reach a point satisfying "
-                     "the global optimality conditions; the SDP's own r is returned")
+        notes.append(POLISH_NOT_CERTIFIED)
     return SolverOutput(
         unknowns={"X": make_pose(RX, tX)},
         status=status,
@@ -280,15 +242,8 @@ def run(data: AXXBData, options: AXXBOptions, backend: str) -> SolverOutput:
             "rank_two": len(candidates) == 2,
             "sign_flipped": flipped,
             "sdp_r": r_sdp,
-            "polish_change": None if polished is None else float(np.abs(polished.x - r_sdp).max()),
-            "polish_steps": None if polished is None else polished.iterations,
-            "multiplier": None if polished is None else polished.multiplier,
-            "kkt_residual": None if polished is None else polished.kkt_residual,
-            "solver_status": result.solver_status,
-            "sdp_status": str(result.status),
-            "backend_solver": result.backend_solver,
-            "iterations": result.iterations,
-            "compile_seconds": result.compile_seconds,
+            **polish_figures(polished, r_sdp),
+            **record_figures(result.record, sdp_status=str(result.status)),
             "beta": beta,
             "orthogonalize": options.orthogonalize,
             "translations": options.translations,
@@ -300,8 +255,6 @@ def run(data: AXXBData, options: AXXBOptions, backend: str) -> SolverOutput:
 
 
 def _run_casadi(data: AXXBData, options: AXXBOptions) -> SolverOutput:
-    from handeye.plugins.lmi_sdp_casadi import solve_casadi_axxb
-
     out = solve_casadi_axxb(data, normalize=bool(options.normalize), multistart=options.multistart or 0,
                             seed=options.seed, ipopt_options=options.ipopt_options)
     diagnostics = dict(out.diagnostics)

@@ -1,7 +1,8 @@
 """Backend ``casadi`` of `lmi-sdp`: the Kronecker cost under EXACT SO(3) constraints, as a
 CasADi NLP solved by IPOPT, for k rotations: ``axyb`` (eq. 8, k = 2,
-`solve_casadi`) and ``axxb`` (k = 1, `solve_casadi_axxb`). A helper module, not an entry point:
-the `lmi-sdp` plugin calls these for ``backend="casadi"``.
+`solve_casadi`) and ``axxb`` (k = 1, `solve_casadi_axxb`); and the lifted cost of ``axbycz`` under
+exact SO(3) on R_X, R_Y, R_Z (`solve_casadi_axbycz`, section "AXB = YCZ" below). The `lmi-sdp`
+modules of the three problems call these for ``backend="casadi"``.
 
 Formulation (measurements: docs/solvers/lmi-sdp.md, backend casadi):
 
@@ -41,6 +42,28 @@ Normalisation (``normalize=True``): translations are divided by the data's RMS t
 before the system is built and the answer's translations multiplied back, so the normalised NLP is the
 same for data in mm or m and the answer is unit invariant. ``normalize=False`` is the system in
 the data's own units, as the paper has it.
+
+AXB = YCZ (``axbycz``, `solve_casadi_axbycz`):
+
+1. Cost. |H beta(v) - w|^2 of the lifted system (`handeye.problems.axbycz.kronecker`) at the
+   structured beta(v) of v = [vec R_X; vec R_Y; vec R_Z; t_X; t_Y; t_Z] (36): beta's lifted
+   entries are the products vec R_Y vec R_Z^T, vec R_Y t_Z^T of v. At such a beta the cost is
+   sum_i |top(A_i X B_i - Y C_i Z)|_F^2, the algebraic error of the equation over its 3 x 4 top
+   rows (translations in the units of ``normalize``). It is quartic in v, given to the NLP as
+   beta^T N beta - 2 g^T beta with N: (132, 132), g the normal equations (O(m) sums, passed as
+   the NLP's parameters): one `nlpsol` serves every m and data set and is built once per IPOPT
+   option set (cached). The translations are the NLP's variables in units of the data's RMS
+   translation whatever ``normalize`` says (a change of variables, N -> D N D: the minimiser is
+   unchanged and the variables are of order 1).
+2. Constraints per rotation, columns c1, c2, c3: |c1|^2 = |c2|^2 = 1, c1.c2 = 0, c3 = c1 x c2 (6
+   equations, exactly SO(3), independent on it: point 2 above).
+3. IPOPT from the `kron-lstsq` answer (|r|^2 = 12 least squares, rank-one extraction, SVD
+   projection, translations of eq. 38) plus ``multistart`` seeded random rotations (translations
+   by eq. 38 for them); the lowest cost of the converged starts wins. The cost is divided by the
+   largest eigenvalue of D N D (Hessian of order 1). Statuses as point 4 above.
+
+One cache (`_CACHE`) holds every NLP built: one per (NLP, IPOPT option set), each serving every
+m and data set.
 """
 
 from __future__ import annotations
@@ -74,6 +97,8 @@ from handeye.geometry.se3 import (
     project_to_so3,
     random_rotations,
 )
+from handeye.problems.axbycz import AXBYCZData
+from handeye.problems.axbycz import kronecker as lifted
 from handeye.problems.axxb import AXXBData
 from handeye.problems.axyb import AXYBData, split_beta
 
@@ -102,8 +127,8 @@ NOT_CONVERGED = {
     "Feasible_Point_Found", "User_Requested_Stop",
 }
 
-#: (number of rotations, merged IPOPT options as a sorted tuple) -> nlpsol; every m and every
-#: data set of a problem share one entry.
+#: (NLP: the number of rotations or "axbycz", merged IPOPT options as a sorted tuple) -> nlpsol;
+#: every m and every data set of a problem share one entry.
 _CACHE: dict[tuple, Any] = {}
 _LOCK = threading.Lock()
 #: A cached nlpsol is shared: its call and the stats() read after it must not interleave.
@@ -128,14 +153,42 @@ def nlp_solver(ipopt_options: Mapping[str, Any] | None = None, rotations: int = 
     |S x - s|^2 scaled as the caller wishes; g: (6k,) the SO(3) equations, all = 0.
     `ipopt_options` (names with or without the "ipopt." prefix) override `IPOPT_DEFAULTS`.
     """
+    return _cached(rotations, lambda options: _build(options, rotations), ipopt_options)
+
+
+def _cached(nlp: int | str, build: Any, ipopt_options: Mapping[str, Any] | None):
+    """The nlpsol of `nlp` (a number of rotations or "axbycz") for `ipopt_options` from `_CACHE`,
+    made by `build(merged options)` on the first request."""
     option_key, options = _option_key(ipopt_options)
-    key = (rotations, option_key)
+    key = (nlp, option_key)
     with _LOCK:
         solver = _CACHE.get(key)
         if solver is None:
-            solver = _build(options, rotations)
+            solver = build(options)
             _CACHE[key] = solver
     return solver
+
+
+def _nlpsol(name: str, nlp: Mapping[str, Any], options: Mapping[str, Any]):
+    """CasADi's IPOPT nlpsol `name` of `nlp` with the merged IPOPT `options`, nothing IPOPT prints
+    reaching the terminal. IPOPT validates its options when the solver is created: an option it
+    rejects is an InputError naming the options given and IPOPT's first line of complaint
+    (without CasADi's source location)."""
+    import casadi as ca
+
+    # no CasADi text either: NaN/inf warnings of the evaluations (the status says it) and the
+    # multipliers of the parameters, which are not used (their failure printed a warning)
+    opts = {"print_time": False, "error_on_fail": False, "show_eval_warnings": False, "calc_lam_p": False}
+    opts.update({f"ipopt.{k}": v for k, v in options.items()})
+    with _captured_stdout() as printed:
+        try:
+            return ca.nlpsol(name, "ipopt", nlp, opts)
+        except RuntimeError as exc:
+            error = exc
+    lines = [line.strip() for line in printed[0].splitlines() if line.strip()] or [str(error).strip().splitlines()[-1]]
+    given = {k: v for k, v in options.items() if IPOPT_DEFAULTS.get(k, object()) != v}
+    reason = re.sub(r"^.*?\.cpp:\d+:\s*", "", lines[0])  # CasADi's source location first
+    raise InputError(f"lmi-sdp/casadi: IPOPT rejected ipopt_options {given}: {reason}")
 
 
 def _build(options: Mapping[str, Any], rotations: int):
@@ -150,20 +203,7 @@ def _build(options: Mapping[str, Any], rotations: int):
     for k in range(0, n, 9):  # each rotation; columns of the column-major vec
         c1, c2, c3 = x[k:k + 3], x[k + 3:k + 6], x[k + 6:k + 9]
         g += [ca.dot(c1, c1) - 1, ca.dot(c2, c2) - 1, ca.dot(c1, c2), c3 - ca.cross(c1, c2)]
-    nlp = {"x": x, "p": p, "f": ca.dot(e, e), "g": ca.vertcat(*g)}
-    # no CasADi text either: NaN/inf warnings of the evaluations (the status says it) and the
-    # multipliers of the parameters, which are not used (their failure printed a warning)
-    opts = {"print_time": False, "error_on_fail": False, "show_eval_warnings": False, "calc_lam_p": False}
-    opts.update({f"ipopt.{k}": v for k, v in options.items()})
-    with _captured_stdout() as printed:
-        try:
-            return ca.nlpsol("lmi_sdp_casadi", "ipopt", nlp, opts)
-        except RuntimeError as exc:  # IPOPT validates its options when the solver is created
-            error = exc
-    lines = [line.strip() for line in printed[0].splitlines() if line.strip()] or [str(error).strip().splitlines()[-1]]
-    given = {k: v for k, v in options.items() if IPOPT_DEFAULTS.get(k, object()) != v}
-    reason = re.sub(r"^.*?\.cpp:\d+:\s*", "", lines[0])  # CasADi's source location first
-    raise InputError(f"lmi-sdp/casadi: IPOPT rejected ipopt_options {given}: {reason}")
+    return _nlpsol("lmi_sdp_casadi", {"x": x, "p": p, "f": ca.dot(e, e), "g": ca.vertcat(*g)}, options)
 
 
 @contextlib.contextmanager
@@ -348,3 +388,95 @@ def solve_rotations(cost: RotationCost, start: list[np.ndarray], *, multistart: 
     diagnostics.update(cost=cost.value(r), constraint_violation=_constraint_violation(r_raw),
                        orthonormality_error=float(max(orthonormality_error(R) for R in Rs)))
     return Rs, cost.translations(r), status, diagnostics
+
+
+# --------------------------------------------------------------------------------------------
+# AXB = YCZ: the lifted cost under exact SO(3) on R_X, R_Y, R_Z
+
+N_BETA = lifted.N_BETA
+
+
+def nlp_solver_axbycz(ipopt_options: Mapping[str, Any] | None = None):
+    """The CasADi IPOPT `nlpsol` of ``axbycz`` (module docstring, AXB = YCZ point 1; x: v (36,);
+    p: [vec N (column-major); g]; g: the 18 SO(3) equations), built once per IPOPT option set and
+    cached."""
+    return _cached("axbycz", _build_axbycz, ipopt_options)
+
+
+def _build_axbycz(options: Mapping[str, Any]):
+    import casadi as ca
+
+    v = ca.MX.sym("v", 36)
+    p = ca.MX.sym("p", N_BETA * N_BETA + N_BETA)
+    N = ca.reshape(p[:N_BETA * N_BETA], N_BETA, N_BETA)
+    g_vec = p[N_BETA * N_BETA:]
+    x, y, z, tX, tY, tZ = v[0:9], v[9:18], v[18:27], v[27:30], v[30:33], v[33:36]
+    beta = ca.vertcat(x, ca.reshape(ca.mtimes(y, z.T), 81, 1), tX, ca.reshape(ca.mtimes(y, tZ.T), 27, 1), y, tY)
+    f = ca.dot(beta, ca.mtimes(N, beta)) - 2 * ca.dot(g_vec, beta)
+    g = []
+    for k in range(0, 27, 9):
+        c1, c2, c3 = v[k:k + 3], v[k + 3:k + 6], v[k + 6:k + 9]
+        g += [ca.dot(c1, c1) - 1, ca.dot(c2, c2) - 1, ca.dot(c1, c2), c3 - ca.cross(c1, c2)]
+    return _nlpsol("lmi_sdp_axbycz_casadi", {"x": v, "p": p, "f": f, "g": ca.vertcat(*g)}, options)
+
+
+def _lifted_beta(v: np.ndarray) -> np.ndarray:
+    y = v[9:18]
+    return np.concatenate([v[:9], np.outer(y, v[18:27]).ravel(order="F"), v[27:30],
+                           np.outer(y, v[33:36]).ravel(order="F"), y, v[30:33]])
+
+
+def _axbycz_start(data: AXBYCZData, rotations: tuple[np.ndarray, ...], unit: float) -> np.ndarray:
+    t = lifted.solve_translations(data, *rotations)
+    return np.concatenate([R.ravel(order="F") for R in rotations] + [t[0] / unit, t[1] / unit, t[2] / unit])
+
+
+def solve_casadi_axbycz(data: AXBYCZData, *, normalize: bool, multistart: int = 0, seed: int | None = None,
+                        ipopt_options: Mapping[str, Any] | None = None) -> SolverOutput:
+    """Minimise the lifted cost of ``axbycz`` over SE(3)^3 with IPOPT (module docstring).
+
+    data: validated `AXBYCZData` (at least 10 triples, rotations determined: the caller checks).
+    normalize: the cost with translations divided by the data's RMS translation (unit invariant)
+    or in the data's units. multistart (0 to 1000), seed (None or >= 0): extra random starts.
+    Returns X, Y, Z exactly in SE(3), the chosen start's status and diagnostics as
+    `solve_casadi` (``cost``: the lifted cost at the answer, normalised units when
+    normalize). SolverError when no start gave an iterate.
+    """
+    check_starts(multistart, seed)
+    unit = data.translation_scale
+    scale = unit if normalize else 1.0
+    N, g, ww = lifted.normal_equations(data, scale)
+    D = np.ones(N_BETA)
+    for block in (lifted.T_X, lifted.Q_YZ, lifted.T_Y):
+        D[block] = unit / scale  # the NLP's translations in units of the RMS translation
+    N, g = N * np.outer(D, D), g * D
+    weight = float(np.linalg.eigvalsh(N)[-1]) or 1.0
+    params = np.concatenate([N.ravel(order="F"), g]) / weight
+
+    cost = lifted.LiftedCost.from_normal_equations(*lifted.normal_equations(data, scale))
+    estimate = lifted.extract_rotations(lifted.sphere_least_squares(cost).x, cost)
+    starts = [_axbycz_start(data, estimate.rotations, unit)]
+    if multistart:
+        R = random_rotations(3 * int(multistart), np.random.default_rng(seed))
+        starts += [_axbycz_start(data, tuple(R[3 * j:3 * j + 3]), unit) for j in range(int(multistart))]
+
+    def value(v: np.ndarray) -> float:
+        b = _lifted_beta(v)
+        return float(b @ N @ b - 2 * g @ b + ww)
+
+    v_raw, status, diagnostics = run_starts(nlp_solver_axbycz(ipopt_options), starts, params, value)
+    Rs = [project_to_so3(v_raw[k:k + 9].reshape(3, 3, order="F")) for k in (0, 9, 18)]
+    v = np.concatenate([R.ravel(order="F") for R in Rs] + [v_raw[27:]])
+    t = v[27:] * unit
+    return SolverOutput(
+        unknowns={"X": make_pose(Rs[0], t[:3]), "Y": make_pose(Rs[1], t[3:6]), "Z": make_pose(Rs[2], t[6:])},
+        status=status,
+        diagnostics={
+            **diagnostics,
+            "cost": value(v),
+            "constraint_violation": _constraint_violation(v_raw[:27]),
+            "orthonormality_error": float(max(orthonormality_error(R) for R in Rs)),
+            "translation_scale": scale,
+            "normalized": bool(normalize),
+        },
+    )

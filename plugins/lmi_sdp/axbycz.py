@@ -1,8 +1,9 @@
 """`lmi-sdp` for ``axbycz`` (A_i X B_i = Y C_i Z): the paper's LMI-SDP (Pan et al., IEEE T-ASE
 2022, eqs. 9-14) carried over to the lifted Kronecker system of
 `handeye.problems.axbycz.kronecker` (beta = [r; tau], 132 unknowns, r = [vec R_X; vec(vec R_Y
-vec R_Z^T)] the 90 rotation unknowns). A helper module, not an entry point: `handeye.plugins.lmi_sdp`
-registers its ``axbycz`` spec with `run`. docs/solvers/lmi-sdp.md, section AXB = YCZ.
+vec R_Z^T)] the 90 rotation unknowns). `handeye.plugins.lmi_sdp` registers its ``axbycz`` spec
+(`SPEC_AXBYCZ`) with `run` and the options `AXBYCZOptions` defined here. docs/solvers/lmi-sdp.md,
+section AXB = YCZ.
 
 The lifted rotation rows are homogeneous (R_A R_X R_B - R_Y R_C R_Z = 0), so, as for A X = Y B,
 only the translation rows fix the scale of r, and they see 42 unknowns of their own (tau): they
@@ -11,11 +12,11 @@ fix it from 15 triples on. Option ``scale`` says what fixes it:
 ``scale="translations"``: the paper's eq. 14 as it is on the lifted system: minimise u subject to
   [[u - rest, (R1 beta - q1)^T], [R1 beta - q1, I_132]] >= 0 (a 133 x 133 LMI; R1, q1, rest of
   eqs. 10-12 from the O(m) normal equations, `handeye.kronecker.reduce_normal_equations`), solved
-  by `handeye.plugins.lmi_sdp.solve_lmi` as for ``axyb``. Its only constraint is the Schur
+  by `handeye.plugins.lmi_sdp.axyb.solve_lmi` as for ``axyb``. Its only constraint is the Schur
   complement, so its optimum is the least squares of the lifted system (tested). Needs >= 15
   triples; with fewer the system is rank deficient and a one-line DegenerateDataError says so.
 
-``scale="norm"`` (default; works from 10 triples): as for A X = X B (plugins/lmi_sdp_axxb.py) the
+``scale="norm"`` (default; works from 10 triples): as for A X = X B (plugins/lmi_sdp/axxb.py) the
   cost is kept and the scale fixed by the norm exact rotations have, |r|^2 = 3 + 3 * 3 = 12:
   1. tau minimised out (`LiftedCost`): |H beta - w|^2 = r^T P r - 2 p^T r + c.
   2. The QCQP min r^T P r - 2 p^T r s.t. |r|^2 = 12, lifted to Z = [r; 1][r; 1]^T, is the Shor SDP
@@ -47,18 +48,14 @@ Defaults that differ from ``axyb`` (`AXBYCZOptions`): ``normalize=True``
 equations then give the rotations of exact data to ~1e-7 rad only, against ~1e-13 normalised) and
 ``translations="resolve"`` (tau is not determined below 14 triples). Backend ``clarabel``
 (default): both SDPs in Clarabel's own API, constant data built once
-(`handeye.plugins.lmi_sdp_clarabel`: `solve_axbycz` for point 2, `solve_eq14` with n = 132 for
+(`handeye.plugins.lmi_sdp.clarabel`: `solve_axbycz` for point 2, `solve_eq14` with n = 132 for
 ``scale="translations"``); ``cvxpy`` and ``picos`` as for ``axyb``. Backend ``casadi``: the
-lifted cost under exact SO(3) (`handeye.plugins.lmi_sdp_axbycz_casadi`).
+lifted cost under exact SO(3) (`handeye.plugins.lmi_sdp.casadi.solve_casadi_axbycz`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import threading
-import time
-import warnings
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -70,23 +67,32 @@ from handeye.estimation.trust_region import refine_trust_region
 from handeye.framework.errors import DegenerateDataError, SolverError
 from handeye.framework.options import check_choice
 from handeye.geometry.se3 import make_pose
-from handeye.plugins._cvxpy_solvers import (
+from handeye.plugins._sdp_backends import (
+    CvxpyProblem,
     ProblemCache,
+    SolveRecord,
     check_backend_options,
-    compile_seconds,
+    check_dpp,
     resolve_cvxpy_solver,
+    solve_cvxpy,
+    solve_picos,
 )
-from handeye.plugins.lmi_sdp import (
+from handeye.plugins.lmi_sdp.axyb import solve_lmi
+from handeye.plugins.lmi_sdp.casadi import solve_casadi_axbycz
+from handeye.plugins.lmi_sdp.clarabel import solve_axbycz
+from handeye.plugins.lmi_sdp.common import (
     BACKEND_ONLY_OPTIONS,
+    CVXPY_SETTINGS,
     ORTHOGONALIZERS,
     PICOS_SETTINGS,
-    SPEC,
+    POLISH_NOT_CERTIFIED,
     AXXBOptions,
-    _status,
-    solve_lmi,
+    check_finite,
+    map_status,
+    polish_figures,
+    record_figures,
+    sdp_status,
 )
-from handeye.plugins.lmi_sdp_clarabel import SOLVER as CLARABEL
-from handeye.plugins.lmi_sdp_clarabel import solve_axbycz
 from handeye.problems.axbycz import AXBYCZData
 from handeye.problems.axbycz import kronecker as lifted
 
@@ -94,12 +100,6 @@ from handeye.problems.axbycz import kronecker as lifted
 WHAT = "the semidefinite program of AXB=YCZ"
 #: |rho|^2 below 12 by more than this (relative): Z has rank two (the hard case of point 3)
 RANK_TWO_RTOL = 1e-6
-#: Settings per cvxpy solver (others: their defaults), as for AX = XB.
-CVXPY_SETTINGS: dict[str, dict[str, Any]] = {
-    "CLARABEL": {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12, "tol_ktratio": 1e-10},
-    "SCS": {"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iters": 100_000},
-    "CVXOPT": {"abstol": 1e-10, "reltol": 1e-10},
-}
 N_R = lifted.N_R
 #: what fixes the scale of the lifted rotations (module docstring)
 SCALES = ("norm", "translations")
@@ -127,23 +127,17 @@ class SDPResult:
     rho: np.ndarray  # (90,) r in the eigenbasis
     value: float  # objective of the scaled problem
     status: Status | None  # None: the solver's status is "unknown" (no claim); the polish decides
-    solver_status: str
-    backend_solver: str
-    iterations: int | None
-    compile_seconds: float = 0.0
+    record: SolveRecord
 
 
 @dataclasses.dataclass
-class CvxpySDP:
+class CvxpySDP(CvxpyProblem):
     """The cached cvxpy problem (parameters d, p (90,); variables w, rho (90,))."""
 
-    problem: Any
     d: Any
     p: Any
     w: Any
     rho: Any
-    lock: threading.Lock
-    compiled: bool = False
 
 
 def cvxpy_problem(solver: str) -> CvxpySDP:
@@ -160,9 +154,7 @@ def _build_cvxpy_problem(solver: str) -> CvxpySDP:
     blocks = [cp.bmat([[cp.reshape(w[k], (1, 1), order="F"), cp.reshape(rho[k], (1, 1), order="F")],
                        [cp.reshape(rho[k], (1, 1), order="F"), one]]) >> 0 for k in range(N_R)]
     problem = cp.Problem(cp.Minimize(d @ w - 2 * p @ rho), [cp.sum(w) == lifted.SPHERE, *blocks])
-    if not problem.is_dpp():  # pragma: no cover - a cvxpy change would break the cache
-        raise SolverError("lmi-sdp: the cvxpy formulation of the AXB=YCZ SDP is not DPP")
-    return CvxpySDP(problem, d, p, w, rho, threading.Lock())
+    return CvxpySDP(d, p, w, rho, problem=check_dpp(problem, "lmi-sdp", "the AXB=YCZ SDP"))
 
 
 #: One problem per cvxpy solver in this process.
@@ -170,26 +162,12 @@ CVXPY_CACHE = ProblemCache(_build_cvxpy_problem)
 
 
 def _solve_cvxpy(d: np.ndarray, p: np.ndarray, solver: str) -> SDPResult:
-    import cvxpy as cp
-
-    cached = cvxpy_problem(solver)
-    with cached.lock, warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # "inaccurate" is a status; the polish decides
-        cached.d.value, cached.p.value = d, p
-        start = time.perf_counter()
-        try:
-            cached.problem.solve(solver=solver, warm_start=False, **CVXPY_SETTINGS.get(solver, {}))
-        except cp.error.SolverError as exc:
-            raise SolverError(f"lmi-sdp: cvxpy/{solver} failed on {WHAT}: {exc}") from None
-        status = str(cached.problem.status)
-        w, rho, value = cached.w.value, cached.rho.value, cached.problem.value
-        iterations = cached.problem.solver_stats.num_iters
-        setup = compile_seconds(cached, start)
-    result_status = _status(status, {cp.OPTIMAL}, {cp.OPTIMAL_INACCURATE}, f"cvxpy/{solver}", WHAT)
-    if w is None or rho is None:
-        raise SolverError(f"lmi-sdp: cvxpy/{solver} reported {status!r} but gave no solution")
-    return SDPResult(np.array(w, dtype=float), np.array(rho, dtype=float), float(value), result_status,
-                     status, solver, None if iterations is None else int(iterations), setup)
+    # "inaccurate" is a status; the polish decides
+    (w, rho, value), record = solve_cvxpy(
+        cvxpy_problem(solver), solver, CVXPY_SETTINGS.get(solver, {}), {"d": d, "p": p},
+        lambda cached: (cached.w.value, cached.rho.value, cached.problem.value), "lmi-sdp", WHAT)
+    status = sdp_status("cvxpy", record, w is not None and rho is not None, WHAT)
+    return SDPResult(np.array(w, dtype=float), np.array(rho, dtype=float), float(value), status, record)
 
 
 def _solve_picos(d: np.ndarray, p: np.ndarray) -> SDPResult:
@@ -201,23 +179,18 @@ def _solve_picos(d: np.ndarray, p: np.ndarray) -> SDPResult:
     for k in range(N_R):
         P.add_constraint(picos.block([[w[k], rho[k]], [rho[k], 1]]) >> 0)
     P.set_objective("min", picos.Constant("d", d).T * w - 2 * picos.Constant("p", p).T * rho)
-    try:
-        solution = P.solve(solver="cvxopt", primals=None, duals=False, **PICOS_SETTINGS)
-    except picos.SolutionFailure as exc:
-        raise SolverError(f"lmi-sdp: picos/cvxopt failed on {WHAT}: {exc}") from None
-    status = str(solution.claimedStatus)
+    _, record = solve_picos(P, PICOS_SETTINGS, "lmi-sdp", WHAT)
+    status = record.solver_status
     if w.value is None or rho.value is None:
         raise SolverError(f"lmi-sdp: picos/cvxopt returned status {status!r} for {WHAT} and no solution")
     # CVXOPT stops with "unknown" when it cannot reach its tolerances (ill-conditioned costs:
     # normalize=False with large translations); its point then goes to the polish, which
     # certifies it or the solve fails (run)
     unknown = status == picos.modeling.solution.SS_UNKNOWN
-    result_status = None if unknown else _status(status, {picos.modeling.solution.SS_OPTIMAL}, set(),
-                                                 "picos/cvxopt", WHAT)
-    raw = solution.info.get("cvxopt_sol", {}) if isinstance(solution.info, Mapping) else {}
-    iterations = raw.get("iterations")
+    result_status = None if unknown else map_status(status, {picos.modeling.solution.SS_OPTIMAL}, set(),
+                                                    "picos/cvxopt", WHAT)
     return SDPResult(np.array(w.value, dtype=float).ravel(), np.array(rho.value, dtype=float).ravel(),
-                     float(P.value), result_status, status, "cvxopt", None if iterations is None else int(iterations))
+                     float(P.value), result_status, record)
 
 
 def solve_sdp(cost: lifted.LiftedCost, backend: str, cvxpy_solver: str | None = None
@@ -232,17 +205,14 @@ def solve_sdp(cost: lifted.LiftedCost, backend: str, cvxpy_solver: str | None = 
     if backend == "clarabel":
         native = solve_axbycz(d / norm, pt / norm, lifted.SPHERE, WHAT)
         w, rho = native.x[:N_R], native.x[N_R:]
-        result = SDPResult(w, rho, float(d @ w - 2 * pt @ rho) / norm, native.status, native.solver_status,
-                           CLARABEL, native.iterations)
+        result = SDPResult(w, rho, float(d @ w - 2 * pt @ rho) / norm, native.status, native.record)
     elif backend == "cvxpy":
         result = _solve_cvxpy(d / norm, pt / norm, resolve_cvxpy_solver(cvxpy_solver))
     elif backend == "picos":
         result = _solve_picos(d / norm, pt / norm)
     else:
         raise ValueError(f"lmi-sdp: {backend!r} is not an SDP backend")
-    if not (np.all(np.isfinite(result.w)) and np.all(np.isfinite(result.rho))):
-        raise SolverError(f"lmi-sdp: {backend}/{result.backend_solver} returned a non-finite solution "
-                          f"(status {result.solver_status!r})")
+    check_finite(backend, result.record, "solution", result.w, result.rho)
     rho = result.rho
     missing = lifted.SPHERE - float(rho @ rho)
     if missing <= RANK_TWO_RTOL * lifted.SPHERE:
@@ -256,8 +226,6 @@ def run(data: AXBYCZData, options: AXBYCZOptions, backend: str) -> SolverOutput:
     """`lmi-sdp` on ``axbycz`` data (module docstring)."""
     check_backend_options("lmi-sdp", options, backend, BACKEND_ONLY_OPTIONS)
     if backend == "casadi":
-        from handeye.plugins.lmi_sdp_axbycz_casadi import solve_casadi_axbycz
-
         lifted.check_triples(data, "lmi-sdp")
         gap = lifted.check_rotations(data, "lmi-sdp")
         out = solve_casadi_axbycz(data, normalize=bool(options.normalize), multistart=options.multistart or 0,
@@ -298,11 +266,10 @@ def run(data: AXBYCZData, options: AXBYCZOptions, backend: str) -> SolverOutput:
                 r, status = polished.x, Status.OPTIMAL
                 estimate = lifted.extract_rotations(r, cost, orthogonalize)
             elif status is not None:
-                notes.append("lmi-sdp: the Newton polish after the SDP did not reach a point satisfying "
-                             "the global optimality conditions; the SDP's own r is returned")
+                notes.append(POLISH_NOT_CERTIFIED)
         if status is None:
             raise SolverError(
-                f"lmi-sdp: {backend}/{result.backend_solver} returned status {result.solver_status!r} for {WHAT}, "
+                f"lmi-sdp: {backend}/{result.record.backend_solver} returned status {result.record.solver_status!r} for {WHAT}, "
                 "and its point is not certified optimal (Newton polish" + ("" if options.polish else " off")
                 + ("; normalize=False makes the cost ill-conditioned: use normalize=True" if not options.normalize
                    else "") + "); no solution is returned")
@@ -311,15 +278,8 @@ def run(data: AXBYCZData, options: AXBYCZOptions, backend: str) -> SolverOutput:
             "sdp_objective": result.value * norm + cost.c,
             "rank_two": rank_two,
             "sdp_r": r_sdp,
-            "polish_change": None if polished is None else float(np.abs(polished.x - r_sdp).max()),
-            "polish_steps": None if polished is None else polished.iterations,
-            "multiplier": None if polished is None else polished.multiplier,
-            "kkt_residual": None if polished is None else polished.kkt_residual,
-            "solver_status": result.solver_status,
-            "sdp_status": None if result.status is None else str(result.status),
-            "backend_solver": result.backend_solver,
-            "iterations": result.iterations,
-            "compile_seconds": result.compile_seconds,
+            **polish_figures(polished, r_sdp),
+            **record_figures(result.record, sdp_status=None if result.status is None else str(result.status)),
         }
     RX, RY, RZ = estimate.rotations
     if options.translations == "resolve":
@@ -368,23 +328,6 @@ def _run_literal(N: np.ndarray, g: np.ndarray, ww: float, backend: str, options:
         "schur_complement": float(u - system.rest - e @ e),
         "sigma_min_R1": system.smallest_singular_value(),
         "beta": beta,
-        "solver_status": result.solver_status,
-        "backend_solver": result.backend_solver,
-        "iterations": result.iterations,
-        "compile_seconds": result.compile_seconds,
+        **record_figures(result.record),
     }
     return beta[:N_R], beta[N_R:], result.status, figures
-
-
-#: ``axbycz`` spec of `lmi-sdp`, registered by `handeye.plugins.lmi_sdp`: the same backends.
-SPEC_AXBYCZ = dataclasses.replace(
-    SPEC,
-    problems=("axbycz",),
-    run=run,
-    options=AXBYCZOptions,
-    summary="the paper's LMI-SDP carried over to AXB=YCZ: lifted Kronecker cost with |r|^2 = 12 as a "
-            "tight SDP (or the paper's unconstrained LMI), rank-one extraction, Gram-Schmidt; casadi: the cost under exact SO(3)",
-    citation="Pan et al., IEEE T-ASE 2022, eqs. 5-14, carried over to AXB=YCZ on the lifting of Wu et al., "
-             "IEEE T-RO 32(2), 2016 (docs/solvers/lmi-sdp.md)",
-    simulate_options={"protocol": "free"},
-)

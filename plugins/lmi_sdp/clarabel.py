@@ -1,15 +1,15 @@
 """Backend ``clarabel`` of `lmi-sdp`: the paper's LMI (Pan et al., IEEE T-ASE 2022, eq. 14) and its
 AX = XB and AXB = YCZ variants stated in Clarabel's own API (`clarabel.DefaultSolver`), without a
-modelling layer. A helper module, not an entry point: `handeye.plugins.lmi_sdp`,
-`handeye.plugins.lmi_sdp_axxb` and `handeye.plugins.lmi_sdp_axbycz` call it.
+modelling layer. Called by `handeye.plugins.lmi_sdp.axyb`, `handeye.plugins.lmi_sdp.axxb` and
+`handeye.plugins.lmi_sdp.axbycz`.
 
 Clarabel solves min 1/2 x^T P x + q^T x s.t. A x + s = b, s in K (P = 0 here). Everything that
 does not depend on the data (the sparsity pattern of A, the cones, P, and whichever of q, b are
 constant) is built once per problem size and cached (`eq14_structure`, `axxb_sdp`,
 `axbycz_structure`); a solve fills in the data-dependent values only and runs one solver
-(`handeye.plugins._clarabel_sdp.solve_conic`).
+(`handeye.plugins._sdp_backends.solve_conic`).
 
-Eq. 14, scaled (`handeye.plugins.lmi_sdp.ScaledLMI`: R (n, n) upper triangular, q (n,), rest):
+Eq. 14, scaled (`handeye.plugins.lmi_sdp.axyb.ScaledLMI`: R (n, n) upper triangular, q (n,), rest):
 x = [u; gamma] (n + 1), q_clarabel = e_1 (minimise u), one cone PSDTriangleConeT(n + 1) holding
 
     s = svec(L),  L = [[u - rest, (R gamma - q)^T], [R gamma - q, I_n]]                 (eq. 14)
@@ -25,17 +25,17 @@ Clarabel's chordal decomposition finds the arrow pattern of L (row 0, the diagon
 the default clique-graph merge ~1.5 ms, without decomposition ~25 ms), the same problem the
 ``cvxpy`` backend hands Clarabel.
 
-AX = XB (`handeye.plugins.lmi_sdp_axxb`): min <M, Z> s.t. trace W = 3, Z_hh = 1, Z (10 x 10) PSD is
+AX = XB (`handeye.plugins.lmi_sdp.axxb`): min <M, Z> s.t. trace W = 3, Z_hh = 1, Z (10 x 10) PSD is
 the primal whose Lagrangian dual max 3 lambda + mu s.t. M - lambda diag(I_9, 0) - mu e_10 e_10^T
-PSD `handeye.plugins._clarabel_sdp.DualSDP` states (2 variables, one PSD cone); Z is Clarabel's dual
+PSD `handeye.plugins._sdp_backends.DualSDP` states (2 variables, one PSD cone); Z is Clarabel's dual
 variable of that cone. Only M changes between solves.
 
-AXB = YCZ (`handeye.plugins.lmi_sdp_axbycz`, scale "norm"): x = [w; rho] (90 + 90),
+AXB = YCZ (`handeye.plugins.lmi_sdp.axbycz`, scale "norm"): x = [w; rho] (90 + 90),
 min d^T w - 2 p^T rho s.t. sum w = 12 (a ZeroConeT(1)) and [[w_k, rho_k], [rho_k, 1]] PSD (90
 PSDTriangleConeT(2)); A and b are constant, only q_clarabel = [d; -2 p] changes.
 
 Statuses: Clarabel's Solved -> optimal, AlmostSolved -> optimal_inaccurate (the names of the
-``cvxpy`` backend, `handeye.plugins._clarabel_sdp.STATUSES`); anything else is a SolverError
+``cvxpy`` backend, `handeye.plugins._sdp_backends.STATUSES`); anything else is a SolverError
 naming Clarabel and its status. The cached structures are immutable and every solve creates its
 own solver, so solves need no lock.
 """
@@ -52,9 +52,11 @@ import numpy as np
 
 from handeye import Status
 from handeye.framework.errors import SolverError
-from handeye.plugins._clarabel_sdp import (
+from handeye.plugins._sdp_backends import (
+    CLARABEL_TIGHT,
     STATUSES,
     DualSDP,
+    SolveRecord,
     solve_conic,
     svec,
     svec_indices,
@@ -66,9 +68,7 @@ from handeye.plugins._clarabel_sdp import (
 #: `CLARABEL_SETTINGS` (one thread, faer, no presolve) changed no time here by more than the
 #: noise (measured at n = 24 and 132, on both SDPs; docs/solvers/lmi-sdp.md), so Clarabel's
 #: defaults stand; iterative refinement must stay on (without it beta of eq. 14 lost up to 6e-9).
-SDP_SETTINGS: Mapping[str, Any] = types.MappingProxyType({
-    "tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12, "tol_ktratio": 1e-10,
-})
+SDP_SETTINGS: Mapping[str, Any] = CLARABEL_TIGHT
 #: Clarabel settings of eq. 14: the tolerances as for the cvxpy backend (u to ~1e-13 relative;
 #: beta is exact either way) and the chordal decomposition into the n 2 x 2 cliques of the arrow
 #: without merging (the default merge: 1.5 ms instead of 0.75 at n = 24, 300 ms instead of 13 at
@@ -82,14 +82,14 @@ SOLVER = "CLARABEL"
 
 @dataclasses.dataclass(frozen=True)
 class NativeSolution:
-    """x: (n,) Clarabel's primal variables; z: (m,) the cone duals; status / solver_status: the
-    mapped status (`STATUSES`); iterations and solve_seconds as Clarabel has them."""
+    """x: (n,) Clarabel's primal variables; z: (m,) the cone duals; status: the mapped status
+    (`STATUSES`); record: the solve (solver_status: the mapped status's name, backend_solver
+    `SOLVER`, iterations); solve_seconds as Clarabel has it."""
 
     x: np.ndarray
     z: np.ndarray
     status: Status
-    solver_status: str
-    iterations: int
+    record: SolveRecord
     solve_seconds: float
 
 
@@ -102,8 +102,8 @@ def _run(P: Any, q: np.ndarray, A: Any, b: np.ndarray, cones: list[Any], setting
     if mapped is None:
         raise SolverError(f"lmi-sdp: clarabel returned status {raw!r} for {what} (after "
                           f"{solution.iterations} iterations); no solution is returned")
-    return NativeSolution(np.array(solution.x, dtype=float), np.array(solution.z, dtype=float),
-                          Status(mapped), mapped, int(solution.iterations), float(solution.solve_time))
+    return NativeSolution(np.array(solution.x, dtype=float), np.array(solution.z, dtype=float), Status(mapped),
+                          SolveRecord(mapped, SOLVER, int(solution.iterations)), float(solution.solve_time))
 
 
 # --------------------------------------------------------------------------------------------
@@ -169,7 +169,7 @@ def eq14_structure(n: int) -> Eq14Structure:
 
 
 def solve_eq14(R: np.ndarray, q: np.ndarray, rest: float) -> NativeSolution:
-    """Eq. 14 scaled (`handeye.plugins.lmi_sdp.ScaledLMI`: R (n, n) upper triangular, q (n,),
+    """Eq. 14 scaled (`handeye.plugins.lmi_sdp.axyb.ScaledLMI`: R (n, n) upper triangular, q (n,),
     rest): x = [u; gamma]. ValueError when R is not upper triangular (the cached pattern holds
     only that triangle)."""
     n = len(q)
