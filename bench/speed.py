@@ -4,8 +4,9 @@
     python bench/speed.py [--pairs 10,16,100,1000,10000] [--repeats 7] [--solvers kron-lstsq,lmi-sdp/cvxpy]
     python bench/speed.py --problem axxb       # m = 16, 100, 1000
 
-The same as ``handeye bench`` (the code is `handeye.cli.bench_cmd`, whose docstring says what is
-timed and how); bench/README.md holds figures measured with it.
+The same as ``handeye bench`` (the code is `handeye.harness.bench`, whose docstring says what is
+timed and how; each problem's settings are its `Problem.bench`); bench/README.md holds figures
+measured with it.
 """
 
 from __future__ import annotations

@@ -8,6 +8,8 @@ Public API::
     from handeye.problems.axxb import motions
     sol = handeye.solve("axxb", **motions(robot_poses, camera_poses, setup="eye-in-hand"))
     sol.X  # T_flange_cam
+    result = handeye.calibrate(handeye.Cell.from_file("cell.yaml"))   # a cell's recordings, checked
+    result.X, result.status, result.ros2_static_transform(), result.write_report("report.html")
 
 See docs/conventions.md for what A, B, X, Y are in eye-in-hand and eye-to-hand setups, for both
 problems.
@@ -46,6 +48,9 @@ from handeye.framework.solver import SolverSpec
 #: submodules that ``handeye.<name>`` imports on first use (PEP 562), so that ``import handeye``
 #: stays cheap: ``handeye.io.load_file(...)`` works without ``import handeye.io`` first.
 _LAZY_SUBMODULES = ("examples", "harness", "io", "problems")
+#: public names defined in a submodule that ``import handeye`` does not import (it reads files,
+#: OpenCV, the checks): name -> its module, imported on first use
+_LAZY_NAMES = {"calibrate": "workflow.calibration", "Cell": "workflow.cell", "CalibrationResult": "workflow.result"}
 #: the modules of the flat layout before the layers (framework, geometry, estimation, checks, io,
 #: streams, workflow) -> where they live now. ``import handeye.se3``, ``from handeye.options import
 #: check_choice`` and every other path of that layout keep working and give the same module
@@ -66,6 +71,8 @@ _MOVED = {
     "problems.axyb_geometry": "problems.axyb.geometry", "problems.axyb_images": "problems.axyb.images",
     "problems.axxb_geometry": "problems.axxb.geometry", "problems.axbycz_geometry": "problems.axbycz.geometry",
     "problems.axbycz_kronecker": "problems.axbycz.kronecker",
+    # lmi-sdp's modules before its package
+    **{f"plugins.lmi_sdp_{m}": f"plugins.lmi_sdp.{m}" for m in ("axxb", "axbycz", "casadi", "clarabel")},
 }
 
 
@@ -96,6 +103,8 @@ except PackageNotFoundError:  # running from a source tree that is not installed
 
 __all__ = [
     "BackendUnavailableError",
+    "CalibrationResult",
+    "Cell",
     "DegenerateDataError",
     "HandEyeError",
     "InputError",
@@ -110,6 +119,7 @@ __all__ = [
     "SolverTimeoutError",
     "Status",
     "UnknownPluginError",
+    "calibrate",
     "examples",
     "get_registry",
     "harness",
@@ -123,9 +133,14 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> ModuleType:
-    """``handeye.io``, ``handeye.examples``, ``handeye.harness``, ``handeye.problems``: imported
-    on first access (PEP 562); any other unknown name is an AttributeError as usual."""
+def __getattr__(name: str) -> Any:
+    """``handeye.io``, ``handeye.examples``, ``handeye.harness``, ``handeye.problems`` and
+    ``handeye.calibrate``, ``handeye.Cell``, ``handeye.CalibrationResult``: imported on first
+    access (PEP 562); any other unknown name is an AttributeError as usual."""
+    if name in _LAZY_NAMES:
+        value = getattr(importlib.import_module(f"{__name__}.{_LAZY_NAMES[name]}"), name)
+        globals()[name] = value
+        return value
     if name in _LAZY_SUBMODULES or name in _MOVED:
         return importlib.import_module(f"{__name__}.{name}")  # the import binds it on the package
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

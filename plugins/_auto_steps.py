@@ -46,10 +46,6 @@ def estimate_scale_if_needed(data: Any, options: Any, backend: str, output: Solv
         camera_scale_verdict,
         scale_suspect,
     )
-    from handeye.problems.axxb import PROBLEM as AXXB
-    from handeye.problems.axyb import PROBLEM as AXYB
-
-    name = _refine.problem_of(data)
     fitted = output.diagnostics.get("refine", {})
     if at is not None and "formulation" not in output.diagnostics and "covariance_XY" in fitted \
             and not fitted.get("outliers_left_out") and "sigma_rot" in fitted:
@@ -60,8 +56,7 @@ def estimate_scale_if_needed(data: Any, options: Any, backend: str, output: Solv
                                      np.asarray(fitted["covariance_XY"], dtype=float))
         if screen is None or not scale_suspect(*screen):
             return data, output
-    problem = {"axyb": AXYB, "axxb": AXXB}[name]
-    verdict = camera_scale_verdict(problem, data, output.unknowns)
+    verdict = camera_scale_verdict(_refine.problem_for(data), data, output.unknowns)
     if verdict is None or verdict["verdict"] != "fail":
         return data, output
     data = dataclasses.replace(data, camera_scale_unknown=True)
@@ -127,10 +122,12 @@ def drift(data: Any, options: Any, backend: str, output: SolverOutput,
 
 
 def scale_may_be_estimated(data: Any, options: Any) -> bool:
-    """auto may estimate the camera's scale where the data demand it: A X = Y B or A X = X B, the
-    scale not already unknown, not planar (unsupported there), no start and no covariance
-    stated (the scale is fitted under per-group weights)."""
-    return (_refine.problem_of(data) in ("axyb", "axxb") and not getattr(data, "camera_scale_unknown", False)
+    """auto may estimate the camera's scale where the data demand it: a problem whose data may
+    leave the camera's scale unknown (``camera_scale`` among its `Problem.optional_fields`: A X =
+    Y B, A X = X B), the scale not already unknown, not planar (unsupported there), no start and
+    no covariance stated (the scale is fitted under per-group weights)."""
+    return ("camera_scale" in _refine.problem_for(data).optional_fields
+            and not getattr(data, "camera_scale_unknown", False)
             and not _refine.is_planar(data) and options.init is None and options.covariance is None)
 
 

@@ -59,8 +59,15 @@ from handeye.checks.self_check import MAJORITY
 from handeye.estimation import nlls
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
 from handeye.estimation.whitening import Whitening, estimate_sigmas
-from handeye.framework.errors import DegenerateDataError, HandEyeError, InputError
+from handeye.framework.errors import (
+    BackendUnavailableError,
+    DegenerateDataError,
+    HandEyeError,
+    InputError,
+    SolverError,
+)
 from handeye.framework.options import check_choice
+from handeye.framework.problem import Problem, unflatten
 from handeye.framework.solution import jsonable
 from handeye.plugins import _auto_steps as steps
 from handeye.plugins import refine as _refine
@@ -70,8 +77,6 @@ from handeye.plugins._auto_steps import DRIFT_AUTOCORRELATION, DRIFT_MIN_PAIRS  
 CERTIFICATE_KEYS = ("certified", "eigenvalue_ratio", "relative_gap", "duality_gap", "lower_bound", "cost", "thresholds")
 #: values of option `outliers`
 OUTLIER_CHOICES = ("reject", "keep")
-#: problems without a certifiable start: the safeguard's second start always runs
-MULTI_START = ("axbycz",)
 #: the noise-source model (8 variances) is fitted by default from this many pairs on (120
 #: residuals, 15 per variance); below it the two per-group variances. Measured on the KinHEC
 #: small tier (docs/solvers/auto.md): at 3-12 pairs it was 1.1x less accurate than the
@@ -93,9 +98,9 @@ NOISE_CHOICES = (None, "groups", "sources")
 @dataclasses.dataclass(frozen=True)
 class Options:
     """Options of `auto`: the weighting and loss options of `refine` (see plugins/refine.py), and
-    ``init`` to force the starting solver (default: the first registered and available of
-    refine's STARTS for the problem: so3-sdp, then kron-lstsq (then park for axxb); for axbycz
-    wang, fu-dq, kron-lstsq, wu), and
+    ``init`` to force the starting solver (default: the first registered and available of the
+    problem's `Problem.starts`: so3-sdp, then kron-lstsq (then park for axxb); for axbycz wang,
+    fu-dq, kron-lstsq, wu), and
     ``noise``: None (default: "sources" on A_i X = Y B_i data of SOURCES_MIN_PAIRS pairs or more
     with the noise estimated and least squares, else "groups"), "groups" (refine's one noise level
     per residual group) or "sources" (the noise of each measured pose in its own frame,
@@ -130,13 +135,14 @@ class Options:
         refine_options = self.refine_options()  # validates everything
         object.__setattr__(self, "covariance", refine_options.covariance)
 
-    def refine_options(self, problem: str = "axyb", **overrides: Any) -> _refine._Options:
+    def refine_options(self, problem: Problem | None = None, **overrides: Any) -> _refine.Options:
         """refine's options for `problem` with these values (the covariance given as its
-        Cholesky factor, as refine keeps it after validation)."""
+        Cholesky factor, as refine keeps it after validation); without a problem, the options
+        common to every problem."""
         values = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "outliers"}
         values["noise"] = "groups"  # the noise sources are auto's last step (`_noise_step`)
         values.update(overrides)
-        return _refine.OPTIONS[problem](**values)
+        return (_refine.Options if problem is None else _refine.options_for(problem))(**values)
 
     def _noise_estimated(self) -> bool:
         return self.sigma_rot is None and self.sigma_trans is None and self.covariance is None and self.loss == "linear"
@@ -159,8 +165,8 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
 def _run(data: Any, options: Options, backend: str, stations: bool = False) -> SolverOutput:
     """The pipeline of the module docstring on `data` (`stations`: A X = X B's stations rebuilt
     from its motions, where step 5 does not apply)."""
-    problem = _refine.problem_of(data)
-    if problem == "axxb" and data.stations is not None and _weights_are_estimated(options):
+    problem = _refine.problem_for(data)
+    if getattr(data, "stations", None) is not None and _weights_are_estimated(options):
         return _run_on_stations(data, options, backend)
     start, poses, init_status, init_diag, warnings = _refine.start(data, options.init)
     warnings = [f"auto: {w}" for w in warnings]
@@ -172,10 +178,11 @@ def _run(data: Any, options: Options, backend: str, stations: bool = False) -> S
     poses, status, diag = _refine.refine(data, poses, ropts)
     starts = [{"init": start, "init_status": str(init_status), "final_cost": diag["final_cost"]}]
 
-    # the safeguard applies to the certifiable start (the first of refine's STARTS), and always
-    # where no start is certifiable (MULTI_START)
+    # the safeguard applies to a certifiable start that did not certify its answer, and always
+    # where the problem has no certifiable start
     second = None
-    if options.init is None and (problem in MULTI_START or (not certified and start == _refine.STARTS[problem][0])):
+    if options.init is None and (not problem.certifiable_starts
+                                 or (not certified and start in problem.certifiable_starts)):
         second = _second_start(problem, start, data)
     if second is not None:
         other, poses1, status1 = second
@@ -203,32 +210,32 @@ def _run(data: Any, options: Options, backend: str, stations: bool = False) -> S
             poses, status, diag = poses_b, status_b, diag_b
             diag["init"] = other
 
-    what = "triples" if problem == "axbycz" else "pairs"
+    what = f"{problem.item}s"
     poses, status, diag, report = _outlier_step(data, poses, status, diag, ropts, options, what)
     poses, status, diag = _noise_step(data, poses, status, diag, ropts, options, report, stations)
     diagnostics = _diagnostics(pipeline, start, init_status, init_diag, starts, diag, warnings)
     diagnostics.update(report)
     if _refine.is_planar(data):
         diagnostics["planar"] = data.planar.figures()
-    return SolverOutput(unknowns=dict(zip(ropts.UNKNOWNS, poses)), status=status, diagnostics=diagnostics)
+    return SolverOutput(unknowns=unflatten(problem, data, poses), status=status, diagnostics=diagnostics)
 
 
-def _second_start(problem: str, start: str, data: Any) -> tuple[str, tuple[np.ndarray, ...], Status] | None:
-    """The safeguard's start: the first of refine's STARTS after `start` that is available and
-    solves the data (a start that refuses them or fails is passed over): (name, poses, status),
-    or None."""
-    name = _refine.fallback_init(problem, start)
+def _second_start(problem: Problem, start: str, data: Any) -> tuple[str, tuple[np.ndarray, ...], Status] | None:
+    """The safeguard's start: the first of the problem's starts after `start` that is available
+    and solves the data (a start that fails, or refuses them with one of the problem's
+    `Problem.start_refusals`, is passed over): (name, poses, status), or None."""
+    name = _refine.fallback_init(problem.name, start)
     while name is not None:
         try:
             poses, status, _ = _refine.run_init(name, data)
             return name, poses, status
-        except _refine.FALLBACK_ERRORS[problem]:
-            name = _refine.fallback_init(problem, name)
+        except (SolverError, BackendUnavailableError, *problem.start_refusals):
+            name = _refine.fallback_init(problem.name, name)
     return None
 
 
 def _outlier_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
-                  ropts: _refine._Options, options: Options, what: str) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any], dict[str, Any]]:
+                  ropts: _refine.Options, options: Options, what: str) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any], dict[str, Any]]:
     """`_reject_outliers` when option outliers="reject" and the loss is least squares: the
     (possibly refitted) poses, status, refine's diagnostics, and auto's diagnostics to add
     ("outliers", "outlier_test"; the warning goes into refine's)."""
@@ -248,7 +255,7 @@ def _outlier_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag
 
 
 def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
-                ropts: _refine._Options, options: Options, report: dict[str, Any], stations: bool = False
+                ropts: _refine.Options, options: Options, report: dict[str, Any], stations: bool = False
                 ) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """Pipeline step 5: the noise-source model (`handeye.noise_sources`) fitted from the answer
     `poses` on the pairs kept (those not in the outlier step's `report`), where the option asks
@@ -283,7 +290,7 @@ def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: 
     return new, new_status, {**new_diag, **carried, **({"warnings": warnings} if warnings else {})}
 
 
-def _sources_skipped(data: Any, status: Status, ropts: _refine._Options, report: dict[str, Any],
+def _sources_skipped(data: Any, status: Status, ropts: _refine.Options, report: dict[str, Any],
                      stations: bool) -> str | None:
     """Why the noise sources do not apply here, in the user's words, or None."""
     if stations:
@@ -303,7 +310,7 @@ def _sources_skipped(data: Any, status: Status, ropts: _refine._Options, report:
 
 def _kept(data: Any, inliers: np.ndarray) -> Any:
     """The validated data restricted to the pairs (triples) `inliers` (keeps the planar mode)."""
-    stacks = [f.name for f in dataclasses.fields(data) if f.name in ("A", "B", "C")]
+    stacks = _refine.problem_for(data).data_fields
     return dataclasses.replace(data, **{f: getattr(data, f)[inliers] for f in stacks})
 
 
@@ -316,7 +323,7 @@ def _beyond(e: np.ndarray, W: Whitening | None, scale: float) -> np.ndarray:
 
 
 def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
-                     ropts: _refine._Options, what: str
+                     ropts: _refine.Options, what: str
                      ) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any], list[dict[str, Any]], str | None]:
     """Find pairs far off the others and refit least squares without them.
 
@@ -475,7 +482,7 @@ def _run_on_stations(data: Any, options: Options, backend: str) -> SolverOutput:
         stations = AXYB.validate(A=A_abs, B=B_abs, camera_scale="unknown" if data.camera_scale_unknown else "known")
         start, poses, init_status, init_diag, warnings = _refine.start(data, None)
     if start is not None and _certified(init_status, init_diag):
-        ropts = options.refine_options("axyb")
+        ropts = options.refine_options(AXYB)
         fitted, status, diag = _refine.refine(stations, (poses[0], poses[0]), ropts)
         starts = [{"init": f"{start} (motions)", "init_status": str(init_status), "final_cost": diag["final_cost"]}]
         fitted, status, diag, report = _outlier_step(stations, fitted, status, diag, ropts, options, "stations")
@@ -493,45 +500,25 @@ def _run_on_stations(data: Any, options: Options, backend: str) -> SolverOutput:
     return SolverOutput(unknowns={"X": output.unknowns["X"]}, status=output.status, diagnostics=diagnostics)
 
 
-SPECS = (
-    SolverSpec(
+def spec_for(problem: Problem) -> SolverSpec:
+    """auto's spec for `problem` (every mode refine honours, auto honours)."""
+    starts = " or ".join(problem.starts) or "given"
+    return SolverSpec(
         name="auto",
-        problems=("axyb",),
+        problems=(problem.name,),
         run=run,
         options=Options,
-        summary="default: so3-sdp (certified) or kron-lstsq start, then maximum-likelihood refine",
+        summary=f"default for {problem.equation or problem.name}: {starts} start, then maximum-likelihood refine",
         citation="Pan et al., IEEE T-ASE 2022 (eq. 8); see docs/solvers/auto.md",
         unit_invariant=True,
         planar_mode=True,
         camera_scale_mode=True,
-    ),
-    SolverSpec(
-        name="auto",
-        problems=("axxb",),
-        run=run,
-        options=Options,
-        summary="default for A_i X = X B_i: so3-sdp (certified), kron-lstsq or park start, then maximum-likelihood refine",
-        citation="Pan et al., IEEE T-ASE 2022 (eq. 8); see docs/solvers/auto.md",
-        unit_invariant=True,
-        planar_mode=True,
-        camera_scale_mode=True,
-    ),
-    SolverSpec(
-        name="auto",
-        problems=("axbycz",),
-        run=run,
-        options=Options,
-        summary="default for A_i X B_i = Y C_i Z: wang and a closed form of the data's protocol (fu-dq, kron-lstsq, "
-                "wu) as starts, then maximum-likelihood refine",
-        citation="Pan et al., IEEE T-ASE 2022 (eq. 8); see docs/solvers/auto.md",
-        unit_invariant=True,
-    ),
-)
-#: the A_i X = Y B_i spec (kept under its old name)
-SPEC = SPECS[0]
+    )
 
 
 @hookimpl
-def register_solvers(register):
-    for spec in SPECS:
-        register(spec)
+def register_solvers(register, problems):
+    """auto for every registered problem that gives the engine a model (`Problem.pose_model`)."""
+    for problem in problems.values():
+        if problem.refinable:
+            register(spec_for(problem))

@@ -252,6 +252,7 @@ SPEC_AXXB = SolverSpec(
     unit_invariant=lambda options: options.method in HAND_EYE_UNIT_INVARIANT,
     exact=True,
     check=check_hand_eye,
+    variants=("method", ("tsai", "park", "horaud", "andreff", "daniilidis")),
 )
 
 

@@ -24,7 +24,9 @@ given poses) and the registration. The machinery is shared and lives below it:
   `handeye.problems.axbycz.geometry`: each problem's residuals and analytic Jacobians (and, for
   A X = Y B at large m, closed-form normal equations).
 
-A_i X B_i = Y C_i Z has no certifiable start; its starts (STARTS["axbycz"]) each serve the data
+refine serves every registered problem that gives the engine a model (`handeye.Problem.pose_model`,
+a third party's too: it registers for them all), started from the problem's `Problem.starts`.
+A_i X B_i = Y C_i Z has no certifiable start; its starts (`Problem.starts`) each serve the data
 protocol they were made for: `wang` (any protocol; a grid of rotation starts, then Gauss-Newton),
 `fu-dq` (two steps; a phase with robot 2 still), `kron-lstsq` (lifted linear system; >= 10
 triples), `wu` (closed form; both robots moving; 3x slower than kron-lstsq at m = 16). A default
@@ -60,29 +62,9 @@ from handeye.estimation.robust import DEFAULT_LOSS_SCALE, LOSSES
 from handeye.estimation.whitening import covariance_factor, stated
 from handeye.framework.errors import BackendUnavailableError, InputError, SolverError
 from handeye.framework.options import check_choice, check_positive
+from handeye.framework.problem import Problem, flatten, unflatten
 from handeye.framework.solution import jsonable
-from handeye.problems.axbycz import AXBYCZData
-from handeye.problems.axbycz.geometry import AXBYCZModel
-from handeye.problems.axxb import AXXBData
-from handeye.problems.axxb.geometry import AXXBModel
-from handeye.problems.axyb import AXYBData
-from handeye.problems.axyb.geometry import AXYBModel
 
-#: the problems refine serves: validated data type -> (problem name, model of `handeye.nlls`)
-MODELS: dict[type, tuple[str, type[nlls.PoseModel]]] = {AXYBData: ("axyb", AXYBModel), AXXBData: ("axxb", AXXBModel),
-                                                        AXBYCZData: ("axbycz", AXBYCZModel)}
-#: start solvers per problem, in order of preference: the first one registered and available is
-#: the default start, the later ones are the fallbacks when a start fails (and `auto`'s second
-#: start). axyb, axxb: the first is the certifiable one (so3-sdp), the later ones closed forms.
-#: axbycz (no certifiable method): wang first, the one start that takes every data protocol,
-#: then the closed forms of one protocol each (module docstring).
-STARTS: dict[str, tuple[str, ...]] = {"axyb": ("so3-sdp", "kron-lstsq"), "axxb": ("so3-sdp", "kron-lstsq", "park"),
-                                      "axbycz": ("wang", "fu-dq", "kron-lstsq", "wu")}
-#: errors of a default start after which the next start is tried: the start's numerical failure
-#: or unavailability; for axbycz also its refusal of the data (each start serves one protocol)
-FALLBACK_ERRORS: dict[str, tuple[type[Exception], ...]] = {
-    "axyb": (SolverError, BackendUnavailableError), "axxb": (SolverError, BackendUnavailableError),
-    "axbycz": (SolverError, BackendUnavailableError, InputError)}
 #: values of option `noise`: "groups", one noise level per residual group (rotation,
 #: translation) for every pair; "sources" (A_i X = Y B_i, noise estimated, least squares), the
 #: noise of each measured pose in its own frame, pair by pair (`handeye.noise_sources`)
@@ -92,8 +74,30 @@ RECURSIVE = ("refine", "auto")
 
 
 @dataclasses.dataclass(frozen=True)
-class _Options:
-    """The options common to every problem (see `Options`); UNKNOWNS names the init poses."""
+class Options:
+    """Options of `refine`, common to every problem; `options_for(problem)` adds one start pose
+    per unknown (``init_X``, ``init_Y``, ...), which UNKNOWNS and INIT_FIELDS name.
+
+    init: name of the solver giving the starting point (default: the first registered and
+        available of the problem's `Problem.starts`, e.g. so3-sdp then kron-lstsq), or a
+        mapping {"X": 4x4, ...} of starting poses, one per unknown (a (k, 4, 4) stack for an
+        unknown that is one; the harness's "oracle" passes the ground truth this way).
+    init_X, init_Y, ...: the starting poses (all or none).
+    sigma_rot, sigma_trans: stated noise of the residual, per axis (rad, data units); both or
+        neither. covariance: (6, 6) or (m, 6, 6) covariance of [r_i; t_i] instead.
+        Without them the weights are estimated from the residuals (see module docstring):
+    estimate: how, "profile" (default: maximum likelihood over the two variances too, i.e. RMS
+        of the residuals at the answer; independent of the start) or "initial" (RMS, or for a
+        robust loss the median-based scale, of the start's residuals, then fixed).
+    loss: "linear" (least squares, default), "huber" or "cauchy", on the norm of each pair's
+        whitened residual; loss_scale: where the robust loss departs from least squares, in units
+        of that norm (default sqrt(chi2_6 quantile 0.95) = 3.55).
+    max_iter: total Levenberg-Marquardt iterations; tol: stop when the cost decrease predicted by a
+        Gauss-Newton step is below tol * cost.
+    noise: "groups" (default: one noise level per residual group, the same for every pair) or
+        "sources" (the noise of each measured pose in its own frame, estimated at the per-group fit,
+        pair by pair: `handeye.noise_sources`; A_i X = Y B_i with the noise estimated).
+    """
 
     UNKNOWNS: ClassVar[tuple[str, ...]] = ()
     INIT_FIELDS: ClassVar[tuple[str, ...]] = ()
@@ -154,78 +158,39 @@ class _Options:
         if self.covariance is not None:
             object.__setattr__(self, "covariance", covariance_factor(self.covariance))  # its Cholesky factor
 
-    def start_poses(self) -> tuple[np.ndarray, ...] | None:
-        """The given starting poses (validated), or None when a solver gives the start."""
-        poses = tuple([getattr(self, f) for f in self.INIT_FIELDS])
-        return None if poses[0] is None else poses
+    def start_poses(self) -> dict[str, np.ndarray] | None:
+        """The given starting poses (validated) per unknown, or None when a solver gives the start."""
+        poses = {k: getattr(self, f) for k, f in zip(self.UNKNOWNS, self.INIT_FIELDS)}
+        return None if not poses or any(T is None for T in poses.values()) else poses
 
     def _init_listing(self) -> str:
         return "{" + ", ".join(f"'{k}': 4x4" for k in self.UNKNOWNS) + "}"
 
 
-@dataclasses.dataclass(frozen=True)
-class Options(_Options):
-    """Options of `refine` for A_i X = Y B_i.
-
-    init: name of the solver giving the starting point (default: the first registered and
-        available of STARTS["axyb"], so3-sdp then kron-lstsq), or a mapping {"X": 4x4, "Y": 4x4}
-        of starting poses (the harness's "oracle" passes the ground truth this way).
-    init_X, init_Y: (4, 4) starting poses (both or neither).
-    sigma_rot, sigma_trans: stated noise of the residual, per axis (rad, data units); both or
-        neither. covariance: (6, 6) or (m, 6, 6) covariance of [r_i; t_i] instead.
-        Without them the weights are estimated from the residuals (see module docstring):
-    estimate: how, "profile" (default: maximum likelihood over the two variances too, i.e. RMS
-        of the residuals at the answer; independent of the start) or "initial" (RMS, or for a
-        robust loss the median-based scale, of the start's residuals, then fixed).
-    loss: "linear" (least squares, default), "huber" or "cauchy", on the norm of each pair's
-        whitened residual; loss_scale: where the robust loss departs from least squares, in units
-        of that norm (default sqrt(chi2_6 quantile 0.95) = 3.55).
-    max_iter: total Levenberg-Marquardt iterations; tol: stop when the cost decrease predicted by a
-        Gauss-Newton step is below tol * cost.
-    noise: "groups" (default: one noise level per residual group, the same for every pair) or
-        "sources" (the noise of each measured pose in its own frame, estimated at the per-group fit,
-        pair by pair: `handeye.noise_sources`; A_i X = Y B_i with the noise estimated).
-    """
-
-    UNKNOWNS: ClassVar[tuple[str, ...]] = ("X", "Y")
-    INIT_FIELDS: ClassVar[tuple[str, ...]] = ("init_X", "init_Y")
-    init_X: Any = None
-    init_Y: Any = None
+_OPTIONS: dict[tuple[str, tuple[str, ...]], type[Options]] = {}
 
 
-@dataclasses.dataclass(frozen=True)
-class AXXBOptions(_Options):
-    """Options of `refine` for A_i X = X B_i: those of `Options` with one start pose, init_X (or
-    init={"X": 4x4}); the default start is the first registered and available of STARTS["axxb"]
-    (so3-sdp, kron-lstsq, park)."""
-
-    UNKNOWNS: ClassVar[tuple[str, ...]] = ("X",)
-    INIT_FIELDS: ClassVar[tuple[str, ...]] = ("init_X",)
-    init_X: Any = None
-
-
-@dataclasses.dataclass(frozen=True)
-class AXBYCZOptions(_Options):
-    """Options of `refine` for A_i X B_i = Y C_i Z: those of `Options` with three start poses,
-    init_X, init_Y, init_Z (all or none; or init={"X": 4x4, "Y": 4x4, "Z": 4x4}); the default
-    start is the first registered and available of STARTS["axbycz"] that solves the data (wang,
-    fu-dq, kron-lstsq, wu)."""
-
-    UNKNOWNS: ClassVar[tuple[str, ...]] = ("X", "Y", "Z")
-    INIT_FIELDS: ClassVar[tuple[str, ...]] = ("init_X", "init_Y", "init_Z")
-    init_X: Any = None
-    init_Y: Any = None
-    init_Z: Any = None
-
-
-#: problem -> its options class (auto builds refine's options with it)
-OPTIONS: dict[str, type[_Options]] = {"axyb": Options, "axxb": AXXBOptions, "axbycz": AXBYCZOptions}
+def options_for(problem: Problem) -> type[Options]:
+    """refine's options class for `problem`: `Options` with a start pose ``init_<name>`` per
+    unknown (made once per problem)."""
+    key = (problem.name, tuple(problem.unknowns))
+    if key not in _OPTIONS:
+        fields = [(f"init_{name}", Any, dataclasses.field(default=None)) for name in problem.unknowns]
+        cls = dataclasses.make_dataclass(
+            f"{problem.name.title().replace('-', '').replace('_', '')}RefineOptions", fields, bases=(Options,),
+            frozen=True, namespace={"UNKNOWNS": tuple(problem.unknowns),
+                                    "INIT_FIELDS": tuple(f"init_{n}" for n in problem.unknowns),
+                                    "__module__": __name__})
+        cls.__doc__ = (f"Options of `refine` for {problem.equation or problem.name}: those of `Options` with "
+                       f"the start poses {', '.join(f'init_{n}' for n in problem.unknowns)} (all or none).")
+        _OPTIONS[key] = cls
+    return _OPTIONS[key]
 
 
 def _pose_options(values: list[Any], names: list[str]) -> list[np.ndarray]:
-    """The init poses validated. All are checked in one `pose_stack` call, which is most of the
-    cost of parsing the options at small m; when that fails, each is checked alone, for an
-    error naming the bad one."""
+    """The init poses validated, each a 4x4 pose or a (k, 4, 4) stack. All single poses are
+    checked in one `pose_stack` call, which is most of the cost of parsing the options at small
+    m; when that fails, or for stacks, each is checked alone, for an error naming the bad one."""
     arrays = [np.asarray(v, dtype=float) for v in values]
     if all(T.shape == (4, 4) for T in arrays):
         try:
@@ -234,31 +199,47 @@ def _pose_options(values: list[Any], names: list[str]) -> list[np.ndarray]:
             pass
     out = []
     for T, name in zip(arrays, names):
-        if T.shape != (4, 4):
-            raise InputError(f"option {name} must be a 4x4 pose, got shape {T.shape}")
-        out.append(pose_stack(T[None], name)[0])
+        if T.shape[-2:] != (4, 4) or T.ndim not in (2, 3) or len(T) == 0:
+            raise InputError(f"option {name} must be a 4x4 pose (or a stack of them), got shape {T.shape}")
+        out.append(pose_stack(T[None], name)[0] if T.ndim == 2 else pose_stack(T, name))
     return out
 
 
 # --------------------------------------------------------------------------- start
 
-def _served(data: Any) -> tuple[str, type[nlls.PoseModel]]:
-    for kind, served in MODELS.items():
-        if isinstance(data, kind):
-            return served
-    raise InputError(f"refine does not solve data of type {type(data).__name__}; it solves {sorted(OPTIONS)}")
+def problem_for(data: Any) -> Problem:
+    """The registered problem whose validated data `data` are (`Registry.problem_of`), with
+    the model refine needs; InputError otherwise."""
+    from handeye.framework.registry import get_registry
+
+    problem = get_registry().problem_of(data)
+    if not problem.refinable:
+        raise InputError(f"refine does not solve problem {problem.name!r}: it gives no least-squares model "
+                         "(Problem.pose_model)")
+    return problem
 
 
 def problem_of(data: Any) -> str:
-    """The problem name of validated data ("axyb", "axxb")."""
-    return _served(data)[0]
+    """The name of the problem whose validated data `data` are."""
+    return problem_for(data).name
 
 
 def model_of(data: Any) -> nlls.PoseModel:
     """The engine's model of the problem on these validated data (the camera's scale profiled out
     when the data say it is unknown, `handeye.camera_scale`)."""
-    model = getattr(data, "pose_model", None)  # built once per data set where the data keep it
-    return camera_scale.model_for(data, model if model is not None else _served(data)[1](data))
+    problem = problem_for(data)
+    model = problem.pose_model(data)
+    if model is None:
+        raise InputError(f"problem {problem.name!r} gives no least-squares model of these data; refine cannot "
+                         "solve them")
+    return camera_scale.model_for(data, model)
+
+
+def starts_of(problem: str) -> tuple[str, ...]:
+    """The start solvers of `problem`, in order of preference (`Problem.starts`)."""
+    from handeye.framework.registry import get_registry
+
+    return tuple(get_registry().problem(problem).starts)
 
 
 def _available(name: str, problem: str, planar: bool = False) -> bool:
@@ -269,18 +250,22 @@ def _available(name: str, problem: str, planar: bool = False) -> bool:
             and (spec.planar_mode or not planar))
 
 
-def default_init(problem: str = "axyb", planar: bool = False) -> str:
-    """The first of STARTS[problem] that is registered and available here, with a planar mode
-    when `planar` (else the last, whose absence then raises an error listing the solvers)."""
-    starts = STARTS[problem]
+def default_init(problem: str | None = None, planar: bool = False) -> str:
+    """The first of the starts of `problem` (default: the default problem) that is registered and
+    available here, with a planar mode when `planar` (else the last, whose absence then raises an
+    error listing the solvers)."""
+    from handeye.framework.registry import get_registry
+
+    problem = problem or get_registry().default_problem()
+    starts = starts_of(problem)
     return next((name for name in starts if _available(name, problem, planar)), starts[-1])
 
 
 def fallback_init(problem: str, after: str, planar: bool = False) -> str | None:
     """The start to use when `after` failed (and auto's second start): the first registered and
-    available start listed after it in STARTS[problem] (with a planar mode when `planar`); None
+    available start listed after it in the problem's starts (with a planar mode when `planar`); None
     when there is none."""
-    starts = STARTS[problem]
+    starts = starts_of(problem)
     later = starts[starts.index(after) + 1:] if after in starts else ()
     return next((name for name in later if _available(name, problem, planar)), None)
 
@@ -291,32 +276,36 @@ def is_planar(data: Any) -> bool:
 
 
 def start(data: Any, requested: str | None) -> tuple[str, tuple[np.ndarray, ...], Status, dict[str, Any], list[str]]:
-    """The starting poses: (solver name, poses, its status, its diagnostics, warnings).
+    """The starting poses (`flat_names` order): (solver name, poses, its status, its
+    diagnostics, warnings).
 
     `requested` None means the default start (`default_init`); when that solve fails
-    (FALLBACK_ERRORS[problem]: SolverError, or its backend turns out unavailable; for axbycz
-    also its refusal of the data) the next start (`fallback_init`) is used, and so on, each time
-    with a warning. A start the user asked for by name is never replaced: its failure raises.
-    Without any start registered and available, or (axbycz) when every start refused the data,
-    the error asks for the start poses.
+    (SolverError, or its backend turns out unavailable, or an error of the problem's
+    `Problem.start_refusals`: e.g. a start that serves another data protocol) the next start
+    (`fallback_init`) is used, and so on, each time with a warning. A start the user asked for by
+    name is never replaced: its failure raises. Without any start registered and available, or
+    when every start refused the data, the error asks for the start poses.
     """
-    problem, planar = problem_of(data), is_planar(data)
-    poses_hint = f"give the start poses ({', '.join(OPTIONS[problem].INIT_FIELDS)}) or init=<a registered solver>"
-    if requested is None and not planar and not any(_available(n, problem) for n in STARTS[problem]):
+    problem, planar = problem_for(data), is_planar(data)
+    name_ = problem.name
+    fields = options_for(problem).INIT_FIELDS
+    poses_hint = f"give the start poses ({', '.join(fields)}) or init=<a registered solver>"
+    if requested is None and not planar and not any(_available(n, name_) for n in problem.starts):
         raise BackendUnavailableError(
-            f"refine has no start for problem {problem!r}: none of its start solvers ({', '.join(STARTS[problem])}) "
-            f"is registered and available here; {poses_hint}")
-    name, warnings = requested or (default_init(problem, planar=True) if planar else default_init(problem)), []
+            f"refine has no start for problem {name_!r}: none of its start solvers "
+            f"({', '.join(problem.starts) or 'none declared'}) is registered and available here; {poses_hint}")
+    name, warnings = requested or (default_init(name_, planar=True) if planar else default_init(name_)), []
     failures: list[tuple[str, Exception]] = []
+    passes = (SolverError, BackendUnavailableError, *problem.start_refusals)
     while True:
         try:
             return (name, *run_init(name, data), warnings)
-        except FALLBACK_ERRORS.get(problem, (SolverError, BackendUnavailableError)) as exc:
+        except passes as exc:
             failures.append((name, exc))
             fallback = (None if requested is not None else
-                        fallback_init(problem, name, planar=True) if planar else fallback_init(problem, name))
+                        fallback_init(name_, name, planar=True) if planar else fallback_init(name_, name))
             if fallback is None:
-                if problem != "axbycz" or requested is not None:
+                if not problem.start_refusals or requested is not None:
                     raise
                 first = failures[0][1]
                 reasons = "; ".join(f"{n}: {' '.join(str(e).split())}" for n, e in failures)
@@ -326,37 +315,37 @@ def start(data: Any, requested: str | None) -> tuple[str, tuple[np.ndarray, ...]
 
 
 def run_init(name: str, data: Any) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
-    """Run registered solver `name` (default backend and options) on validated data, as
-    handeye.solve does: (poses, status, diagnostics)."""
+    """Run registered solver `name` (default backend and options) on validated data through the
+    host (`handeye.run_registered`): (poses in `flat_names` order, status, diagnostics)."""
     from handeye import get_registry, run_registered
 
     if name in RECURSIVE:
         raise InputError(f"init solver {name!r} would call refine recursively")
-    problem = problem_of(data)
-    spec = get_registry().solver(name, problem)  # UnknownPluginError listing the solvers
+    problem = problem_for(data)
+    spec = get_registry().solver(name, problem.name)  # UnknownPluginError listing the solvers
     if is_planar(data) and not spec.planar_mode:
         raise InputError(f"init solver {name!r} has no planar (4-DOF) mode for data whose robot rotates about one "
-                         f"axis; use init='{default_init(problem, planar=True)}'")
+                         f"axis; use init='{default_init(problem.name, planar=True)}'")
     if getattr(data, "camera_scale_unknown", False) and not spec.camera_scale_mode:
         raise InputError(f"init solver {name!r} takes the camera's translations as metric; for "
                          "camera_scale='unknown' use init='so3-sdp'")
     reason = spec.unavailable_reason(spec.default_backend)
     if reason:
         raise BackendUnavailableError(f"init solver {name!r} is unavailable: {reason}")
-    sol = run_registered(name, data, problem=problem)
-    return tuple(sol.unknowns[k] for k in OPTIONS[problem].UNKNOWNS), sol.status, dict(sol.diagnostics)
+    sol = run_registered(name, data, problem=problem.name)
+    return flatten(problem, data, sol.unknowns), sol.status, dict(sol.diagnostics)
 
 
 # --------------------------------------------------------------------------- solver
 
-def settings_of(options: _Options, m: int) -> nlls.Settings:
+def settings_of(options: Options, m: int) -> nlls.Settings:
     """The engine's settings from refine's (or auto's) options, for m pairs."""
     W, kind = stated(options.sigma_rot, options.sigma_trans, options.covariance, m)
     return nlls.Settings(W, kind, options.loss, float(options.loss_scale), options.estimate,
                          int(options.max_iter), options.tol)
 
 
-def refine(data: Any, poses0: tuple[np.ndarray, ...], options: _Options) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
+def refine(data: Any, poses0: tuple[np.ndarray, ...], options: Options) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """Refine the poses poses0 (in the problem's order of unknowns) on validated `data` with
     `options` (the init options are not used here): (poses, status, diagnostics); with the
     camera's scale unknown also that scale and its standard deviation (`handeye.camera_scale`)."""
@@ -388,17 +377,21 @@ def fit(model: nlls.PoseModel, data: Any, poses0: tuple[np.ndarray, ...], settin
     return poses, status, diagnostics
 
 
-def sources_apply(data: Any, options: _Options) -> bool:
-    """Whether the noise-source model (`handeye.noise_sources`) applies: A_i X = Y B_i, the
-    camera's scale known, the noise estimated, least squares."""
-    return (problem_of(data) == "axyb" and not getattr(data, "camera_scale_unknown", False)
+def sources_apply(data: Any, options: Options) -> bool:
+    """Whether the noise-source model (`handeye.noise_sources`) applies: a model whose residuals
+    it describes (`PoseModel.noise_sources`: A_i X = Y B_i), the camera's scale known, the noise
+    estimated, least squares."""
+    return (getattr(problem_for(data).pose_model(data), "noise_sources", False)
+            and not getattr(data, "camera_scale_unknown", False)
             and options.sigma_rot is None and options.covariance is None and options.loss == "linear")
 
 
-def run(data: Any, options: _Options, backend: str) -> SolverOutput:
-    poses0 = options.start_poses()
-    if poses0 is not None:
+def run(data: Any, options: Options, backend: str) -> SolverOutput:
+    problem = problem_for(data)
+    given = options.start_poses()
+    if given is not None:
         init_name, init_status, init_diag, warnings = "given", None, {}, []
+        poses0 = flatten(problem, data, _sized(problem, data, given))
         if is_planar(data):
             poses0 = data.planar.constrain(options.UNKNOWNS, poses0)
     else:
@@ -420,52 +413,47 @@ def run(data: Any, options: _Options, backend: str) -> SolverOutput:
         diagnostics["compile_seconds"] = float(init_diag.get("compile_seconds", 0.0))
         diagnostics["init_status"] = str(init_status)
         diagnostics["init_diagnostics"] = jsonable(init_diag)
-    return SolverOutput(unknowns=dict(zip(options.UNKNOWNS, poses)), status=status, diagnostics=diagnostics)
+    return SolverOutput(unknowns=unflatten(problem, data, poses), status=status, diagnostics=diagnostics)
 
 
-#: one citation for both problems (the registry table shows one line per solver name)
+def _sized(problem: Problem, data: Any, poses: Mapping[str, np.ndarray]) -> Mapping[str, np.ndarray]:
+    """The given start poses, checked against the unknowns' shapes on these data (a stack of
+    `Problem.stack_sizes` poses, else one pose)."""
+    sizes = problem.stack_sizes(data)
+    for name, T in poses.items():
+        expected = (sizes[name], 4, 4) if name in sizes else (4, 4)
+        if np.shape(T) != expected:
+            raise InputError(f"option init_{name} has shape {np.shape(T)}; on these data {name} is "
+                             f"{'a stack of ' + str(sizes[name]) + ' poses' if name in sizes else 'one 4x4 pose'}")
+    return poses
+
+
+#: one citation for every problem (the registry table shows one line per solver name)
 CITATION = "geometric ML refinement on SE(3); cf. Strobl & Hirzinger, IROS 2006; Pan et al., T-ASE 2022 (init)"
-SPECS = (
-    SolverSpec(
+
+
+def spec_for(problem: Problem) -> SolverSpec:
+    """refine's spec for `problem`. It honours every mode the problem's data and model express
+    (a planar robot's fixed translation through `PoseModel.fixed`, the camera's unknown scale
+    profiled out), so the host lets such data through."""
+    return SolverSpec(
         name="refine",
-        problems=("axyb",),
+        problems=(problem.name,),
         run=run,
-        options=Options,
-        summary="maximum-likelihood refinement on SE(3) x SE(3) (Levenberg-Marquardt, robust losses)",
+        options=options_for(problem),
+        summary=f"maximum-likelihood refinement of {problem.equation or problem.name} on SE(3)^k "
+                "(Levenberg-Marquardt, robust losses)",
         citation=CITATION,
         unit_invariant=True,
         exact=True,
         planar_mode=True,
         camera_scale_mode=True,
-    ),
-    SolverSpec(
-        name="refine",
-        problems=("axxb",),
-        run=run,
-        options=AXXBOptions,
-        summary="maximum-likelihood refinement of A_i X = X B_i on SE(3) (Levenberg-Marquardt, robust losses)",
-        citation=CITATION,
-        unit_invariant=True,
-        exact=True,
-        planar_mode=True,
-        camera_scale_mode=True,
-    ),
-    SolverSpec(
-        name="refine",
-        problems=("axbycz",),
-        run=run,
-        options=AXBYCZOptions,
-        summary="maximum-likelihood refinement of A_i X B_i = Y C_i Z on SE(3)^3 (Levenberg-Marquardt, robust losses)",
-        citation=CITATION,
-        unit_invariant=True,
-        exact=True,
-    ),
-)
-#: the A_i X = Y B_i spec (kept under its old name)
-SPEC = SPECS[0]
+    )
 
 
 @hookimpl
-def register_solvers(register):
-    for spec in SPECS:
-        register(spec)
+def register_solvers(register, problems):
+    """refine for every registered problem that gives the engine a model (`Problem.pose_model`)."""
+    for problem in problems.values():
+        if problem.refinable:
+            register(spec_for(problem))

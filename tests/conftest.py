@@ -39,6 +39,7 @@ settings.load_profile("handeye")
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE_DIR = ROOT / "docs" / "examples" / "handeye-example-solver"
+PROBLEM_EXAMPLE_DIR = ROOT / "docs" / "examples" / "handeye-example-problem"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -117,38 +118,39 @@ def runtime_plugins() -> Iterator[Callable[[Any, str], None]]:
     registry.reload()
 
 
-def example_entry_points() -> dict[str, str]:
-    """The ``handeye`` entry points declared in the example's real pyproject.toml."""
-    with open(EXAMPLE_DIR / "pyproject.toml", "rb") as f:
-        project = tomllib.load(f)["project"]
-    return dict(project["entry-points"]["handeye"])
+def example_entry_points(folder: Path = EXAMPLE_DIR) -> dict[str, str]:
+    """The ``handeye`` entry points declared in an example's real pyproject.toml."""
+    return dict(example_project(folder)["entry-points"]["handeye"])
 
 
-def example_project() -> dict[str, Any]:
-    with open(EXAMPLE_DIR / "pyproject.toml", "rb") as f:
+def example_project(folder: Path = EXAMPLE_DIR) -> dict[str, Any]:
+    with open(folder / "pyproject.toml", "rb") as f:
         return tomllib.load(f)["project"]
 
 
-@pytest.fixture
-def example_dist(tmp_path: Path) -> Path:
-    """A sys.path directory where the example solver looks installed (module + dist-info).
-
-    The dist-info is what an installer writes: METADATA (Name, Version) and entry_points.txt, both
-    taken from the example's pyproject.toml, so discovery goes through real entry-point metadata.
-    """
-    project = example_project()
-    site = tmp_path / "site"
-    site.mkdir()
-    module = "handeye_example_solver"
-    shutil.copy(EXAMPLE_DIR / f"{module}.py", site / f"{module}.py")
+def install_example(folder: Path, site: Path) -> Path:
+    """The example package in `folder` made to look installed in directory `site` (module +
+    dist-info), as an installer writes it: METADATA (Name, Version) and entry_points.txt, both
+    taken from the example's pyproject.toml, so discovery goes through real entry-point metadata."""
+    project = example_project(folder)
+    site.mkdir(exist_ok=True)
+    with open(folder / "pyproject.toml", "rb") as f:
+        (module,) = tomllib.load(f)["tool"]["setuptools"]["py-modules"]
+    shutil.copy(folder / f"{module}.py", site / f"{module}.py")
     dist_info = site / f"{module}-{project['version']}.dist-info"
     dist_info.mkdir()
     (dist_info / "METADATA").write_text(
         f"Metadata-Version: 2.1\nName: {project['name']}\nVersion: {project['version']}\n"
     )
-    lines = ["[handeye]"] + [f"{name} = {target}" for name, target in example_entry_points().items()]
+    lines = ["[handeye]"] + [f"{name} = {target}" for name, target in example_entry_points(folder).items()]
     (dist_info / "entry_points.txt").write_text("\n".join(lines) + "\n")
     return site
+
+
+@pytest.fixture
+def example_dist(tmp_path: Path) -> Path:
+    """A sys.path directory where the example solver looks installed (`install_example`)."""
+    return install_example(EXAMPLE_DIR, tmp_path / "site")
 
 
 @pytest.fixture
@@ -161,6 +163,24 @@ def installed_example(example_dist: Path, monkeypatch: pytest.MonkeyPatch) -> It
     yield example_dist
     monkeypatch.undo()
     sys.modules.pop("handeye_example_solver", None)
+    registry.reload()
+
+
+@pytest.fixture
+def installed_problem(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Any]:
+    """The example problem package (docs/examples/handeye-example-problem) installed on sys.path
+    for the test, the registry rebuilt with it (found through its entry point); yields its
+    module. Afterwards off the path, forgotten, the registry rebuilt without it."""
+    import importlib
+    import sys
+
+    site = install_example(PROBLEM_EXAMPLE_DIR, tmp_path / "problem-site")
+    monkeypatch.syspath_prepend(str(site))
+    monkeypatch.delenv("HANDEYE_DISABLE_PLUGIN_AUTOLOAD", raising=False)
+    registry.reload()
+    yield importlib.import_module("handeye_example_problem")
+    monkeypatch.undo()
+    sys.modules.pop("handeye_example_problem", None)
     registry.reload()
 
 

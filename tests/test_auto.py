@@ -158,7 +158,7 @@ AXXB_NOISY_BOUNDS = {"rotation": 0.01, "translation": 2.0}
 def _axxb_start_or_skip():
     start = refine.default_init("axxb")
     if start not in handeye.list_solvers("axxb"):
-        pytest.skip(f"no start solver for axxb registered (tried {refine.STARTS['axxb']})")
+        pytest.skip(f"no start solver for axxb registered (tried {AXXB.starts})")
     return start
 
 
@@ -194,7 +194,7 @@ def test_auto_axxb_noisy_against_truth_and_oracle():
 def test_auto_axxb_uncertified_start_triggers_a_second_start(monkeypatch):
     start = _axxb_start_or_skip()
     other = refine.fallback_init("axxb", start)
-    if start != refine.STARTS["axxb"][0] or other is None:
+    if start != AXXB.starts[0] or other is None:
         pytest.skip("the certifiable start or a second start is not available for axxb")
     data, truth = AXXB.simulate(pairs=17, seed=18, noise=AXXB_NOISE, pairing="consecutive")
     real_init = refine.run_init
@@ -371,7 +371,7 @@ def test_auto_axbycz_second_start_is_the_first_that_solves_the_data(monkeypatch)
     oracle = handeye.solve("axbycz", solver="refine", init=truth, **data)
     for k in ("X", "Y", "Z"):
         np.testing.assert_allclose(sol.unknowns[k], oracle.unknowns[k], atol=1e-6)
-    monkeypatch.setitem(refine.STARTS, "axbycz", ("wang",))
+    monkeypatch.setattr(type(handeye.get_registry().problem("axbycz")), "starts", ("wang",))
     alone = handeye.solve("axbycz", **data)
     assert alone.diagnostics["pipeline"] == ["wang", "refine"]
     for k in ("X", "Y", "Z"):

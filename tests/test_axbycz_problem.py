@@ -17,7 +17,6 @@ from handeye.framework.errors import (
     InputError,
 )
 from handeye.geometry.se3 import inverse, make_pose, so3_exp
-from handeye.plugins import refine as R
 from handeye.problems.axbycz import PROBLEM
 from handeye.problems.axbycz import geometry as G
 
@@ -324,7 +323,7 @@ def test_refine_options_of_three_poses():
 
 def test_refine_without_any_start_asks_for_start_poses(monkeypatch):
     data, _ = case(14)
-    monkeypatch.setitem(R.STARTS, "axbycz", ("no-such-solver",))
+    monkeypatch.setattr(type(PROBLEM), "starts", ("no-such-solver",))
     with pytest.raises(BackendUnavailableError, match=r"none of its start solvers \(no-such-solver\).*init_X, init_Y, init_Z"):
         handeye.solve("axbycz", solver="refine", **data)
 

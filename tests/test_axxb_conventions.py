@@ -41,7 +41,7 @@ def cells() -> dict[str, dict[str, np.ndarray]]:
 def test_motions_and_x_for_both_setups(cells, setup, pairing):
     """A_i X = X B_i with X = T_flange_cam (eye-in-hand) or T_base_cam (eye-to-hand)."""
     cell = cells[setup]
-    data = from_poses(cell["robot"], cell["camera"], setup=setup, pairing=pairing).data
+    data = from_poses(cell["robot"], cell["camera"], "axxb", setup=setup, pairing=pairing).data
     X = cell["X"]
     assert len(data["A"]) == (STATIONS - 1 if pairing == "consecutive" else STATIONS * (STATIONS - 1) // 2)
     assert np.abs(data["A"] @ X - X @ data["B"]).max() < 1e-9

@@ -181,8 +181,8 @@ def test_axxb_setup_from_the_caller_and_from_poses(stations):
     from handeye.io.data_files import from_poses
 
     poses, _ = stations
-    hand = from_poses(poses["robot_poses"], poses["camera_poses"], setup="eye-in-hand", pairing="consecutive")
-    fixed = from_poses(poses["robot_poses"], poses["camera_poses"], setup="eye-to-hand")
+    hand = from_poses(poses["robot_poses"], poses["camera_poses"], "axxb", setup="eye-in-hand", pairing="consecutive")
+    fixed = from_poses(poses["robot_poses"], poses["camera_poses"], "axxb", setup="eye-to-hand")
     assert hand.metadata == {"setup": "eye-in-hand", "pairing": "consecutive"} and len(hand.data["A"]) == 7
     assert fixed.metadata["pairing"] == "all" and len(fixed.data["A"]) == 28
     assert not np.allclose(hand.data["A"][0], fixed.data["A"][0])  # eye-to-hand inverts the robot poses

@@ -452,7 +452,7 @@ def test_axxb_options_and_weights():
                 {"init_X": np.eye(3)}, {"loss": "l1"}):
         with pytest.raises((InputError, UnknownPluginError)):
             handeye.solve("axxb", solver="refine", **bad, **data)
-    assert R.default_init("axxb") in R.STARTS["axxb"]
+    assert R.default_init("axxb") in AXXB.starts
 
 
 # --------------------------------------------------------------------------- axbycz (more in test_axbycz_problem.py)
@@ -462,7 +462,7 @@ def test_axbycz_is_served_with_three_start_poses():
 
     data, truth = AXBYCZ.simulate(pairs=8, seed=4, noise=NoiseModel.on(("A", "B", "C"), 0.002, 0.2))
     d = AXBYCZ.validate(**data)
-    assert R.problem_of(d) == "axbycz" and R.OPTIONS["axbycz"].UNKNOWNS == ("X", "Y", "Z")
+    assert R.problem_of(d) == "axbycz" and R.options_for(handeye.get_registry().problem("axbycz")).UNKNOWNS == ("X", "Y", "Z")
     assert R.default_init("axbycz") == "wang"
     a = handeye.solve("axbycz", solver="refine", init=truth, **data)
     b = handeye.solve("axbycz", solver="refine", init_X=truth["X"], init_Y=truth["Y"], init_Z=truth["Z"], **data)
@@ -480,7 +480,7 @@ def test_axbycz_a_start_that_refuses_the_data_gives_way_to_the_next(monkeypatch)
     from handeye.problems.axbycz import PROBLEM as AXBYCZ
 
     data, truth = AXBYCZ.simulate(pairs=30, seed=5, protocol="phases")
-    monkeypatch.setitem(R.STARTS, "axbycz", ("wu", "fu-dq"))
+    monkeypatch.setattr(type(handeye.get_registry().problem("axbycz")), "starts", ("wu", "fu-dq"))
     sol = handeye.solve("axbycz", solver="refine", **data)
     assert sol.diagnostics["init"] == "fu-dq"
     assert any(w.startswith("the start solver 'wu' failed (wu: the first 10 triples") and w.endswith("started from 'fu-dq'")

@@ -23,7 +23,9 @@ The statistic (docs/calibrate.md, "Plausibility checks"), two parts:
    from their centroid: the lever arms scale with it; the simulated cell's is 220-320 mm, so
    the limit is 26-38 mm).
 2. **A better explanation.** Every usual mistake is undone on the raw streams and solved with a
-   cheap closed form (`HYPOTHESIS_SOLVER`, kron-lstsq); the as-given data is solved the same way.
+   cheap closed form (the problem's `Problem.quick_solver`, kron-lstsq for the built-ins, else its
+   first start); the as-given data is solved the same way. A problem says which of the mistakes
+   (`handeye.problem.MISTAKES`) may be tried on its stations (`Problem.mistakes`).
    A hypothesis *explains* the data when its score (the larger of the two RMS, each divided by
    its limit) is below 1 (plausible) and at least `EXPLAIN_FACTOR` (4) times lower than the
    as-given data's. Noise cannot do that: a wrong model never fits noisy data better than the
@@ -63,7 +65,6 @@ EXPLAIN_FACTOR = 4.0
 #: scores >= ~10 on the simulator
 ALTERNATIVE_FACTOR = 10.0
 #: the closed-form solver of the hypotheses (and of the as-given data they are compared with)
-HYPOTHESIS_SOLVER = "kron-lstsq"
 #: two stations are duplicates when their robot poses differ by less than this angle (deg) and
 #: this fraction of the cell size
 DUPLICATE_DEG = 0.1
@@ -198,11 +199,17 @@ def _fit(streams: Streams, robot: np.ndarray, camera: np.ndarray, setup: str) ->
                 raise
             facts = streams.facts
             data = problem.validate(**pose_file.data, **facts)
-        sol = solve(streams.problem, solver=HYPOTHESIS_SOLVER, **pose_file.data, **facts)
+        sol = solve(streams.problem, solver=hypothesis_solver(problem), **pose_file.data, **facts)
         res = problem.residuals(data, sol.unknowns)
     except (HandEyeError, np.linalg.LinAlgError, ValueError):
         return None
     return math.degrees(_rms(res["rotation"])), _rms(res["translation"])
+
+
+def hypothesis_solver(problem: Any) -> str:
+    """The solver of the closed-form fits: the problem's `Problem.quick_solver`, else its first
+    start (`Problem.starts`), else ``auto``."""
+    return problem.quick_solver or (problem.starts[0] if problem.starts else "auto")
 
 
 def _camera_can_see(camera: np.ndarray, unit: str) -> bool:
@@ -215,17 +222,24 @@ def _camera_can_see(camera: np.ndarray, unit: str) -> bool:
 
 
 def _hypotheses(s: Streams) -> list[tuple[str, str, np.ndarray, np.ndarray, str]]:
-    """(description, suggestion, robot, camera, setup) of each usual mistake undone."""
+    """(description, suggestion, robot, camera, setup) of each usual mistake undone that the
+    problem lets the check try (`Problem.mistakes`)."""
+    from handeye.framework.registry import get_registry
+
+    tried = set(get_registry().problem(s.problem).mistakes)
     other = "eye-to-hand" if s.setup == "eye-in-hand" else "eye-in-hand"
-    out = [
-        (("the camera poses are inverted (T_target_cam, the camera's pose in the board, instead of "
-          "T_cam_target)"), "invert the camera poses (--camera-poses camera-in-board)", s.robot, inverse(s.camera), s.setup),
-        ("the robot poses are inverted (T_flange_base instead of T_base_flange)",
-         "invert the robot poses before calibrating", inverse(s.robot), s.camera, s.setup),
-        (f"the setup is {other}", f"--setup {other}", s.robot, s.camera, other),
-    ]
+    out: list[tuple[str, str, np.ndarray, np.ndarray, str]] = []
+    if "camera-inverted" in tried:
+        out.append((("the camera poses are inverted (T_target_cam, the camera's pose in the board, instead of "
+                     "T_cam_target)"), "invert the camera poses (--camera-poses camera-in-board)", s.robot,
+                    inverse(s.camera), s.setup))
+    if "robot-inverted" in tried:
+        out.append(("the robot poses are inverted (T_flange_base instead of T_base_flange)",
+                    "invert the robot poses before calibrating", inverse(s.robot), s.camera, s.setup))
+    if "other-setup" in tried:
+        out.append((f"the setup is {other}", f"--setup {other}", s.robot, s.camera, other))
     n = len(s.robot)
-    if n >= 4:
+    if n >= 4 and "shifted" in tried:
         out += [
             ("the camera file starts one station late (its row k is the station of robot row k+1)",
              "drop the first robot row and the last camera row", s.robot[1:], s.camera[:-1], s.setup),
@@ -234,6 +248,8 @@ def _hypotheses(s: Streams) -> list[tuple[str, str, np.ndarray, np.ndarray, str]
         ]
     other_unit = {"mm": "m", "m": "mm"}
     for factor, word, true_unit in ((1e-3, "1000 times too large", "mm"), (1e3, "1000 times too small", "m")):
+        if "camera-unit" not in tried:
+            break
         cam = np.array(s.camera)
         cam[:, :3, 3] *= factor
         if not _camera_can_see(cam, s.unit):  # the board would sit a few mm, or kilometres, from the camera
@@ -246,7 +262,7 @@ def _hypotheses(s: Streams) -> list[tuple[str, str, np.ndarray, np.ndarray, str]
             sugg = "check the camera file's length unit (--camera-unit) and the robot's (--robot-unit)"
         out.append((text, sugg, s.robot, cam, s.setup))
     for which, reread, fmt in (("robot", s.reread_robot, s.robot_format), ("camera", s.reread_camera, s.camera_format)):
-        if reread is None:
+        if reread is None or "euler" not in tried:
             continue
         current = _seq_of(fmt)
         for seq in TAIT_BRYAN:

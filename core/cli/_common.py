@@ -6,15 +6,19 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import re
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from handeye.cli._cell_flags import cell_words
 from handeye.framework.errors import InputError
+from handeye.workflow.exports import dump_json  # noqa: F401 (the commands' JSON text)
+from handeye.workflow.exports import plain as _plain  # noqa: F401
+from handeye.workflow.solving import PLUGIN_TIME_LIMIT
+from handeye.workflow.solving import time_limit as _time_limit
 
 #: how the library's messages spell a fact or an option (as a Python keyword) -> how this command
 #: line spells it (`in_cli_words`); the library's own "(CLI --flag)" asides are dropped
@@ -22,12 +26,10 @@ CLI_WORDS: tuple[tuple[re.Pattern[str], str], ...] = (
     (re.compile(r"; --tz-X on the command line"), ""),
     (re.compile(r"tz_([XY])=<[^>]*>"), r"--tz-\1 VALUE"),
     (re.compile(r"\btz_([XY])=([-+0-9.eE]+)"), r"--tz-\1 \2"),
-    (re.compile(r"\btz_([XY])\b"), r"--tz-\1"),
+    (re.compile(r"(?<!')\btz_([XY])\b(?!')"), r"--tz-\1"),  # not a quoted key ('tz_X' of a cell file)
     (re.compile(r"camera_scale='(known|unknown)'"), r"--camera-scale \1"),
     (re.compile(r"\b(noise|loss|outliers|init|estimate)='([^']*)'"), r"--option \1=\2"),
 )
-#: seconds a third-party plugin's solver may take in ``handeye solve`` / ``calibrate`` by default
-PLUGIN_TIME_LIMIT = 600.0
 #: option values read as bools, whatever their case (JSON knows only lower-case true/false)
 BOOLEANS = {"true": True, "false": False}
 
@@ -35,7 +37,10 @@ BOOLEANS = {"true": True, "false": False}
 def in_cli_words(text: str) -> str:
     """`text` (an error, a warning, a printed result) with the library's keyword spellings of
     facts and options replaced by this command line's flags (`CLI_WORDS`): a user of the CLI is
-    told ``--tz-X VALUE``, not ``tz_X=<...>``."""
+    told ``--tz-X VALUE``, not ``tz_X=<...>``; the settings of a cell, which the library names in
+    backticks (```robot.unit```), by the calibrate command's flags (``--robot-unit``;
+    `handeye.cli._cell_flags`)."""
+    text = cell_words(text)
     for pattern, words in CLI_WORDS:
         text = pattern.sub(words, text)
     return text
@@ -71,27 +76,6 @@ def format_pose(T: np.ndarray, indent: str = "  ") -> str:
     return "\n".join(indent + "".join(f"{v:{width}.6f}" for v in row) for row in T)
 
 
-def dump_json(obj: Any) -> str:
-    """JSON text of `obj` (numpy arrays and scalars converted; NaN/inf as null)."""
-    return json.dumps(_plain(obj), indent=2)
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.generic):
-        return _plain(value.item())
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if hasattr(value, "value") and isinstance(value.value, str):  # enums
-        return value.value
-    return value
-
-
 def add_force_flag(parser: argparse.ArgumentParser) -> None:
     """The ``--force`` flag of every subcommand that writes files."""
     parser.add_argument("--force", action="store_true",
@@ -109,18 +93,8 @@ def add_time_limit_flag(parser: argparse.ArgumentParser) -> None:
 def time_limit(args: argparse.Namespace, problem: str, solver: str) -> float | None:
     """The time limit of a solve, in seconds or None, from ``--time-limit`` and who provides the
     solver (`PLUGIN_TIME_LIMIT` for a third party's, so that a hanging plugin cannot hang the
-    command). InputError for a negative or non-finite value."""
-    from handeye.framework.registry import get_registry
-
-    given = getattr(args, "time_limit", None)
-    if given is not None:
-        if not 0 <= given < math.inf:
-            raise InputError(f"--time-limit must be a number of seconds >= 0 (0: no limit), got {given:g}")
-        return given or None
-    registry = get_registry()
-    if solver in registry.solver_names(problem) and not registry.is_builtin(solver, problem):
-        return PLUGIN_TIME_LIMIT
-    return None
+    command; `handeye.workflow.solving.time_limit`). InputError for a negative or non-finite value."""
+    return _time_limit(getattr(args, "time_limit", None), problem, solver)
 
 
 def check_new_file(flag: str, path: str | Path | None, force: bool) -> None:

@@ -12,9 +12,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-import numpy as np
-
 from handeye.framework.errors import InputError
+from handeye.workflow.solving import in_robot_unit  # noqa: F401 (the residuals' data, as before)
 
 #: flag -> the keyword of handeye.solve
 FACTS = {"--tz-X": "tz_X", "--tz-Y": "tz_Y", "--camera-scale": "camera_scale"}
@@ -45,15 +44,3 @@ def take(args: argparse.Namespace, options: dict[str, Any]) -> dict[str, Any]:
                 raise InputError(f"{key} is given twice (--{key.replace('_', '-')} and --option {key}=...); give it once")
             facts[key] = options.pop(key)
     return facts
-
-
-def in_robot_unit(data: dict[str, Any], facts: dict[str, Any], diagnostics: dict[str, Any]) -> dict[str, Any]:
-    """The data with the camera's translations (B) in the robot's unit: multiplied by the camera
-    scale the solve estimated when the scale is unknown; else the data as they are (for the
-    residuals shown to the user)."""
-    scale = diagnostics.get("camera_scale") if facts.get("camera_scale") == "unknown" else None
-    if scale is None:
-        return data
-    B = np.array(data["B"], dtype=float)
-    B[:, :3, 3] *= scale
-    return {**data, "B": B}

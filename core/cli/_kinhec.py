@@ -53,7 +53,7 @@ import math
 import multiprocessing
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -62,8 +62,6 @@ import numpy as np
 
 from handeye.cli._kinhec_report import (
     AUTO,
-    AXXB_PREFIX,
-    AXYB_PREFIX,
     HANDEYE_FILES,
     REFERENCE,
     SCALE_SUFFIX,
@@ -71,6 +69,8 @@ from handeye.cli._kinhec_report import (
     auto_vs_best,
     auto_vs_best_table,
     head_to_head,
+    is_handeye,
+    kinhec_prefix,
     machine_line,
     track_summary,
     write_outputs,
@@ -158,8 +158,11 @@ def handeye_entries(probe: bool = True) -> tuple[list[Entry], list[str]]:
     registry = get_registry()
     entries: list[Entry] = []
     skipped: list[str] = []
-    for problem, prefix in (("axyb", AXYB_PREFIX), ("axxb", AXXB_PREFIX)):
-        spec_problem = registry.problem(problem)
+    for problem, spec_problem in registry.problems.items():
+        form = kinhec_form(spec_problem)
+        if form is None:
+            continue
+        prefix = kinhec_prefix(problem, registry.default_problem())
         data = None
         if probe:
             simulated, _ = spec_problem.simulate(pairs=PROBE_PAIRS, seed=0)
@@ -181,8 +184,8 @@ def handeye_entries(probe: bool = True) -> tuple[list[Entry], list[str]]:
                     continue
                 except HandEyeError:
                     pass  # a solver failure: KinHEC records those per sequence
-            what = "absolute keyframe poses (AX=YB)" if problem == "axyb" else "consecutive keyframe motions (AX=XB)"
-            doc = f"handeye {name} ({backend}) on the {what}: {spec.summary}"
+            what = "absolute keyframe poses" if form == "stations" else "consecutive keyframe motions"
+            doc = f"handeye {name} ({backend}) on the {what} ({spec_problem.equation or problem}): {spec.summary}"
             entries.append(Entry(prefix + name, problem, name, backend, doc))
             if spec.camera_scale_mode:  # its scale-aware variant, for cameras known up to scale
                 entries.append(Entry(f"{prefix}{name}{SCALE_SUFFIX}", problem, name, backend,
@@ -193,6 +196,35 @@ def handeye_entries(probe: bool = True) -> tuple[list[Entry], list[str]]:
 #: the handeye outcome of the last solve of each registered solver in this process, read by the
 #: evaluate_sequence wrapper (`_with_outcomes`) into the rows of the sequence just solved
 _OUTCOMES: dict[str, dict[str, Any]] = {}
+
+
+def kinhec_form(problem: Any) -> str | None:
+    """Which of KinHEC's two data forms `problem` (a `handeye.Problem`) solves: "stations" (the
+    absolute keyframe poses, as A, B: a problem read from a cell's stations one pair per station)
+    or "motions" (the consecutive keyframe motions: a problem read from motions between stations),
+    both in KinHEC's eye-in-hand conventions, which are handeye's; None: neither (other data
+    fields, no station reader, or unknowns that are not the cell's X and Y)."""
+    reader = problem.station_reader
+    if reader is None or tuple(problem.data_fields) != ("A", "B"):
+        return None
+    cell = _cell_names(problem)
+    if "X" not in cell.values() or not set(cell.values()) <= {"X", "Y"}:
+        return None
+    return "motions" if reader.pairing else "stations"
+
+
+def _cell_names(problem: Any) -> Mapping[str, str]:
+    """The problem's unknowns -> the cell's (X, Y of AX=YB), eye-in-hand (`StationReader.cell_truth`)."""
+    reader = problem.station_reader
+    return reader.cell_truth["eye-in-hand"] if reader.cell_truth else {u: u for u in problem.unknowns}
+
+
+def cell_answer(problem: Any, unknowns: Mapping[str, np.ndarray]) -> dict[str, np.ndarray | None]:
+    """KinHEC's answer {"X": hand-eye, "Y": robot-world or None} from `problem`'s unknowns."""
+    answer: dict[str, np.ndarray | None] = {"X": None, "Y": None}
+    for unknown, name in _cell_names(problem).items():
+        answer[name] = np.array(unknowns[unknown])
+    return answer
 
 
 def adaptor(entry: Entry) -> Callable[[Sequence[np.ndarray], Any], dict[str, Any]]:
@@ -206,9 +238,11 @@ def adaptor(entry: Entry) -> Callable[[Sequence[np.ndarray], Any], dict[str, Any
 
     def run(data: Sequence[np.ndarray], rng: Any = None) -> dict[str, Any]:
         from handeye.framework.api import solve
+        from handeye.framework.registry import get_registry
 
         A_abs, B_abs, A_rel, B_rel = data
-        A, B = (A_abs, B_abs) if entry.problem == "axyb" else (A_rel, B_rel)
+        problem = get_registry().problem(entry.problem)
+        A, B = (A_abs, B_abs) if kinhec_form(problem) == "stations" else (A_rel, B_rel)
         try:
             sol = solve(entry.problem, solver=entry.solver, backend=entry.backend, A=A, B=B,
                         camera_scale=entry.camera_scale)
@@ -218,7 +252,7 @@ def adaptor(entry: Entry) -> Callable[[Sequence[np.ndarray], Any], dict[str, Any
             raise
         _OUTCOMES[entry.name] = {"handeye_status": sol.status.value, "handeye_seconds": sol.seconds,
                                  "handeye_note": (sol.warnings[0] if sol.warnings else "")[:300]}
-        return {"X": np.array(sol.X), "Y": np.array(sol.Y) if entry.problem == "axyb" else None}
+        return cell_answer(problem, sol.unknowns)
 
     run.__name__ = run.__qualname__ = f"handeye_{entry.problem}_{entry.solver.replace('-', '_')}"
     return run
@@ -255,7 +289,7 @@ def _with_outcomes(evaluate: Callable[..., list[dict[str, Any]]]) -> Callable[..
         rows = evaluate(*args, **kwargs)
         for row in rows:
             name = row.get("solver")
-            if isinstance(name, str) and name.startswith((AXYB_PREFIX, AXXB_PREFIX)):
+            if is_handeye(name):
                 row.update(_OUTCOMES.get(name, {"handeye_status": "not run", "handeye_seconds": math.nan,
                                                 "handeye_note": str(row.get("error", ""))}))
         _OUTCOMES.clear()
@@ -291,9 +325,10 @@ def select_solvers(selection: str | None, available: Sequence[str], references: 
     """The KinHEC solver names to run, from ``--solvers`` (comma-separated KinHEC names, or the
     groups ``handeye``, ``handeye-axxb``, ``kinhec``); default all. `AUTO` and `REFERENCE` are
     always run (the head-to-head needs them)."""
-    groups = {"handeye": [n for n in available if n.startswith(AXYB_PREFIX)],
-              "handeye-axxb": [n for n in available if n.startswith(AXXB_PREFIX)],
-              "kinhec": list(references)}
+    groups: dict[str, list[str]] = {"kinhec": list(references)}
+    for name in available:
+        if is_handeye(name):
+            groups.setdefault(name.split(":", 1)[0], []).append(name)
     if not selection:
         names = list(available)
     else:
@@ -352,7 +387,7 @@ def run_kinhec(data_dir: str | Path, out_dir: str | Path | None = None, *, track
     tracks = list(tracks) if tracks else None
     _check_tracks(root, tracks)
 
-    references = [name for name in benchmark.SOLVERS if not name.startswith((AXYB_PREFIX, AXXB_PREFIX))]
+    references = [name for name in benchmark.SOLVERS if not is_handeye(name)]
     entries, skipped = handeye_entries()
     available = references + [e.name for e in entries]
     names = select_solvers(solvers, available, references)
@@ -422,8 +457,11 @@ def requested(args: argparse.Namespace) -> bool:
         if getattr(args, dest, None) is not None:
             raise InputError(f"{flag} does not apply to --kinhec: KinHEC's protocol makes the data, and the results "
                              "go to --kinhec-out")
-    if getattr(args, "problem", "axyb") != "axyb":
-        raise InputError("--problem does not apply to --kinhec: handeye's axyb and axxb solvers are both registered")
+    from handeye.framework.registry import get_registry
+
+    if getattr(args, "problem", None) not in (None, get_registry().default_problem()):
+        raise InputError("--problem does not apply to --kinhec: the solvers of every problem KinHEC's data serve are "
+                         "registered")
     return True
 
 

@@ -53,8 +53,11 @@ class KinhecRun:
     machine: str
 
 
-#: KinHEC names of handeye's solvers: AX=YB on the absolute keyframe poses, AX=XB on the motions
-AXYB_PREFIX, AXXB_PREFIX = "handeye:", "handeye-axxb:"
+#: KinHEC names of handeye's solvers: ``handeye:<solver>`` for the default problem (AX=YB, on the
+#: absolute keyframe poses), ``handeye-<problem>:<solver>`` for another (``handeye-axxb:park``,
+#: on the consecutive motions); every such name starts with HANDEYE
+HANDEYE = "handeye"
+AXYB_PREFIX = HANDEYE + ":"
 #: the suffix of a solver's scale-aware variant (camera_scale="unknown"), e.g. handeye:auto+scale
 SCALE_SUFFIX = "+scale"
 AUTO = AXYB_PREFIX + "auto"
@@ -126,12 +129,21 @@ def head_to_head(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
+def kinhec_prefix(problem: str, default_problem: str) -> str:
+    """The KinHEC name prefix of handeye's solvers of `problem` (see `AXYB_PREFIX`)."""
+    return AXYB_PREFIX if problem == default_problem else f"{HANDEYE}-{problem}:"
+
+
+def is_handeye(name: Any) -> bool:
+    """Whether KinHEC solver `name` is one of handeye's (`prefix`)."""
+    return isinstance(name, str) and name.startswith(HANDEYE) and ":" in name
+
+
 def _kind(name: str) -> str:
-    if name.startswith(AXYB_PREFIX):
-        return "handeye AX=YB"
-    if name.startswith(AXXB_PREFIX):
-        return "handeye AX=XB"
-    return "KinHEC reference"
+    if not is_handeye(name):
+        return "KinHEC reference"
+    group = name.split(":", 1)[0]
+    return "handeye" if group == HANDEYE else f"handeye {group[len(HANDEYE) + 1:]}"
 
 
 def track_summary(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
@@ -146,7 +158,7 @@ def track_summary(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
         block = []
         for (solver,), runs in per_solver.items():
             ok = [r for r in runs if _ok(r)]
-            handeye = str(solver).startswith((AXYB_PREFIX, AXXB_PREFIX))
+            handeye = is_handeye(solver)
             usable = sum(1 for r in ok if _text(r.get("handeye_status")) in USABLE) / len(runs) if handeye else math.nan
             ms = _median([_num(r.get("runtime_ms")) for r in ok])
             block.append({

@@ -73,12 +73,15 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--setup", choices=("eye-in-hand", "eye-to-hand"), default=None,
                         help="--data/--example: setup of a file of absolute poses (overrides the file's)")
     parser.add_argument("-o", "--output", metavar="OUTDIR", help="output directory (not with --paper/--accuracy)")
-    parser.add_argument("--problem", default="axyb", help="problem: axyb (default), axxb or axbycz")
+    parser.add_argument("--problem", default=None,
+                        help="registered problem (handeye list shows them; default: the default problem, A_i X = Y B_i)")
     parser.add_argument("--pairing", choices=("consecutive", "all"),
-                        help="axxb: motions between all pairs of stations i < j (default, as OpenCV) or consecutive ones")
-    parser.add_argument("--protocol", choices=("free", "phases"),
-                        help="axbycz: both robots moving at every triple, or one robot still at a time "
-                             "(default: the built-in studies run both)")
+                        help="a problem solved from motions between stations (A_i X = X B_i): motions between all "
+                             "pairs of stations i < j (default, as OpenCV) or consecutive ones")
+    parser.add_argument("--protocol", metavar="PROTOCOL",
+                        help="a problem with data protocols (A_i X B_i = Y C_i Z: free, both robots moving at every "
+                             "triple, or phases, one robot still at a time): the one to run (default: the built-in "
+                             "studies run each)")
     parser.add_argument("--solvers", metavar="LIST",
                         help="comma-separated: name, name/backend, name/* (every backend) or all "
                              "(default: every registered solver, every lmi-sdp backend; with --paper: "
@@ -132,6 +135,9 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
         sweep_study,
     )
 
+    registry = get_registry()
+    given_problem = args.problem
+    args.problem = args.problem or registry.default_problem()
     grid_flags = [f for f in ("noise_levels", "pairs", "noise_rot", "noise_trans", "noise_on") if getattr(args, f) is not None]
     builtin = args.paper or args.accuracy or args.study
     if builtin and grid_flags:
@@ -145,9 +151,9 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
         raise InputError("give an output directory with -o OUTDIR (or use --paper/--accuracy OUTDIR)")
     specs = parse_specs(args.solvers, args.problem) if args.solvers else ()
     _protocols(args)  # --protocol for a problem without protocols: the error here
-    if args.paper and args.problem != "axyb":
-        raise InputError(f"--paper is the paper's study of problem 'axyb', not {args.problem!r}; use "
-                         "--accuracy or -o OUTDIR for it")
+    if args.paper and args.problem != registry.default_problem():
+        raise InputError(f"--paper is the paper's study of problem {registry.default_problem()!r}, not "
+                         f"{args.problem!r}; use --accuracy or -o OUTDIR for it")
 
     if args.paper:
         study = paper_study(specs=specs, **({"pairs": args.paper_pairs} if args.paper_pairs else {}))
@@ -167,7 +173,7 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
         outdir = args.output
     else:
         if args.noise_rot is None and args.noise_trans is None:
-            fields = tuple(get_registry().problem(args.problem).data_fields)
+            fields = tuple(registry.problem(args.problem).data_fields)
             noise = paper_noise(1.0, stacks=_stacks(args, default=fields))
             levels = parse_floats(args.noise_levels or DEFAULT_LEVELS, "--noise-levels")
         else:
@@ -185,12 +191,15 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
             changes[name] = getattr(args, name)
     if args.timeout is not None:
         changes["timeout"] = args.timeout if args.timeout > 0 else None
-    if args.problem != "axyb" and args.study:
+    if given_problem is not None and args.study:
         changes["problem"] = args.problem
     if args.pairing is not None:
         problem = changes.get("problem", study.problem)
-        if problem != "axxb":
-            raise InputError(f"--pairing applies to problem 'axxb' (its motions), not {problem!r}")
+        reader = registry.problem(problem).station_reader
+        if reader is None or not reader.pairing:
+            paired = sorted(n for n, p in registry.problems.items() if p.station_reader and p.station_reader.pairing)
+            raise InputError(f"--pairing applies to problems solved from motions between stations ({', '.join(paired)}), "
+                             f"not {problem!r}")
         changes["simulation"] = {**study.simulation, "pairing": args.pairing}
     if args.protocol is not None and (args.study or grid_flags):
         changes["simulation"] = {**changes.get("simulation", study.simulation), "protocol": args.protocol}
@@ -199,11 +208,17 @@ def build_study(args: argparse.Namespace) -> tuple[Any, Path]:
 
 def _protocols(args: argparse.Namespace) -> tuple[str, ...] | None:
     """The data protocols a built-in study runs (None: all of the problem's); --protocol applies
-    to problems with protocols only (axbycz)."""
+    to problems with protocols only (`Problem.protocols`)."""
     if args.protocol is None:
         return None
-    if args.problem not in ("axbycz",):
-        raise InputError(f"--protocol applies to problem 'axbycz' (its two robots), not {args.problem!r}")
+    registry = get_registry()
+    known = registry.problem(args.problem).protocols
+    if not known:
+        having = sorted(n for n, p in registry.problems.items() if p.protocols)
+        raise InputError(f"--protocol applies to problems with data protocols ({', '.join(having)}), "
+                         f"not {args.problem!r}")
+    if args.protocol not in known:
+        raise InputError(f"--protocol {args.protocol!r} is not one of {', '.join(known)} (problem {args.problem!r})")
     return (args.protocol,)
 
 
@@ -247,6 +262,7 @@ def run(args: argparse.Namespace) -> int:
     if args.data or args.example:
         from handeye.cli import compare_data
 
+        args.problem = args.problem or get_registry().default_problem()
         return compare_data.run(args)
     for flag in ("folds", "setup"):
         if getattr(args, flag) is not None:

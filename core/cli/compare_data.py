@@ -37,7 +37,7 @@ CROSSVAL_FILES = ("_heldout.md", "_summary.json", "_folds.csv", "_pairs.csv", "_
 def read(args: argparse.Namespace) -> tuple[Any, str]:
     """(`CrossValData`, a description of the source) from --data or --example."""
     from handeye.harness.crossval import CrossValData
-    from handeye.io.examples import load_example
+    from handeye.io.examples import EXAMPLE_PROBLEM, load_example
 
     problem = args.problem
     get_registry().problem(problem)  # unknown problem: exit 2 listing the known ones
@@ -45,16 +45,18 @@ def read(args: argparse.Namespace) -> tuple[Any, str]:
         data, truth, metadata = load_example(args.example)
         source = f"example {args.example!r}"
         reader = station_readers().get(problem)
-        if problem != "axyb":
+        if problem != EXAMPLE_PROBLEM:
             if reader is None or not reader.pairing:
-                raise InputError(f"the examples hold AX=YB pairs; problem {problem!r} cannot read them")
+                raise InputError(f"the examples hold {EXAMPLE_PROBLEM} pairs (one per station); problem {problem!r} "
+                                 "cannot read them")
             setup = args.setup or metadata.get("setup", "eye-in-hand")
             camera = inverse(data["B"]) if setup == "eye-in-hand" else data["B"]  # B = T_target_cam eye-in-hand
             pose_file = from_poses(data["A"], camera, problem, setup=setup, pairing=args.pairing,
                                    metadata={k: v for k, v in metadata.items() if k in ("units",)}, source=source)
         else:
             if args.setup or args.pairing:
-                raise InputError(f"--setup and --pairing do not apply to example {args.example!r} with problem 'axyb'")
+                raise InputError(f"--setup and --pairing do not apply to example {args.example!r} with problem "
+                                 f"{EXAMPLE_PROBLEM!r}")
             pose_file = PoseFile(data, truth, metadata)
     else:
         pose_file = load_file(args.data, problem, setup=args.setup, pairing=args.pairing)

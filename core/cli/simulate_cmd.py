@@ -28,6 +28,7 @@ from handeye.estimation.noise import NoiseModel
 from handeye.framework.api import plugin_faults
 from handeye.framework.errors import InputError
 from handeye.framework.registry import get_registry
+from handeye.geometry.kinematics import simulate_stations
 from handeye.geometry.se3 import inverse
 from handeye.io.data_files import (
     DEFAULT_PAIRING,
@@ -48,15 +49,18 @@ MAX_POSES = 1_000_000
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser = subparsers.add_parser(NAME, help="write simulated data with truth", description=__doc__,
                                    formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--problem", default="axyb", help="problem to simulate: axyb (default) or axxb")
+    parser.add_argument("--problem", default=None,
+                        help="registered problem to simulate (handeye list shows them; default: the default problem, "
+                             "A_i X = Y B_i)")
     parser.add_argument("--pairs", type=int, default=None,
-                        help="number of pose pairs (stations; axxb makes its motions from them) (default 16)")
+                        help="number of pose pairs (stations; a problem solved from motions makes them from the "
+                             "stations) (default 16)")
     parser.add_argument("--stations", type=int, default=None, metavar="N",
-                        help="write the absolute poses of N stations (robot_poses, camera_poses) instead of "
-                             "pairs (axyb) or motions (axxb)")
+                        help="write the absolute poses of N stations (robot_poses, camera_poses) instead of the "
+                             "problem's data; they serve every problem read from a cell's stations")
     parser.add_argument("--pairing", choices=PAIRINGS, default=None,
-                        help=f"axxb: motions between consecutive stations or all pairs i < j (default {DEFAULT_PAIRING}); "
-                             "with --stations it is recorded in the file")
+                        help=f"a problem solved from motions: motions between consecutive stations or all pairs i < j "
+                             f"(default {DEFAULT_PAIRING}); with --stations it is recorded in the file")
     parser.add_argument("--noise-rot", type=float, default=0.0, metavar="RAD",
                         help="rotation noise std, rad (default 0)")
     parser.add_argument("--noise-trans", type=float, default=0.0, metavar="MM",
@@ -74,7 +78,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    problem = get_registry().problem(args.problem)
+    registry = get_registry()
+    args.problem = args.problem or registry.default_problem()
+    problem = registry.problem(args.problem)
     fields = tuple(problem.data_fields)
     if args.noise_on in ("both", "all"):
         stacks = fields
@@ -102,15 +108,12 @@ def run(args: argparse.Namespace) -> int:
     metadata = {"units": "mm", "setup": "eye-in-hand", "source": "simulated by handeye"}
     options = {"pairing": args.pairing} if args.pairing is not None else {}
     if args.stations is not None:
-        # the axyb simulator's stations: noise "A" on the robot poses, "B" on the camera poses
-        from handeye.problems.axxb import simulate_stations
-
+        # the simulated cell's stations: noise "A" on the robot poses, "B" on the camera poses
         stations, truth = simulate_stations(args.stations, seed=args.seed, noise=noise)
         data = {"robot_poses": stations["A"], "camera_poses": inverse(stations["B"])}
         count, what, size = args.stations, "stations", f"--stations {args.stations}"
     else:
         pairs = 16 if args.pairs is None else args.pairs
-        registry = get_registry()
         with plugin_faults(f"problem {args.problem!r}", registry.problem_is_builtin(args.problem),
                            registry.problem_provider(args.problem)):
             data, truth = problem.simulate(pairs=pairs, seed=args.seed, noise=noise, **options)
@@ -122,8 +125,9 @@ def run(args: argparse.Namespace) -> int:
         + (f" --pairing {metadata['pairing']}" if "pairing" in metadata else "")
         + f" --noise-rot {args.noise_rot} --noise-trans {args.noise_trans} --noise-on {args.noise_on} --seed {args.seed}")
     # a file of stations carries the cell's truth (X, Y of AX=YB) and serves every problem reading
-    # absolute poses (docs/formats.md); it is validated as the axyb data it also is
-    path = save_data(args.output, data, truth, problem="axyb" if args.stations is not None else args.problem,
+    # absolute poses (docs/formats.md); it is validated as the default problem's data it also is
+    saved_as = registry.default_problem() if args.stations is not None else args.problem
+    path = save_data(args.output, data, truth, problem=saved_as,
                      metadata=metadata, force=args.force)
     print(f"wrote {count} {args.problem} {what} with truth to {path}")
     return 0

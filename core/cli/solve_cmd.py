@@ -66,29 +66,16 @@ from handeye.io.data_files import (
     supported_extensions,
 )
 from handeye.io.examples import DEFAULT_EXAMPLE, list_examples, load_example
+from handeye.workflow.frames import EQUATIONS, FRAMES  # noqa: F401 (FRAMES, EQUATIONS: also read from here)
 from handeye.workflow.quality_report import (
     check_new_report,
     collect,
     report_files,
     write_report,
 )
+from handeye.workflow.solving import DEFAULT_SOLVERS, UNUSABLE, default_solver  # noqa: F401
 
 NAME = "solve"
-#: solvers tried, in order, when --solver is not given
-DEFAULT_SOLVERS = ("auto", "kron-lstsq")
-#: statuses whose unknowns must not be used: printed, but the exit code is 1 (solver failure)
-UNUSABLE = (Status.NOT_CONVERGED, Status.FAILED)
-#: (problem, setup) -> unknown -> (frame name, what it is), as docs/conventions.md states them
-FRAMES: dict[tuple[str, str], dict[str, tuple[str, str]]] = {
-    ("axyb", "eye-in-hand"): {"X": ("T_flange_cam", "camera in the flange frame"),
-                              "Y": ("T_base_target", "target in the robot base frame")},
-    ("axyb", "eye-to-hand"): {"X": ("T_flange_target", "target in the flange frame"),
-                              "Y": ("T_base_cam", "camera in the robot base frame")},
-    ("axxb", "eye-in-hand"): {"X": ("T_flange_cam", "camera in the flange frame")},
-    ("axxb", "eye-to-hand"): {"X": ("T_base_cam", "camera in the robot base frame")},
-}
-#: problem -> its equation and what one data pair is, for the residual lines
-EQUATIONS = {"axyb": ("A_i X = Y B_i", "pair"), "axxb": ("A_i X = X B_i", "motion")}
 #: the residuals are listed one by one up to this many pairs; beyond, the LISTED_LARGEST largest
 LIST_ALL_UP_TO = 20
 LISTED_LARGEST = 10
@@ -124,14 +111,6 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                         help="files of absolute poses: skip the plausibility checks (docs/calibrate.md)")
     parser.set_defaults(run=run)
     return parser
-
-
-def default_solver(problem: str) -> str:
-    names = get_registry().solver_names(problem)
-    for name in DEFAULT_SOLVERS:
-        if name in names:
-            return name
-    raise InputError(f"no default solver for problem {problem!r}; pass --solver, one of {names}")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -99,6 +99,9 @@ class PoseModel(abc.ABC):
     profile_min_pairs: int
     sums_min_pairs: float = math.inf
     fixed: tuple[tuple[int, np.ndarray], ...] = ()
+    #: the residuals are those of A_i X = Y B_i on (X, Y), whose noise sources
+    #: `handeye.noise_sources` models pose by pose
+    noise_sources: bool = False
 
     @abc.abstractmethod
     def residuals(self, poses: Poses) -> np.ndarray:

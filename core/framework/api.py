@@ -149,7 +149,9 @@ def _host(registry: Any, problem: str, solver: str, spec: Any, backend: str, dat
     start = time.perf_counter()
     output = _run(spec, data, options, backend, time_limit, builtin, _who(registry, solver, problem, builtin))
     seconds = time.perf_counter() - start
-    unknowns, status, diagnostics = _checked_output(output, spec_problem.unknowns, solver)
+    with _problem_faults(registry, problem):
+        sizes = dict(spec_problem.stack_sizes(data))
+    unknowns, status, diagnostics = _checked_output(output, spec_problem.unknowns, solver, sizes)
     if not self_check:
         return Solution(unknowns=unknowns, problem=problem, solver=solver, backend=backend, status=status,
                         seconds=seconds, diagnostics=diagnostics)
@@ -232,16 +234,17 @@ def _run(spec: Any, data: Any, options: Any, backend: str, time_limit: float | N
         raise SolverError(f"{who} failed: {type(exc).__name__}: {message}") from exc
 
 
-def _checked_output(output: Any, names: tuple[str, ...], solver: str) -> tuple[dict[str, np.ndarray], Status,
-                                                                              dict[str, Any]]:
+def _checked_output(output: Any, names: tuple[str, ...], solver: str, sizes: Mapping[str, int] | None = None
+                    ) -> tuple[dict[str, np.ndarray], Status, dict[str, Any]]:
     """(unknowns, status, diagnostics) of what a solver returned, or SolverError when it is not
-    an answer: not a SolverOutput, an unknown that is not a pose, an unknown status."""
+    an answer: not a SolverOutput, an unknown that is not a pose (or, for a stack of `sizes`,
+    not that many poses), an unknown status."""
     if not isinstance(output, SolverOutput):
         raise SolverError(f"solver {solver!r} returned {type(output).__name__}, not SolverOutput")
     if not isinstance(output.unknowns, Mapping):
         raise SolverError(f"solver {solver!r} returned unknowns as a {type(output.unknowns).__name__}, not a "
                           "mapping from names to poses")
-    unknowns = {name: _checked_pose(output.unknowns, name, solver) for name in names}
+    unknowns = {name: _checked_pose(output.unknowns, name, solver, (sizes or {}).get(name)) for name in names}
     try:
         status = Status(output.status)
     except ValueError:
@@ -259,9 +262,10 @@ def _checked_output(output: Any, names: tuple[str, ...], solver: str) -> tuple[d
     return unknowns, status, diagnostics
 
 
-def _checked_pose(unknowns: Any, name: str, solver: str) -> np.ndarray:
+def _checked_pose(unknowns: Any, name: str, solver: str, stack: int | None = None) -> np.ndarray:
     """A read-only float64 copy of unknown `name`; raise if it is not a 4x4 pose in SE(3) (a
-    complex array, a last row other than [0, 0, 0, 1], a rotation off SO(3))."""
+    complex array, a last row other than [0, 0, 0, 1], a rotation off SO(3)), or for a stack of
+    `stack` poses not a (stack, 4, 4) array of such poses (each checked as a single one)."""
     if name not in unknowns:
         raise SolverError(f"solver {solver!r} did not return unknown {name!r}")
     try:
@@ -274,8 +278,20 @@ def _checked_pose(unknowns: Any, name: str, solver: str) -> np.ndarray:
             raise
         raise SolverError(f"solver {solver!r} returned {name} as a {type(unknowns[name]).__name__} that is "
                           "not an array of numbers") from None
-    if T.shape != (4, 4):
-        raise SolverError(f"solver {solver!r} returned {name} of shape {T.shape}, not a 4x4 pose")
+    expected = (4, 4) if stack is None else (stack, 4, 4)
+    if T.shape != expected:
+        what = "a 4x4 pose" if stack is None else f"a stack of {stack} 4x4 poses"
+        raise SolverError(f"solver {solver!r} returned {name} of shape {T.shape}, not {what}")
+    for k, pose in enumerate(T.reshape(-1, 4, 4)):
+        _check_pose(pose, name if stack is None else f"{name}[{k}]", solver)
+    T[..., 3, :] = (0.0, 0.0, 0.0, 1.0)
+    T.setflags(write=False)
+    return T
+
+
+def _check_pose(T: np.ndarray, name: str, solver: str) -> None:
+    """Raise SolverError naming `name` unless T (4, 4) is finite with R in SO(3) and last row
+    [0, 0, 0, 1] (to `OUTPUT_ORTHONORMALITY_TOL`)."""
     if not np.all(np.isfinite(T)):
         raise SolverError(f"solver {solver!r} returned {name} with {int(np.sum(~np.isfinite(T)))} non-finite "
                           "entries (NaN or inf)")
@@ -288,6 +304,3 @@ def _checked_pose(unknowns: Any, name: str, solver: str) -> np.ndarray:
     if np.abs(T[3] - (0.0, 0.0, 0.0, 1.0)).max() > OUTPUT_ORTHONORMALITY_TOL:
         raise SolverError(f"solver {solver!r} returned {name} whose last row {np.round(T[3], 9).tolist()} is not "
                           "[0, 0, 0, 1]")
-    T[3] = (0.0, 0.0, 0.0, 1.0)
-    T.setflags(write=False)
-    return T

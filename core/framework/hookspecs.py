@@ -7,7 +7,8 @@ way too) or registered explicitly with `handeye.registry.register_plugin`.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import Any
 
 import pluggy
 
@@ -28,7 +29,7 @@ def register_problems(register: Callable) -> None:
 
 
 @hookspec
-def register_solvers(register: Callable) -> None:
+def register_solvers(register: Callable, problems: Mapping[str, Any]) -> None:
     """Register solvers.
 
     :param register: call ``register(spec)`` once per solver spec, with a `handeye.SolverSpec`.
@@ -36,6 +37,9 @@ def register_solvers(register: Callable) -> None:
         at registration time. One name may serve several problems: one spec naming them all,
         or one spec per problem under the same name. The same (name, problem) registered twice
         raises `PluginRegistrationError` naming both plugins.
+    :param problems: every registered problem by name (read-only), for a solver that serves any
+        problem offering what it needs (``refine`` and ``auto`` serve every problem with a
+        `Problem.pose_model`). A hook may leave this parameter out.
 
     Called once, after every plugin's ``register_problems``.
     """

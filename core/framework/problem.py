@@ -3,6 +3,18 @@
 A problem knows its data fields and unknowns, validates raw input into an immutable data object,
 computes per-pair residuals and errors against a known truth, and simulates data with a truth.
 Solvers receive the validated data object, never raw user input.
+
+Beyond that, it tells the shared machinery what it needs, so that a problem added as a plugin
+gets every shared tool with no edit to handeye (docs/plugins.md, "A problem plugin"):
+
+- the engine's least-squares model of its data (`Problem.pose_model`): ``refine`` and ``auto``
+  serve every problem that has one, started from the problem's `Problem.starts`;
+- the self-check's model (`Problem.check_model`) and the noise it expects;
+- how its unknowns read in a cell (`Problem.frames`, `Problem.published`), for printing, exports
+  and the report, and how a cell's recorded stations become its data (`Problem.station_reader`);
+- the settings of studies and benchmarks (`Problem.study_noise`, `Problem.protocols`,
+  `Problem.bench`) and which setup mistakes the plausibility check may try (`Problem.mistakes`);
+- unknowns that are stacks of poses (`Problem.stack_sizes`), checked by the host pose by pose.
 """
 
 from __future__ import annotations
@@ -19,6 +31,102 @@ from handeye.geometry.se3 import make_pose, random_rotations, rotation_angle
 Poses = Mapping[str, np.ndarray]
 #: errors per unknown: {"X": {"rotation": rad, "translation": data units}, ...}
 ErrorTable = dict[str, dict[str, float]]
+
+
+@dataclasses.dataclass(frozen=True)
+class Frame:
+    """What an unknown is in a cell: the pose of frame `child` in frame `parent`, T_parent_child
+    (e.g. ``Frame("flange", "cam", "camera in the flange frame")``: X = T_flange_cam)."""
+
+    parent: str
+    child: str
+    meaning: str
+
+    @property
+    def symbol(self) -> str:
+        return f"T_{self.parent}_{self.child}"
+
+
+@dataclasses.dataclass(frozen=True)
+class Published:
+    """The unknown a cell's exports publish (the camera's pose: a ROS static transform, a URDF
+    joint) and the frame ids they give it by default (the user may rename them)."""
+
+    unknown: str
+    parent: str
+    child: str
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchRow:
+    """A row `handeye bench` times beside the registered solvers: one solve done outside handeye
+    (e.g. OpenCV called directly), so that handeye's time reads against it.
+
+    call: ``call(inputs)`` prepares one solve of `inputs` (the second item `BenchSettings.simulate`
+        returns: the data fields unless the problem makes other inputs) and returns a function of
+        no argument doing it; only that function is timed (its result is ignored). It may raise:
+        the row then shows the error.
+    missing: why the row cannot run here (e.g. a library missing), or None: it can. Rows giving
+        the same reason are listed once, together.
+    same_method: the registered solver implementing the same method (e.g. ``"tsai"`` beside
+        OpenCV's TSAI), whose call time the printout divides by this row's; None: no such solver.
+    """
+
+    label: str
+    call: Callable[[Mapping[str, Any]], Callable[[], Any]]
+    missing: Callable[[], str | None] = lambda: None
+    same_method: str | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchTarget:
+    """A speed target `handeye bench` checks and prints: `solver` (on its default backend, or
+    `backend`) at `pairs` pairs within `seconds` per `handeye.solve` call, or within `ratio` times
+    the reference row's call; `options` (e.g. ``(("init", "kron-lstsq"),)``) make it a row of
+    its own, timed beside the solver's plain row."""
+
+    solver: str
+    pairs: int
+    seconds: float | None = None
+    ratio: float | None = None
+    backend: str | None = None
+    options: tuple[tuple[str, Any], ...] = ()
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchSettings:
+    """What `handeye bench` (`handeye.harness.bench`) times for a problem besides every
+    registered solver, and on which data. Every field has a default: a problem that sets none is
+    benchmarked as its solvers on its own simulator.
+
+    pairs: the default numbers of pairs m (the ``--pairs`` of the command line).
+    reference: the label of the row the ratio column divides by (None: the first row timed);
+        reference_name: how the targets name it (None: its label).
+    solver_rows: options of registered solvers timed as rows of their own, e.g.
+        ``("opencv", (("method", "shah"),))``, labelled ``opencv [method=shah]``, on the solver's
+        default backend; always timed (whatever ``--solvers`` selects), left out when the solver
+        is not registered for the problem, and a note when its backend is unavailable. A solver
+        named here is timed as these rows only.
+    direct_rows: solves outside handeye (`BenchRow`), timed after the solver rows.
+    targets: `BenchTarget`, judged and printed one line each.
+    simulate: ``simulate(pairs=m, seed=seed, noise=noise, **options) -> (data fields, inputs)``,
+        called like `Problem.simulate` (``options``: a solver's `SolverSpec.simulate_options`)
+        but giving, instead of the truth, the inputs of the direct rows (`BenchRow.call`): e.g.
+        the stations a function forms the motions from itself. None: the problem's simulator,
+        the data fields serving as both.
+    data_note: how the printout describes the data: a `str.format` template of ``{seed}``,
+        ``{rot}`` and ``{trans}`` (the noise std, rad and data units). None: the problem's
+        simulator with noise on every data stack.
+    """
+
+    pairs: tuple[int, ...] = (10, 100, 1000)
+    reference: str | None = None
+    reference_name: str | None = None
+    solver_rows: tuple[tuple[str, tuple[tuple[str, Any], ...]], ...] = ()
+    direct_rows: tuple[BenchRow, ...] = ()
+    targets: tuple[BenchTarget, ...] = ()
+    simulate: Callable[..., tuple[Mapping[str, Any], Mapping[str, Any]]] | None = None
+    data_note: str | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,12 +147,16 @@ class StationReader:
     cell_truth: Mapping[str, Mapping[str, str]] | None = None
 
 
+#: the setup mistakes `handeye.plausibility` knows how to undo and try (`Problem.mistakes`)
+MISTAKES = ("camera-inverted", "robot-inverted", "other-setup", "shifted", "camera-unit", "euler")
+
+
 class Problem(ABC):
     """Base class of problem plugins.  Subclasses set the class variables and methods below."""
 
     name: ClassVar[str]
     summary: ClassVar[str]
-    #: names of the unknown poses, e.g. ("X", "Y")
+    #: names of the unknown poses, e.g. ("X", "Y"); each a 4x4 pose, or a stack (`stack_sizes`)
     unknowns: ClassVar[tuple[str, ...]]
     #: names of the data stacks, e.g. ("A", "B"), each (m, 4, 4)
     data_fields: ClassVar[tuple[str, ...]]
@@ -54,6 +166,35 @@ class Problem(ABC):
     optional_fields: ClassVar[tuple[str, ...]] = ()
     #: how the data are made from a cell's absolute poses, or None when they cannot be
     station_reader: ClassVar[StationReader | None] = None
+    #: the class of the validated data `validate` returns (how a solver serving several problems,
+    #: e.g. ``refine``, tells whose data it holds: `Registry.problem_of`)
+    data_type: ClassVar[type | None] = None
+    #: the problem the library and the CLI solve when none is named (one registered problem sets it)
+    default: ClassVar[bool] = False
+    #: the equation as printed, e.g. "A_i X = Y B_i", and what one row of the data is ("pair",
+    #: "motion", "triple"): the words of the printout and the report
+    equation: ClassVar[str] = ""
+    item: ClassVar[str] = "pair"
+    #: the setups whose frames `frames` names (e.g. eye-in-hand, eye-to-hand); empty: no setup
+    setups: ClassVar[tuple[str, ...]] = ()
+    #: registered solvers that give ``refine`` and ``auto`` their start, in order of preference;
+    #: those in `certifiable_starts` prove their answer globally optimal (auto then needs no
+    #: second start); errors of `start_refusals` pass on to the next start besides a solver's
+    #: failure (e.g. InputError of a start that serves one data protocol only)
+    starts: ClassVar[tuple[str, ...]] = ()
+    certifiable_starts: ClassVar[tuple[str, ...]] = ()
+    start_refusals: ClassVar[tuple[type[Exception], ...]] = ()
+    #: a fast closed-form solver for the plausibility check's many fits (None: the first start)
+    quick_solver: ClassVar[str | None] = None
+    #: the setup mistakes of `MISTAKES` the plausibility check may try on this problem's stations
+    mistakes: ClassVar[tuple[str, ...]] = MISTAKES
+    #: the accuracy study's realistic noise per data stack, (rad, data units); None: 0.002 rad
+    #: and 0.5 units (a camera's) on every stack
+    study_noise: ClassVar[Mapping[str, tuple[float, float]] | None] = None
+    #: simulator protocols (values of its ``protocol`` option) studies sweep one by one; empty: none
+    protocols: ClassVar[tuple[str, ...]] = ()
+    #: what `handeye bench` times for this problem (default: every registered solver)
+    bench: ClassVar[BenchSettings] = BenchSettings()
 
     @abstractmethod
     def validate(self, **data: Any) -> Any:
@@ -97,6 +238,35 @@ class Problem(ABC):
         expressed in, for naming a poorly determined direction; empty when not known."""
         return {}
 
+    def pose_model(self, data: Any) -> Any:
+        """The shared least-squares engine's model of validated `data` (a
+        `handeye.estimation.nlls.PoseModel`, its unknowns in the order `flat_unknowns` gives),
+        or None: then ``refine`` and ``auto`` do not serve the problem. Default: the data's own
+        ``pose_model`` attribute, when they have one."""
+        return getattr(data, "pose_model", None)
+
+    @property
+    def refinable(self) -> bool:
+        """Whether the problem offers the engine a model (`pose_model` overridden, or its data
+        type carrying one): ``refine`` and ``auto`` register for it."""
+        return type(self).pose_model is not Problem.pose_model or hasattr(self.data_type, "pose_model")
+
+    def frames(self, setup: str | None = None) -> dict[str, Frame]:
+        """Per unknown, what it is in a cell of `setup` (one of `setups`); empty when the problem
+        does not say (the printout then names the unknowns only)."""
+        return {}
+
+    def published(self, setup: str | None = None) -> Published | None:
+        """The unknown a cell's exports publish with its default frame ids, or None (nothing to
+        publish: the answer is exported as the unknowns)."""
+        return None
+
+    def stack_sizes(self, data: Any) -> Mapping[str, int]:
+        """Unknowns that are stacks of poses, with the number of poses of each on these data
+        (e.g. one camera pose per camera of the cell): such an unknown is a (k, 4, 4) array,
+        each pose checked by the host as a single one. Default: none, every unknown one pose."""
+        return {}
+
     def random_unknowns(self, rng: np.random.Generator, translation_scale: float = 500.0) -> dict[str, np.ndarray]:
         """Random unknowns for tests and studies: uniform rotations, translations
         N(0, translation_scale^2) per axis (data units), one pose per name in `unknowns`."""
@@ -117,12 +287,46 @@ def pose_discrepancy(P: np.ndarray, Q: np.ndarray) -> dict[str, np.ndarray]:
 
 def pose_errors(unknowns: Mapping[str, np.ndarray], truth: Mapping[str, np.ndarray],
                 names: tuple[str, ...]) -> ErrorTable:
-    """Rotation angle of R_cal R_true^T and translation distance for each named unknown."""
+    """Rotation angle of R_cal R_true^T and translation distance for each named unknown; for a
+    stack of poses (`Problem.stack_sizes`) the largest of its poses' errors."""
     table: ErrorTable = {}
     for name in names:
         cal, true = np.asarray(unknowns[name], dtype=float), np.asarray(truth[name], dtype=float)
+        if cal.shape != true.shape:
+            raise ValueError(f"unknown {name} has shape {cal.shape}, its truth {true.shape}")
+        cal, true = cal.reshape(-1, 4, 4), true.reshape(-1, 4, 4)
         table[name] = {
-            "rotation": float(rotation_angle(cal[:3, :3] @ true[:3, :3].T)),
-            "translation": float(np.linalg.norm(cal[:3, 3] - true[:3, 3])),
+            "rotation": float(np.max(rotation_angle(cal[:, :3, :3] @ np.swapaxes(true[:, :3, :3], 1, 2)))),
+            "translation": float(np.max(np.linalg.norm(cal[:, :3, 3] - true[:, :3, 3], axis=1))),
         }
     return table
+
+
+def flat_names(problem: Problem, data: Any) -> tuple[str, ...]:
+    """The problem's unknowns as single poses, in order: a stack `X` of k poses (`stack_sizes`)
+    as ``X[0]``, ..., ``X[k-1]`` (the order of `Problem.pose_model`'s unknowns)."""
+    sizes = problem.stack_sizes(data)
+    return tuple(item for name in problem.unknowns
+                 for item in ([f"{name}[{k}]" for k in range(sizes[name])] if name in sizes else [name]))
+
+
+def flatten(problem: Problem, data: Any, unknowns: Mapping[str, np.ndarray]) -> tuple[np.ndarray, ...]:
+    """The unknowns as a tuple of single poses (`flat_names`' order)."""
+    sizes = problem.stack_sizes(data)
+    out: list[np.ndarray] = []
+    for name in problem.unknowns:
+        T = np.asarray(unknowns[name], dtype=float)
+        out += list(T) if name in sizes else [T]
+    return tuple(out)
+
+
+def unflatten(problem: Problem, data: Any, poses: tuple[np.ndarray, ...] | list[np.ndarray]) -> dict[str, np.ndarray]:
+    """The inverse of `flatten`: {unknown: 4x4, or a (k, 4, 4) stack}."""
+    sizes, out, k = problem.stack_sizes(data), {}, 0
+    for name in problem.unknowns:
+        n = sizes.get(name)
+        out[name] = np.stack(poses[k:k + n]) if n is not None else np.asarray(poses[k])
+        k += 1 if n is None else n
+    if k != len(poses):
+        raise ValueError(f"{len(poses)} poses for unknowns {flat_names(problem, data)}")
+    return out

@@ -25,6 +25,7 @@ import dataclasses
 import importlib.metadata
 import os
 import threading
+import types
 import warnings
 from collections.abc import Iterable
 from typing import Any
@@ -106,8 +107,9 @@ class Registry:
                 if owner in self.failed:
                     continue
                 staged: list[Any] = []
+                given = {"register": staged.append, "problems": types.MappingProxyType(self.problems)}
                 try:
-                    impl.function(register=staged.append)
+                    impl.function(**{arg: given[arg] for arg in impl.argnames})
                     for item in staged:
                         add(item, owner)
                 except (Exception, SystemExit) as exc:
@@ -163,7 +165,7 @@ class Registry:
                     f"solver {spec.name!r} of plugin {owner!r} claims problem {problem!r}, which no "
                     f"plugin registered (known: {sorted(self.problems)})"
                 )
-            if (spec.name, problem) in self._solver_owner:
+            if (spec.name, problem) in self._solver_owner and not self._replaces(spec.name, problem, owner):
                 raise PluginRegistrationError(
                     f"solver {spec.name!r} for problem {problem!r} is registered by both plugin "
                     f"{self._solver_owner[spec.name, problem]!r} and plugin {owner!r}"
@@ -172,11 +174,35 @@ class Registry:
             self.solvers.setdefault(spec.name, {})[problem] = spec
             self._solver_owner[spec.name, problem] = owner
 
+    def _replaces(self, solver: str, problem: str, owner: str) -> bool:
+        """Whether plugin `owner` may replace the spec of `solver` for `problem` that another plugin
+        registered: a problem's own plugin may put its own solver in place of one that serves
+        every problem (e.g. its own ``auto`` instead of the shared one)."""
+        return self._problem_owner.get(problem) == owner != self._solver_owner[solver, problem]
+
     def problem(self, name: str) -> Problem:
         try:
             return self.problems[name]
         except KeyError:
             raise UnknownPluginError("problem", name, self.problems, self._failed_hint()) from None
+
+    def default_problem(self) -> str:
+        """The name of the problem solved when none is named: the registered problem whose
+        ``default`` is set (the first registered, when none or several claim it)."""
+        if not self.problems:
+            raise UnknownPluginError("problem", "(default)", [])
+        claimed = [name for name, p in self.problems.items() if p.default]
+        return (claimed or list(self.problems))[0]
+
+    def problem_of(self, data: Any) -> Problem:
+        """The registered problem whose validated data `data` are (`Problem.data_type`, the
+        most specific class first); InputError when no problem claims them."""
+        for cls in type(data).__mro__:
+            for problem in self.problems.values():
+                if problem.data_type is cls:
+                    return problem
+        raise InputError(f"{type(data).__name__} are not the validated data of a registered problem "
+                         f"({', '.join(sorted(self.problems))}); validate them with the problem first")
 
     def solver(self, name: str, problem: str | None = None) -> SolverSpec:
         """The spec of solver `name` for `problem`. Without a problem the name must serve exactly

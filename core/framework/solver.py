@@ -51,6 +51,9 @@ class SolverSpec:
     camera_scale_mode: True when the solver honours data whose camera translations are known
         only up to scale (``camera_scale="unknown"``, `handeye.camera_scale`); the host refuses
         such data for the other solvers.
+    variants: (option, values) when one option selects between different methods (OpenCV's
+        five hand-eye methods behind ``method``): default studies compare one entry per value,
+        labelled ``name (value)``; None: the solver enters once.
     """
 
     name: str
@@ -67,6 +70,7 @@ class SolverSpec:
     planar_mode: bool = False
     camera_scale_mode: bool = False
     simulate_options: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    variants: tuple[str, tuple[Any, ...]] | None = None
 
     def __post_init__(self) -> None:
         if self.default_backend not in self.backends:

@@ -10,10 +10,22 @@ rotation axis.
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 
-from handeye.geometry.se3 import Array
+from handeye.geometry.se3 import Array, inverse, make_pose, project_to_so3
+
+#: Ground truth of the paper's simulation (Sec. IV-A), projected onto SO(3): the printed 4-digit
+#: rotation blocks are not exactly orthonormal. Translations in mm.
+PAPER_X = make_pose(
+    project_to_so3([[0.0162, 0.9995, 0.0289], [-0.9996, 0.0168, -0.0207], [-0.0211, -0.0285, 0.9994]]),
+    [22.0, -3.0, -60.0],
+)
+PAPER_Y = make_pose(
+    project_to_so3([[-0.9990, -0.0327, 0.0279], [0.0274, 0.0155, 0.9995], [-0.0331, 0.9994, -0.0146]]),
+    [165.0, 300.0, -962.0],
+)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -59,3 +71,25 @@ def random_flange_poses(n: int, rng: np.random.Generator, arm: DHArm = LR_MATE_2
     """n flange poses from joint values drawn uniformly in the box `joints`: (n, 4, 4)."""
     q = rng.uniform(joints[:, 0], joints[:, 1], size=(n, len(joints)))
     return arm.forward(q)
+
+
+def simulate_stations(stations: int, *, seed: int | None = None, noise: Any = None, X: Array | None = None,
+                      Y: Array | None = None) -> tuple[dict[str, Array], dict[str, Array]]:
+    """The paper's simulated eye-in-hand cell (Sec. IV-A), `stations` stations: ({"A": T_base_flange,
+    "B": T_target_cam}, {"X": T_flange_cam, "Y": T_base_target}), so that A_k X = Y B_k.
+
+    A_k: forward kinematics of the LR Mate 200iD-like arm at random joints (mm); B_k = Y^-1 A_k X;
+    then `noise` (a `handeye.estimation.noise.NoiseModel`, or None: none), "A" on the robot poses
+    and "B" on the camera's. X, Y default to `PAPER_X`, `PAPER_Y`. The random stream is drawn in a
+    fixed order (poses, then noise on A, then on B), so a seed gives the same poses at every noise
+    level. Every problem read from a cell's stations simulates from these."""
+    rng = np.random.default_rng(seed)
+    X = PAPER_X if X is None else np.asarray(X, dtype=float)
+    Y = PAPER_Y if Y is None else np.asarray(Y, dtype=float)
+    A = random_flange_poses(stations, rng)
+    B = inverse(Y) @ A @ X
+    if noise is not None:
+        pose_rng = np.random.default_rng(rng.integers(2**63))
+        A = noise.apply("A", A, pose_rng)
+        B = noise.apply("B", B, pose_rng)
+    return {"A": A, "B": B}, {"X": np.array(X), "Y": np.array(Y)}

@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 
 from handeye.estimation.noise import NoiseModel
-from handeye.geometry.kinematics import random_flange_poses
+from handeye.framework.errors import InputError
+from handeye.geometry.kinematics import PAPER_X, PAPER_Y, random_flange_poses
 from handeye.geometry.se3 import inverse, make_pose, random_rotations, so3_exp
 
 KINDS = ("heavy-noise", "pure-rotation", "tiny-cell", "weak-excitation", "planar", "outliers")
@@ -46,18 +47,22 @@ class Case:
     outliers: tuple[int, ...] = ()
 
     def data(self, problem: str) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
-        """The problem's data fields and truth: stations for axyb, all-pairs motions for axxb."""
-        if problem == "axyb":
-            return {"A": self.A, "B": self.B}, {"X": self.X, "Y": self.Y}
-        from handeye.problems.axxb import relative_motions
+        """The problem's data fields and truth, made from the case's eye-in-hand stations by the
+        problem's `StationReader` (A X = Y B: the stations; A X = X B: the motions of every pair)."""
+        from handeye.framework.registry import get_registry
 
-        A, B = relative_motions(self.A, self.B, "all")
-        return {"A": A, "B": B}, {"X": self.X}
+        reader = get_registry().problem(problem).station_reader
+        if reader is None:
+            raise InputError(f"problem {problem!r} cannot be made from a cell's stations (it has no station "
+                             "reader), so the campaign's cases do not apply to it")
+        fields = reader.convert(self.A, inverse(self.B), setup="eye-in-hand",
+                                pairing="all" if reader.pairing else None)
+        cell = {"X": self.X, "Y": self.Y}
+        names = reader.cell_truth["eye-in-hand"] if reader.cell_truth else {name: name for name in cell}
+        return dict(fields), {unknown: cell[name] for unknown, name in names.items()}
 
 
 def _truth(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    from handeye.problems.axyb import PAPER_X, PAPER_Y
-
     return PAPER_X.copy(), PAPER_Y.copy()
 
 

@@ -152,7 +152,7 @@ class Study:
     """
 
     name: str = "study"
-    problem: str = "axyb"
+    problem: str | None = None
     specs: tuple[Spec, ...] = ()
     noise: NoiseModel = dataclasses.field(default_factory=lambda: paper_noise(1.0))
     sweeps: tuple[Sweep, ...] = (Sweep("grid", (0.0, 0.02, 0.05, 0.1), (16,)),)
@@ -167,6 +167,7 @@ class Study:
     simulation: Mapping[str, Any] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "problem", self.problem or get_registry().default_problem())
         object.__setattr__(self, "specs", tuple(self.specs))
         if not isinstance(self.simulation, Mapping):
             raise InputError(f"simulation must be a table/dict of simulator options, got {self.simulation!r}")
@@ -273,39 +274,33 @@ def paper_noise(level: float = 1.0, mm_per_rad: float = PAPER_MM_PER_RAD,
     return NoiseModel.on(stacks, level, level * mm_per_rad)
 
 
-def default_specs(problem: str = "axyb") -> tuple[Spec, ...]:
+def default_specs(problem: str | None = None) -> tuple[Spec, ...]:
     """Every registered solver of `problem` with its default backend, plus every other backend of
     ``lmi-sdp`` (the paper's method: its backends are part of the comparison) and, where a solver
-    wraps several methods behind an option (`OPTION_VARIANTS`: OpenCV's five AX=XB methods), one
-    spec per method. Backends that cannot run here are left out, and so are solvers that fit
+    wraps several methods behind an option (`SolverSpec.variants`: OpenCV's five AX=XB methods),
+    one spec per method; `problem` defaults to the default problem. Backends that cannot run here are left out, and so are solvers that fit
     board images (`SolverSpec.simulate_options` asking for ``images``: ``reprojection``), which
     pose data cannot feed (bench/reprojection_study.py is their study)."""
     registry = get_registry()
+    problem = problem or registry.default_problem()
     return tuple(spec for name in registry.solver_names(problem)
                  if "images" not in registry.solver(name, problem).simulate_options
-                 for spec in _solver_specs(name, registry.solver(name, problem), problem=problem))
-
-
-#: solvers that enter a default study once per value of one option rather than once:
-#: (solver, problem) -> (option, values); labels are ``solver (value)``
-OPTION_VARIANTS: dict[tuple[str, str], tuple[str, tuple[str, ...]]] = {
-    ("opencv", "axxb"): ("method", ("tsai", "park", "horaud", "andreff", "daniilidis")),
-}
+                 for spec in _solver_specs(name, registry.solver(name, problem)))
 
 
 def _solver_specs(name: str, solver: Any, options: Mapping[str, Any] | None = None,
-                  suffix: str = "", problem: str = "axyb") -> list[Spec]:
+                  suffix: str = "") -> list[Spec]:
     """Specs of registered solver `name` on its default backend, or for ``lmi-sdp`` on every
     backend (default first, labelled ``lmi-sdp/<backend>``), leaving out backends that cannot run
-    here; one spec per value of `OPTION_VARIANTS` for `problem` (labelled ``name (value)``);
+    here; one spec per value of its `SolverSpec.variants` (labelled ``name (value)``);
     `suffix` is appended to every label."""
     if name == "lmi-sdp":
         backends = sorted(solver.backends, key=lambda b: b != solver.default_backend)
     else:
         backends = [solver.default_backend]
     variants: list[tuple[str, dict[str, Any]]] = [("", dict(options or {}))]
-    if (name, problem) in OPTION_VARIANTS:
-        key, values = OPTION_VARIANTS[name, problem]
+    if solver.variants is not None:
+        key, values = solver.variants
         variants = [(f" ({value})", {**(options or {}), key: value}) for value in values]
     specs = []
     for backend in backends:
@@ -325,12 +320,13 @@ PAPER_METHODS = ("lmi-sdp", "iterative", "dual-quaternion")
 PAPER_OPTIONS: dict[str, dict[str, Any]] = {"dual-quaternion": {"normalize": False}}
 
 
-def paper_specs(problem: str = "axyb") -> tuple[Spec, ...]:
+def paper_specs(problem: str | None = None) -> tuple[Spec, ...]:
     """The default contenders of `paper_study`: `PAPER_METHODS` as the paper runs them (every
     available backend of ``lmi-sdp``; `PAPER_OPTIONS`, label suffix ``(raw)``), then every other
     registered solver of `problem` (ours and third parties') with its defaults and default
     backend. `missing_paper_methods` tells which of the paper's methods are not registered."""
     registry = get_registry()
+    problem = problem or registry.default_problem()
     known = registry.solver_names(problem)
     specs = []
     for name in [n for n in PAPER_METHODS if n in known] + [n for n in known if n not in PAPER_METHODS]:
@@ -338,13 +334,14 @@ def paper_specs(problem: str = "axyb") -> tuple[Spec, ...]:
         fields = {f.name for f in dataclasses.fields(solver.options)} if dataclasses.is_dataclass(solver.options) else set()
         options = PAPER_OPTIONS.get(name, {})
         options = {k: v for k, v in options.items() if k in fields}  # a replacement plugin may lack them
-        specs += _solver_specs(name, solver, options, " (raw)" if options else "", problem)
+        specs += _solver_specs(name, solver, options, " (raw)" if options else "")
     return tuple(specs)
 
 
-def missing_paper_methods(problem: str = "axyb") -> list[str]:
+def missing_paper_methods(problem: str | None = None) -> list[str]:
     """The paper's methods (`PAPER_METHODS`) that no installed plugin registers."""
-    known = set(get_registry().solver_names(problem))
+    registry = get_registry()
+    known = set(registry.solver_names(problem or registry.default_problem()))
     return [name for name in PAPER_METHODS if name not in known]
 
 
@@ -367,31 +364,34 @@ def paper_study(*, trials: int = 5, seed: int = 0, pairs: int = PAPER_PAIRS,
 #: 0.5 s); a solver stuck past it is recorded as failed and the study goes on
 PAPER_TIMEOUT = 10.0
 
-#: realistic noise of the accuracy study, camera (B) ten times noisier than the robot (A); rad and
-#: mm. For ``axxb`` the same on the absolute poses the motions are made of ("A": robot, "B": camera).
+#: realistic noise of a robot (A) and a camera (B) ten times noisier, rad and mm: the accuracy
+#: study's for A X = Y B and A X = X B (`Problem.study_noise`)
 ACCURACY_NOISE = NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)})
-#: the accuracy study's noise of problems whose data are not the robot (A) and camera (B) poses:
-#: ``axbycz``'s C is robot 2's flange pose, as precise as robot 1's
-ACCURACY_NOISE_OF: dict[str, NoiseModel] = {
-    "axbycz": NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5), "C": (0.0002, 0.05)}),
-}
+#: the accuracy study's noise on every data stack of a problem that states none: a camera's
+CAMERA_NOISE = (0.002, 0.5)
 #: pair counts of the accuracy study
 ACCURACY_PAIRS = (8, 16, 50)
-#: simulator options of further sweeps of the built-in studies, per problem: ``axbycz``'s phase
-#: protocol (one robot still at a time), which the two-step solvers need; the first sweeps use
-#: the simulator's defaults (free motion)
-PROTOCOLS: dict[str, tuple[str, ...]] = {"axbycz": ("free", "phases")}
+
+
+def accuracy_noise(problem: str) -> NoiseModel:
+    """The accuracy study's noise of `problem`: its `Problem.study_noise`, else `CAMERA_NOISE` on
+    every data stack."""
+    spec = get_registry().problem(problem)
+    levels = spec.study_noise or {name: CAMERA_NOISE for name in spec.data_fields}
+    return NoiseModel(dict(levels))
 
 
 def protocol_sweeps(problem: str, sweeps: Sequence[Sweep], protocols: Sequence[str] | None = None) -> tuple[Sweep, ...]:
-    """`sweeps` once per data protocol of `problem` (`PROTOCOLS`; `protocols` to choose): for a
-    problem without protocols the sweeps themselves, else each sweep per protocol, named
+    """`sweeps` once per data protocol of `problem` (`Problem.protocols`; `protocols` to choose):
+    for a problem without protocols the sweeps themselves, else each sweep per protocol, named
     ``<sweep>-<protocol>`` and simulated with ``{"protocol": ...}`` (the first protocol keeps the
     plain name)."""
-    known = PROTOCOLS.get(problem)
+    registry = get_registry()
+    known = tuple(registry.problem(problem).protocols)
     if not known:
         if protocols:
-            raise InputError(f"problem {problem!r} has no data protocols; --protocol applies to {sorted(PROTOCOLS)}")
+            having = sorted(name for name, p in registry.problems.items() if p.protocols)
+            raise InputError(f"problem {problem!r} has no data protocols; --protocol applies to {having}")
         return tuple(sweeps)
     chosen = tuple(protocols) if protocols else known
     unknown = [p for p in chosen if p not in known]
@@ -401,24 +401,27 @@ def protocol_sweeps(problem: str, sweeps: Sequence[Sweep], protocols: Sequence[s
                  for p in chosen for s in sweeps)
 
 
-def accuracy_study(*, problem: str = "axyb", trials: int = 20, seed: int = 0, specs: Sequence[Spec] = (),
+def accuracy_study(*, problem: str | None = None, trials: int = 20, seed: int = 0, specs: Sequence[Spec] = (),
                    oracle: bool | None = None, units: str = "mm", pairs: Sequence[int] = ACCURACY_PAIRS,
                    protocols: Sequence[str] | None = None) -> Study:
-    """The accuracy study of `problem`: noise on A and B (`ACCURACY_NOISE`; ``axbycz``: also on
-    C, `ACCURACY_NOISE_OF`) and ten times that, m = 8, 16, 50 (`ACCURACY_PAIRS`), random unknowns
+    """The accuracy study of `problem` (default: the default problem): its realistic noise
+    (`accuracy_noise`) and ten times that, m = 8, 16, 50 (`ACCURACY_PAIRS`), random unknowns
     per trial, every registered solver (`default_specs`); for a problem with data protocols
-    (`PROTOCOLS`: ``axbycz``'s free motion and phases) the sweep once per protocol. With `oracle`
-    (default: when ``refine`` solves `problem`) an extra spec ``oracle`` runs ``refine`` started
-    at the ground truth (`Spec.init_from_truth`: init = the problem's unknowns, e.g.
-    ``{"X": ..., "Y": ...}`` for ``axyb``, ``{"X": ...}`` for ``axxb``)."""
+    (`Problem.protocols`: ``axbycz``'s free motion and phases) the sweep once per protocol. With
+    `oracle` (default: when ``refine`` solves `problem`) an extra spec ``oracle`` runs ``refine``
+    started at the ground truth (`Spec.init_from_truth`: init = the problem's unknowns, e.g.
+    ``{"X": ..., "Y": ...}`` for ``axyb``, ``{"X": ...}`` for ``axxb``). Named ``accuracy`` for
+    the default problem, else ``accuracy-<problem>``."""
+    registry = get_registry()
+    problem = problem or registry.default_problem()
     specs = tuple(specs) or default_specs(problem)
     if oracle is None:
-        oracle = "refine" in get_registry().solver_names(problem)
+        oracle = "refine" in registry.solver_names(problem)
     if oracle:
         specs += (Spec("refine", label="oracle", init_from_truth=True),)
     sweeps = protocol_sweeps(problem, (Sweep("accuracy", (1.0, 10.0), tuple(pairs)),), protocols)
-    return Study(name="accuracy" if problem == "axyb" else f"accuracy-{problem}", problem=problem, specs=specs,
-                 noise=ACCURACY_NOISE_OF.get(problem, ACCURACY_NOISE), sweeps=sweeps,
+    name = "accuracy" if problem == registry.default_problem() else f"accuracy-{problem}"
+    return Study(name=name, problem=problem, specs=specs, noise=accuracy_noise(problem), sweeps=sweeps,
                  trials=trials, seed=seed, truth="random", units=units)
 
 
@@ -429,7 +432,7 @@ SWEEP_PAIRS = (8, 16, 32, 64)
 SWEEP_LEVEL = 0.05
 
 
-def sweep_study(problem: str = "axyb", *, name: str = "study", specs: Sequence[Spec] = (),
+def sweep_study(problem: str | None = None, *, name: str = "study", specs: Sequence[Spec] = (),
                 noise: NoiseModel | None = None, protocols: Sequence[str] | None = None) -> Study:
     """``handeye compare``'s default study of `problem`: a noise sweep (`SWEEP_LEVELS` at m = 16)
     and a pair-count sweep (m = `SWEEP_PAIRS` at level `SWEEP_LEVEL`), noise on every data stack
@@ -437,6 +440,7 @@ def sweep_study(problem: str = "axyb", *, name: str = "study", specs: Sequence[S
     ``axxb`` on the robot and camera poses, for ``axbycz`` on A, B and C), every registered
     solver of `problem` by default; both sweeps once per data protocol of the problem
     (`protocol_sweeps`: ``axbycz``'s free motion and phases)."""
+    problem = problem or get_registry().default_problem()
     fields = tuple(get_registry().problem(problem).data_fields)
     sweeps = protocol_sweeps(problem, (Sweep("noise", SWEEP_LEVELS, (PAPER_PAIRS,)),
                                        Sweep("pairs", (SWEEP_LEVEL,), SWEEP_PAIRS)), protocols)
@@ -449,10 +453,12 @@ def sweep_study(problem: str = "axyb", *, name: str = "study", specs: Sequence[S
 # --------------------------------------------------------------------------------------------
 # parsing: CLI strings and TOML files
 
-def parse_specs(text: str, problem: str = "axyb") -> tuple[Spec, ...]:
+def parse_specs(text: str, problem: str | None = None) -> tuple[Spec, ...]:
     """Specs from a comma-separated list: ``name`` (default backend), ``name/backend``,
-    ``name/*`` (every available backend) or ``all`` (= `default_specs`)."""
+    ``name/*`` (every available backend) or ``all`` (= `default_specs`), for `problem` (default:
+    the default problem)."""
     registry = get_registry()
+    problem = problem or registry.default_problem()
     specs: list[Spec] = []
     for item in (part.strip() for part in text.split(",")):
         if not item:

@@ -114,7 +114,7 @@ class RawFile:
 # ----------------------------------------------------------------------------- public API
 
 
-def load_data(path: str | Path, problem: str = "axyb", *, setup: str | None = None,
+def load_data(path: str | Path, problem: str | None = None, *, setup: str | None = None,
               pairing: str | None = None) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray] | None]:
     """Read a data file: ``(data, truth)``; truth is None when the file holds none.
 
@@ -130,7 +130,7 @@ def load_data(path: str | Path, problem: str = "axyb", *, setup: str | None = No
     return pose_file.data, pose_file.truth
 
 
-def load_file(path: str | Path, problem: str = "axyb", *, setup: str | None = None,
+def load_file(path: str | Path, problem: str | None = None, *, setup: str | None = None,
               pairing: str | None = None) -> PoseFile:
     """Like `load_data`, also returning the file's metadata (units, setup, ...) and, for a file
     of absolute poses, the poses as read (`PoseFile.poses`)."""
@@ -143,7 +143,7 @@ def load_file(path: str | Path, problem: str = "axyb", *, setup: str | None = No
 
 
 def save_data(path: str | Path, data: Mapping[str, Any], truth: Mapping[str, Any] | None = None, *,
-              metadata: Mapping[str, str] | None = None, problem: str = "axyb", force: bool = True) -> Path:
+              metadata: Mapping[str, str] | None = None, problem: str | None = None, force: bool = True) -> Path:
     """Write data (and optionally truth and metadata) in the format given by the extension.
 
     data: data field -> (m, 4, 4), or for a problem of `station_readers` the absolute poses
@@ -163,7 +163,7 @@ def save_data(path: str | Path, data: Mapping[str, Any], truth: Mapping[str, Any
     return path
 
 
-def from_poses(robot_poses: Any, camera_poses: Any, problem: str = "axxb", *, setup: str | None = None,
+def from_poses(robot_poses: Any, camera_poses: Any, problem: str | None = None, *, setup: str | None = None,
                pairing: str | None = None, truth: Mapping[str, Any] | None = None,
                metadata: Mapping[str, str] | None = None, source: str = "absolute poses") -> PoseFile:
     """A `PoseFile` of `problem` (one of `station_readers`) made from absolute poses, as reading a file
@@ -171,6 +171,7 @@ def from_poses(robot_poses: Any, camera_poses: Any, problem: str = "axxb", *, se
     T_cam_target; setup and pairing override the metadata's (setup is required in one of them).
     `source` names the data in error messages."""
     readers = station_readers()
+    problem = problem or get_registry().default_problem()
     if problem not in readers:
         raise InputError(f"problem {problem!r} does not read absolute poses; problems that do: {sorted(readers)}")
     raw = RawFile({"robot_poses": robot_poses, "camera_poses": camera_poses},
@@ -200,6 +201,7 @@ def _finish(raw: RawFile, path: Path, problem: str, writing: bool = False, *,
             setup: str | None = None, pairing: str | None = None) -> PoseFile:
     """Check keys against the problem's fields and unknowns, validate poses and metadata, and
     turn absolute poses into the problem's data fields."""
+    problem = problem or get_registry().default_problem()
     spec = get_registry().problem(problem)
     fields, unknowns = tuple(spec.data_fields), tuple(spec.unknowns)
     where = f"{str(path)!r}"
@@ -252,7 +254,7 @@ def _finish(raw: RawFile, path: Path, problem: str, writing: bool = False, *,
                 f"{where}: truth must hold exactly the unknowns {list(unknowns)} of problem "
                 f"{problem!r}; missing {missing}, unexpected {extra}"
             )
-        truth = {u: _poses(raw.truth[u], f"truth {u}", where, single=True) for u in unknowns}
+        truth = {u: _truth_pose(raw.truth[u], f"truth {u}", where) for u in unknowns}
     return PoseFile(data, truth, metadata, poses)
 
 
@@ -329,6 +331,13 @@ def _poses(value: Any, name: str, where: str, single: bool = False) -> np.ndarra
     except InputError as exc:
         raise InputError(f"{where}: {exc}") from None
     return np.array(stack[0] if single else stack)
+
+
+def _truth_pose(value: Any, name: str, where: str) -> np.ndarray:
+    """The truth of one unknown, validated: a 4x4 pose, or a (k, 4, 4) stack of poses for an
+    unknown that is one (`Problem.stack_sizes`)."""
+    array = _as_float(value, name, where)
+    return _poses(array, name, where) if array.ndim == 3 else _poses(array, name, where, single=True)
 
 
 def _as_float(value: Any, name: str, where: str) -> np.ndarray:

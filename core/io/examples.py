@@ -29,6 +29,8 @@ EXAMPLES: dict[str, str] = {
     "simulated": "simulated_paper.json",
 }
 DEFAULT_EXAMPLE = "eth-robot-arm"
+#: the problem whose data the bundled pose examples are: AX=YB pairs (A, B), one per station
+EXAMPLE_PROBLEM = "axyb"
 
 
 def list_examples() -> list[str]:
@@ -46,7 +48,7 @@ def load_example(name: str = DEFAULT_EXAMPLE) -> tuple[dict[str, np.ndarray], di
         raise UnknownPluginError("example", name, EXAMPLES)
     resource = resources.files("handeye").joinpath("data", EXAMPLES[name])
     with resources.as_file(resource) as path:
-        pose_file = load_file(path, problem="axyb")
+        pose_file = load_file(path, problem=EXAMPLE_PROBLEM)
     return pose_file.data, pose_file.truth, pose_file.metadata
 
 

@@ -58,7 +58,8 @@ class StreamPairs:
     (t + offset outside the robot stream, or within the refinement window of its ends), gaps (robot dropout wider than max_gap), static (robot
     slower than the threshold), not_selected (beyond max_pairs), kept; max_gap (s),
     min_angular_speed (rad/s); warnings; reliable: False when a warning says the stations are not
-    to be trusted (the offset estimate).
+    to be trusted (the offset estimate); dropped: (row of the camera stack passed in, why it is no
+    station) for every camera sample left out, in row order.
     """
 
     robot_poses: NDArray[np.float64]
@@ -72,6 +73,7 @@ class StreamPairs:
     max_gap: float
     min_angular_speed: float
     warnings: tuple[str, ...] = ()
+    dropped: tuple[tuple[int, str], ...] = ()
 
     @property
     def reliable(self) -> bool:
@@ -147,6 +149,7 @@ def pair_streams(robot: PoseStack, camera: PoseStack, *, setup: str, camera_pose
         raise InputError(f"--max-pairs must be a whole number >= {MIN_STATIONS}, got {max_pairs!r}")
 
     robot, _, warnings = checked_stream(robot, f"the robot stream {robot.source}".rstrip())
+    camera_rows_in = len(camera)
     camera, camera_order, more = checked_stream(camera, f"the camera stream {camera.source}".rstrip())
     warnings += more
     camera = camera.in_unit(robot.unit)
@@ -203,8 +206,32 @@ def pair_streams(robot: PoseStack, camera: PoseStack, *, setup: str, camera_pose
     stamps.setflags(write=False)
     rows = camera_order[pick]
     rows.setflags(write=False)
+    why = _why_dropped(len(ct), inside, ok, cand, pick, robot_gap, min_angular_speed, int(max_pairs))
+    kept_rows = {int(r) for r in camera_order}
+    dropped = [(r, "its time stamp repeats the one before it (a copy, or a second pose at the same stamp)")
+               for r in range(camera_rows_in) if r not in kept_rows]
+    dropped += [(int(camera_order[k]), reason) for k, reason in why]
     return StreamPairs(A, cam_sel, stamps, rows, robot.unit, offset, estimate, counts, robot_gap,
-                       float(min_angular_speed), tuple(warnings))
+                       float(min_angular_speed), tuple(warnings), tuple(sorted(dropped)))
+
+
+def _why_dropped(n: int, inside: NDArray, ok: NDArray, cand: NDArray, pick: NDArray, max_gap: float,
+                 min_angular_speed: float, max_pairs: int) -> list[tuple[int, str]]:
+    """(sample, reason) of the camera samples (indices of the sorted stream) not kept: outside
+    the robot stream, in a robot gap, static, or not selected."""
+    reasons: dict[int, str] = {}
+    for k in np.flatnonzero(~inside):
+        reasons[int(k)] = "its stamp + the clock offset lies outside the robot stream"
+    for k in np.flatnonzero(inside & ~ok):
+        reasons[int(k)] = f"it falls in a gap of the robot stream wider than {max_gap * 1e3:.3g} ms"
+    kept = {int(k) for k in pick}
+    moving_set = {int(k) for k in cand}
+    for k in range(n):
+        if k in reasons or k in kept:
+            continue
+        reasons[k] = (f"not among the {max_pairs} well-spread stations kept" if k in moving_set else
+                      f"the robot turns slower than {math.degrees(min_angular_speed):.3g} deg/s there (static)")
+    return sorted(reasons.items())
 
 
 def _interpolable(stamps: NDArray, times: NDArray, margin: float, max_gap: float) -> tuple[NDArray, NDArray]:

@@ -293,6 +293,7 @@ def pair_images(files: Sequence[Path], robot: PoseStack, match: str, *, max_dt: 
         rows = np.arange(len(files))
         return Pairing(rows, rows.copy(), (), match, f"paired {len(files)} images with the robot poses in order")
     if match == "name":
+        _refuse_shifted_numbers(names, robot)
         where: dict[str, int] = {}
         for i, n in enumerate(robot_names):
             if _name_key(n) in where:
@@ -333,6 +334,28 @@ def pair_images(files: Sequence[Path], robot: PoseStack, match: str, *, max_dt: 
                          "use --match index")
     return Pairing(np.asarray(image_rows, dtype=np.intp), np.asarray(robot_rows, dtype=np.intp), tuple(dropped),
                    match, note)
+
+
+def _refuse_shifted_numbers(image_names: Sequence[str], robot: PoseStack) -> None:
+    """InputError when pairing by name would pair every image with the robot pose one station
+    off: the images and the robot poses are numbered (a robot file without a name column by its
+    rows from 0) and one set is the other shifted by one (images 1..N against rows 0..N-1, the
+    usual 1-based against 0-based count)."""
+    robot_names = pose_names(robot)
+    if len(image_names) < 2 or not all(str(n).strip().isdigit() for n in (*image_names, *robot_names)):
+        return
+    images = sorted(int(n) for n in image_names)
+    poses = sorted(int(n) for n in robot_names)
+    shift = images[0] - poses[0]
+    if shift not in (1, -1) or images[-1] - poses[-1] != shift:
+        return
+    poses_are = ("named by their rows from 0, as the robot file has no name column" if robot.names is None
+                 else "named so")
+    raise InputError(f"match='name': the images are numbered {images[0]}..{images[-1]} and the robot poses "
+                     f"{poses[0]}..{poses[-1]} ({poses_are}): by name every image would go with the robot pose one "
+                     f"station {'after' if shift > 0 else 'before'} its own if the two count the same stations from "
+                     f"{images[0]} and {poses[0]}; use match='index' to pair the k-th image with the k-th robot pose, "
+                     "or name them alike")
 
 
 # ----------------------------------------------------------------------------- the stations

@@ -14,7 +14,7 @@ from handeye import hookimpl
 from handeye.checks.validation import pose_stack
 from handeye.estimation.noise import NoiseModel
 from handeye.framework.errors import DegenerateDataError, InputError
-from handeye.framework.problem import Problem, pose_discrepancy
+from handeye.framework.problem import BenchSettings, Problem, pose_discrepancy
 from handeye.geometry.kinematics import random_flange_poses
 from handeye.geometry.se3 import inverse
 from handeye.problems.axbycz.data import (
@@ -37,6 +37,34 @@ class AXBYCZ(Problem):
     unknowns = ("X", "Y", "Z")
     data_fields = FIELDS
     min_pairs = 3
+    data_type = AXBYCZData
+    equation = "A_i X B_i = Y C_i Z"
+    item = "triple"
+    #: no certifiable method: wang first, the one start that takes every data protocol, then
+    #: fu-dq (robot 2 still in a phase), the Kronecker least squares, wu; a start that refuses the
+    #: data's protocol (InputError) gives way to the next
+    starts = ("wang", "fu-dq", "kron-lstsq", "wu")
+    start_refusals = (InputError,)
+    quick_solver = "kron-lstsq"
+    #: the accuracy study's noise: C is robot 2's flange pose, as precise as robot 1's (A)
+    study_noise = {"A": (0.0002, 0.05), "B": (0.002, 0.5), "C": (0.0002, 0.05)}
+    protocols = PROTOCOLS
+    #: ``handeye bench``: no OpenCV function solves A X B = Y C Z, so no reference rows; the ratio
+    #: column divides by the closed form wu. A solver asking for the phase protocol
+    #: (`SolverSpec.simulate_options`) is timed on phase data of the same seed
+    bench = BenchSettings(
+        pairs=(8, 16, 100, 1000),
+        reference="wu/numpy",
+        reference_name="wu",
+        data_note="two facing arms (PROBLEM.simulate, free motion; solvers that need the phase protocol get "
+                  "phase data of the same seed), noise on A, B and C: {rot:g} rad, {trans:g} mm (seed {seed})",
+    )
+
+    def pose_model(self, data: AXBYCZData) -> Any:
+        """The engine's model of the triples (`handeye.problems.axbycz.geometry.AXBYCZModel`)."""
+        from handeye.problems.axbycz.geometry import AXBYCZModel
+
+        return AXBYCZModel(data)
 
     def validate(self, **data: Any) -> AXBYCZData:
         """The validated data; `DegenerateDataError` when a stack's rotations are about fewer than

@@ -47,6 +47,7 @@ class AXXBModel(AXYBModel):
 
     unknowns = ("X",)
     profile_min_pairs = PROFILE_MIN_PAIRS
+    noise_sources = False  # motions: each shares its stations' noise, which the sources do not model
 
     def __init__(self, data: PosePairs) -> None:
         super().__init__(data)  # the same fields A, B and translation_scale

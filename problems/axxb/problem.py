@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
+from operator import itemgetter
 from typing import Any
 
 import numpy as np
@@ -19,8 +20,17 @@ from handeye.estimation import camera_scale
 from handeye.estimation.noise import NoiseModel
 from handeye.estimation.robust import MAD_TO_SIGMA
 from handeye.framework.errors import DegenerateDataError, InputError
-from handeye.framework.problem import Problem, StationReader, pose_discrepancy
+from handeye.framework.problem import (
+    BenchSettings,
+    Frame,
+    Problem,
+    Published,
+    StationReader,
+    pose_discrepancy,
+)
 from handeye.geometry.motions import PAIRINGS
+from handeye.geometry.se3 import inverse
+from handeye.problems import opencv_reference
 from handeye.problems import planar as planar_mode
 from handeye.problems.axxb.data import (
     DEGENERATE_AXIS_SPREAD,
@@ -32,6 +42,19 @@ from handeye.problems.axxb.data import (
     motions,
     relative_motions,
 )
+
+
+def bench_stations(*, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
+                   **options: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """``handeye bench``'s data at m = `pairs`: the fewest stations n with n (n - 1) / 2 >= m
+    (`simulate_stations`, noise "A" on the robot poses, "B" on the camera poses); the solvers get
+    the motions of every pair i < j, cv2.calibrateHandEye the n stations, which forms the same
+    pairs itself: ({"A", "B"} motions, {"robot": T_base_flange, "camera": T_cam_target}, each
+    (n, 4, 4))."""
+    n = int(np.ceil((1 + np.sqrt(1 + 8 * pairs)) / 2))
+    stations, _ = simulate_stations(n, seed=seed, noise=noise, **options)
+    A, B = relative_motions(stations["A"], stations["B"], "all")
+    return {"A": A, "B": B}, {"robot": stations["A"], "camera": inverse(stations["B"])}
 
 
 class AXXB(Problem):
@@ -48,6 +71,50 @@ class AXXB(Problem):
 
     #: a planar robot's translation of X along its rotation axis (`AXXBData.planar`)
     optional_fields = ("tz_X", "camera_scale")
+    data_type = AXXBData
+    equation = "A_i X = X B_i"
+    item = "motion"
+    setups = ("eye-in-hand", "eye-to-hand")
+    #: so3-sdp certifies its answer; kron-lstsq and park are closed forms
+    starts = ("so3-sdp", "kron-lstsq", "park")
+    certifiable_starts = ("so3-sdp",)
+    quick_solver = "kron-lstsq"
+    #: the accuracy study's noise on the absolute poses the motions are made of: "A" the robot's,
+    #: "B" the camera's (ten times the robot's), rad and mm
+    study_noise = {"A": (0.0002, 0.05), "B": (0.002, 0.5)}
+    #: ``handeye bench``: the ``opencv`` solver with each of OpenCV's five methods, and
+    #: cv2.calibrateHandEye called directly on the stations' prebuilt lists (gripper2base = the
+    #: robot poses, target2cam = the camera poses: `bench_stations`), each method beside
+    #: handeye's solver of that name; the ratio column divides by OpenCV's default, TSAI
+    bench = BenchSettings(
+        pairs=(16, 100, 1000),
+        reference="cv2 direct TSAI",
+        reference_name="cv2 TSAI",
+        solver_rows=tuple(("opencv", (("method", method),)) for method in ("tsai", "park", "horaud", "andreff",
+                                                                          "daniilidis")),
+        direct_rows=opencv_reference.direct_rows("calibrateHandEye", "CALIB_HAND_EYE_",
+                                                 ("TSAI", "PARK", "HORAUD", "ANDREFF", "DANIILIDIS"),
+                                                 itemgetter("robot", "camera")),
+        simulate=bench_stations,
+        data_note="simulate_stations(seed={seed}), noise on the robot and camera poses: {rot:g} rad, {trans:g} mm; "
+                  "solvers: the motions of all pairs of the fewest stations giving at least m; cv2 direct: those "
+                  "stations (it forms the same pairs)",
+    )
+
+    def frames(self, setup: str | None = None) -> dict[str, Frame]:
+        """X is the camera's pose: T_flange_cam eye-in-hand, T_base_cam eye-to-hand."""
+        if setup == "eye-to-hand":
+            return {"X": Frame("base", "cam", "camera in the robot base frame")}
+        if setup == "eye-in-hand":
+            return {"X": Frame("flange", "cam", "camera in the flange frame")}
+        return {}
+
+    def published(self, setup: str | None = None) -> Published | None:
+        """X, the camera's pose, child the camera's optical frame (parent flange eye-in-hand,
+        base eye-to-hand)."""
+        if setup not in self.setups:
+            return None
+        return Published("X", "flange" if setup == "eye-in-hand" else "base", "camera_optical_frame")
 
     def validate(self, **data: Any) -> AXXBData:
         """The validated motions; ``tz_X`` (data units) for motions that all rotate about one axis
@@ -155,9 +222,11 @@ def simulate_stations(stations: int, *, seed: int | None = None, noise: NoiseMod
     """Noisy absolute poses {"A": robot, "B": camera} of `stations` stations and the truth {"X",
     "Y"}: exactly the ``axyb`` simulator's data, so AX=YB and AX=XB can be compared on the same
     recordings (A_k X = Y B_k)."""
-    from handeye.problems.axyb import PROBLEM as AXYB_PROBLEM
+    from handeye.geometry import kinematics
 
-    return AXYB_PROBLEM.simulate(pairs=stations, seed=seed, noise=noise, X=X, Y=Y)
+    if stations < 1:
+        raise InputError(f"stations must be >= 1, got {stations}")
+    return kinematics.simulate_stations(stations, seed=seed, noise=noise, X=X, Y=Y)
 
 
 def _pitch(data: AXXBData) -> np.ndarray:

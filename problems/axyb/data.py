@@ -33,19 +33,9 @@ from handeye.estimation.kronecker import (
     reduce_normal_equations,
 )
 from handeye.framework.errors import DegenerateDataError, InputError
-from handeye.geometry.se3 import inverse, make_pose, project_to_so3
+from handeye.geometry.kinematics import PAPER_X, PAPER_Y  # noqa: F401 (re-exported: the paper's truth)
+from handeye.geometry.se3 import inverse
 from handeye.problems import planar as planar_mode
-
-#: Ground truth of the paper's simulation (Sec. IV-A), projected onto SO(3): the printed 4-digit
-#: rotation blocks are not exactly orthonormal. Translations in mm.
-PAPER_X = make_pose(
-    project_to_so3([[0.0162, 0.9995, 0.0289], [-0.9996, 0.0168, -0.0207], [-0.0211, -0.0285, 0.9994]]),
-    [22.0, -3.0, -60.0],
-)
-PAPER_Y = make_pose(
-    project_to_so3([[-0.9990, -0.0327, 0.0279], [0.0274, 0.0155, 0.9995], [-0.0331, 0.9994, -0.0146]]),
-    [165.0, 300.0, -962.0],
-)
 
 #: Relative rotation excitation (see `AXYBData.rotation_excitation`) below which the rotations
 #: are undetermined. (How well stronger data determine X and Y at their noise is the host's

@@ -51,6 +51,7 @@ class AXYBModel(PoseModel):
     unknowns = ("X", "Y")
     profile_min_pairs = PROFILE_MIN_PAIRS
     sums_min_pairs = SUMS_MIN_PAIRS
+    noise_sources = True
 
     def __init__(self, data: PosePairs) -> None:
         RA, RB = data.A[:, :3, :3], data.B[:, :3, :3]

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
+from operator import itemgetter
 from typing import Any
 
 import numpy as np
@@ -19,14 +20,23 @@ from handeye.checks.validation import (
 from handeye.estimation import camera_scale
 from handeye.estimation.noise import NoiseModel
 from handeye.framework.errors import DegenerateDataError, InputError
-from handeye.framework.problem import Problem, StationReader, pose_discrepancy
-from handeye.geometry.kinematics import random_flange_poses
-from handeye.geometry.se3 import inverse
+from handeye.framework.problem import (
+    BenchSettings,
+    BenchTarget,
+    Frame,
+    Problem,
+    Published,
+    StationReader,
+    pose_discrepancy,
+)
+from handeye.geometry.kinematics import simulate_stations
+from handeye.problems import opencv_reference
 from handeye.problems import planar as planar_mode
 from handeye.problems.axyb.data import (
     DEGENERATE_EXCITATION,
     PAPER_X,
     PAPER_Y,
+    SETUPS,
     AXYBData,
     pairs_from_stations,
     station_angles,
@@ -45,6 +55,60 @@ class AXYB(Problem):
     #: the board's image observations behind B (`AXYBData.images`)
     optional_fields = ("tz_X", "tz_Y", "images", "camera_scale")
     station_reader = StationReader(pairs_from_stations)
+    data_type = AXYBData
+    default = True
+    equation = "A_i X = Y B_i"
+    item = "pair"
+    setups = SETUPS
+    #: so3-sdp certifies its answer; kron-lstsq is the closed form (also the plausibility's fits)
+    starts = ("so3-sdp", "kron-lstsq")
+    certifiable_starts = ("so3-sdp",)
+    quick_solver = "kron-lstsq"
+    #: the accuracy study's noise: the camera (B) ten times noisier than the robot (A), rad and mm
+    study_noise = {"A": (0.0002, 0.05), "B": (0.002, 0.5)}
+    #: ``handeye bench``: OpenCV's SHAH and LI through the ``opencv`` solver (SHAH the reference:
+    #: the same path through handeye.solve, so the ratio compares methods, not wrappers) and
+    #: cv2.calibrateRobotWorldHandEye called directly on prebuilt lists, A as world2cam and B as
+    #: base2gripper (docs/conventions.md): the difference is handeye's wrapper cost
+    bench = BenchSettings(
+        pairs=(10, 16, 100, 1000, 10000),
+        reference="opencv [method=shah]",
+        reference_name="OpenCV SHAH",
+        solver_rows=(("opencv", (("method", "shah"),)), ("opencv", (("method", "li"),))),
+        direct_rows=opencv_reference.direct_rows("calibrateRobotWorldHandEye", "CALIB_ROBOT_WORLD_HAND_EYE_",
+                                                 ("SHAH", "LI"), itemgetter("A", "B")),
+        targets=(
+            BenchTarget("lmi-sdp", 16, seconds=5e-3, backend="cvxpy"),
+            BenchTarget("kron-lstsq", 10000, seconds=20e-3),
+            BenchTarget("iterative", 100, ratio=5.0),
+            BenchTarget("dual-quaternion", 100, ratio=5.0),
+            BenchTarget("so3-sdp", 16, seconds=20e-3),
+            # refine's own cost: started from the closed form (~1 ms); its default start, so3-sdp,
+            # is judged on its own line and inside auto's
+            BenchTarget("refine", 16, seconds=5e-3, options=(("init", "kron-lstsq"),)),
+            BenchTarget("auto", 16, seconds=30e-3),
+            BenchTarget("refine", 10000, seconds=200e-3),
+        ),
+    )
+
+    def frames(self, setup: str | None = None) -> dict[str, Frame]:
+        """Eye-in-hand X = T_flange_cam, Y = T_base_target; eye-to-hand X = T_flange_target,
+        Y = T_base_cam (docs/conventions.md)."""
+        if setup == "eye-to-hand":
+            return {"X": Frame("flange", "target", "target in the flange frame"),
+                    "Y": Frame("base", "cam", "camera in the robot base frame")}
+        if setup == "eye-in-hand":
+            return {"X": Frame("flange", "cam", "camera in the flange frame"),
+                    "Y": Frame("base", "target", "target in the robot base frame")}
+        return {}
+
+    def published(self, setup: str | None = None) -> Published | None:
+        """The camera's pose: X eye-in-hand (parent flange), Y eye-to-hand (parent base), child
+        the camera's optical frame (solvePnP's: z forward, x right, y down)."""
+        if setup not in SETUPS:
+            return None
+        return Published("X", "flange", "camera_optical_frame") if setup == "eye-in-hand" else \
+            Published("Y", "base", "camera_optical_frame")
 
     def validate(self, **data: Any) -> AXYBData:
         """The validated data; ``tz_X`` or ``tz_Y`` (data units) for a robot whose rotations share
@@ -124,12 +188,7 @@ class AXYB(Problem):
             from handeye.problems.axyb import images as axyb_images
 
             return axyb_images.simulate(pairs, rng, noise, X, Y, images), {"X": np.array(X), "Y": np.array(Y)}
-        A = random_flange_poses(pairs, rng)
-        B = inverse(Y) @ A @ X
-        pose_rng = np.random.default_rng(rng.integers(2**63))
-        A_noisy = noise.apply("A", A, pose_rng)
-        B_noisy = noise.apply("B", B, pose_rng)
-        return {"A": A_noisy, "B": B_noisy}, {"X": np.array(X), "Y": np.array(Y)}
+        return simulate_stations(pairs, seed=seed, noise=noise, X=X, Y=Y)
 
 
 PROBLEM = AXYB()

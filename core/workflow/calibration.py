@@ -1,0 +1,111 @@
+"""``handeye.calibrate(cell)``: a cell's recordings to its hand-eye transform, checked.
+
+The calibrate workflow, once, for the library and the command line (``handeye calibrate`` builds a
+`Cell` from its flags and calls this; it only prints and writes):
+
+1. read the streams and pair them into stations (`handeye.workflow.stations`; board images:
+   detect, calibrate the camera if needed, solve the board poses, `handeye.workflow.image_stations`);
+2. take the camera poses of the stations, invert them when the file holds T_target_cam
+   (``camera.poses: camera-in-board``), convert them to the robot's length unit;
+3. turn the stations into the problem's data (`handeye.io.from_poses`: eye-in-hand /
+   eye-to-hand, axxb's pairing) and solve (`handeye.solve`) with the cell's solver, or the default
+   (`handeye.workflow.solving`); for images the reprojection fit gives way to the pose-based answer
+   when the robot's pose errors dominate, with a warning;
+4. measure the residuals and run the plausibility checks (`handeye.checks.plausibility`: the usual
+   setup mistakes, residuals beyond a calibrated cell's noise): an implausible fit, or a clock
+   offset the stream pairing does not trust, makes the status ``unreliable``. Nothing is switched:
+   the answer is the one for the data as given, and the first warning says what explains them.
+
+Errors in the cell or its data raise `handeye.InputError` (one line, naming the cell's setting);
+a solver failure raises `handeye.SolverError`. An unusable answer (``not_converged``, ``failed``,
+``unreliable``) is returned, not raised: `CalibrationResult.usable` says whether to use it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from handeye.checks.plausibility import Streams, check
+from handeye.framework.api import solve
+from handeye.framework.errors import InputError
+from handeye.framework.registry import get_registry
+from handeye.framework.solution import Status
+from handeye.geometry.se3 import inverse
+from handeye.io.data_files import from_poses
+from handeye.workflow.cell import Cell
+from handeye.workflow.reading import rereader
+from handeye.workflow.result import CalibrationResult
+from handeye.workflow.solving import (
+    UNUSABLE,
+    default_solver,
+    image_data,
+    image_solver,
+    in_robot_unit,
+    pose_based_instead,
+    time_limit,
+)
+from handeye.workflow.stations import Log, find_stations, reliable, take
+
+
+def calibrate(cell: Cell, *, log: Log | None = None) -> CalibrationResult:
+    """Calibrate `cell` (module docstring) and return the `CalibrationResult`.
+
+    log: called as ``log(stage, text)`` with what the pairing found as soon as it is known
+    (``"images"``: the images' summary; ``"matching"``: how the stations were matched), for a
+    caller that shows progress; the same is in the result.
+    """
+    if not isinstance(cell, Cell):
+        raise InputError(f"calibrate expects a handeye.Cell (e.g. handeye.Cell.from_file('cell.yaml')), got "
+                         f"{type(cell).__name__}")
+    stations = find_stations(cell, log)
+    robot = stations.robot
+    warnings = list(stations.warnings)
+    invert = cell.camera is not None and cell.camera.poses == "camera-in-board"
+    camera_read = take(stations.camera_file, stations.camera_rows)
+    if invert:
+        inverted = inverse(camera_read.poses)
+        inverted.setflags(write=False)
+        camera_read = dataclasses.replace(camera_read, poses=inverted)
+    camera = camera_read.in_unit(robot.unit)
+    camera_source = cell.images.folder if cell.images is not None else cell.camera.file
+    pose_file = from_poses(robot.poses, camera.poses, cell.problem, setup=cell.setup, pairing=cell.pairing,
+                           metadata={"units": robot.unit}, source=f"{cell.robot.file} + {camera_source}")
+    options, facts = cell.solver_options(), cell.facts()
+    clash = sorted(set(options) & set(pose_file.data))
+    if clash:
+        raise InputError(f"`options` {clash} clash with the data field(s) of problem {cell.problem!r}")
+    images = stations.images
+    solver = cell.solver or (images is not None and image_solver(cell.problem)) or default_solver(cell.problem)
+    solution = solve(cell.problem, solver=solver, backend=cell.backend,
+                     time_limit=time_limit(cell.time_limit, cell.problem, solver),
+                     **pose_file.data, **facts, **options, **image_data(images, solver, cell.problem))
+    instead = pose_based_instead(solution, defaulted=cell.solver is None)
+    if instead:
+        solver = default_solver(cell.problem)
+        solution = solve(cell.problem, solver=solver, **pose_file.data, **facts, **options)
+        warnings.append(instead)
+
+    problem = get_registry().problem(cell.problem)
+    measured = in_robot_unit(pose_file.data, facts, solution.diagnostics)
+    residuals = problem.residuals(problem.validate(**measured, **facts), solution.unknowns)
+    report = None
+    if cell.checks and solution.status not in UNUSABLE:
+        report = check(Streams(robot.poses, camera.poses, robot.unit, cell.setup, cell.problem,
+                               pose_file.metadata.get("pairing"), facts=facts, robot_format=robot.format,
+                               camera_format=camera_read.format, camera_unit=camera_read.unit,
+                               reread_robot=None if stations.robot_rows is None else rereader(
+                                   cell.robot, stations.robot_file, robot.unit, cell.orthonormalize,
+                                   stations.robot_rows),
+                               reread_camera=None if images is not None else rereader(
+                                   cell.camera, camera_read, robot.unit, cell.orthonormalize,
+                                   stations.camera_rows, invert)),
+                       residuals)
+        warnings += list(report.warnings)
+        if not report.plausible:
+            solution = dataclasses.replace(solution, status=Status.UNRELIABLE)
+    if not reliable(stations.matching) and solution.status not in UNUSABLE:  # the clock offset is not trusted
+        solution = dataclasses.replace(solution, status=Status.UNRELIABLE)
+    return CalibrationResult(cell=cell, solution=solution, solver=solver, unit=robot.unit, stations=stations,
+                             camera=camera, camera_read=camera_read, residuals=residuals, checks=report,
+                             pairing=pose_file.metadata.get("pairing"), facts=facts,
+                             warnings=(*warnings, *solution.warnings))

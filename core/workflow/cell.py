@@ -1,0 +1,227 @@
+"""A cell: what a calibration cell recorded and how to read it, as one frozen value (`Cell`).
+
+A `Cell` says where the robot's flange poses are (`PoseStream`: a pose file, a folder of one
+pose file per station, or a ROS bag; format, length unit, column layout, bag topic), where the
+camera's side is (`CameraStream`, the board's pose per station, or `Images`, board images with
+the board and optionally the intrinsics), the setup, how robot and camera poses pair into
+stations (`Matching`), what is solved and by whom (problem, solver, backend, options, the facts
+``tz_X`` / ``tz_Y`` / ``camera_scale``), whether the plausibility checks run, the ROS frame ids,
+and where the command line writes its results (`Outputs`). ``handeye.calibrate(cell)`` runs it;
+``handeye calibrate`` builds one from its flags (or ``--config`` file) and calls the same.
+
+Every default of the calibrate workflow is defined here (and in its parts, `cell_parts`), once:
+the library and the command line read them from these classes.
+
+A `Cell` is checked when it is built: a wrong value or combination raises `InputError` (a
+ValueError) with one line that names the setting in backticks as the cell file spells it
+(```robot.unit```, ```matching.method: time```), what was expected and what to do; the command
+line shows the same messages with its flags (``--robot-unit``, ``--match time``). What needs the
+files (their existence, whether a path is a ROS bag or a folder) is checked when they are read.
+
+The YAML form (`Cell.from_file`, `Cell.to_file`) is `handeye.workflow.cell_file`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import types
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from handeye.framework.errors import InputError, shown
+from handeye.workflow.cell_parts import (  # noqa: F401 (the parts and their names, as handeye.workflow.cell's)
+    CAMERA_POSES,
+    FACTS,
+    IMAGE_MATCHES,
+    INTERPOLATE_ONLY,
+    MATCH_METHODS,
+    PAIRINGS,
+    PROBLEMS,
+    SETUPS,
+    UNITS,
+    CameraStream,
+    Images,
+    Matching,
+    Outputs,
+    PoseStream,
+    check_choice,
+    check_flag,
+    check_number,
+    check_text,
+)
+from handeye.workflow.frames import frame_ids as _frame_ids
+
+
+@dataclasses.dataclass(frozen=True)
+class Cell:
+    """What a calibration cell recorded and how to read and solve it (module docstring).
+
+    robot: the flange poses T_base_flange (`PoseStream`).
+    setup: ``eye-in-hand`` (camera on the flange) or ``eye-to-hand`` (camera fixed).
+    camera: the board poses (`CameraStream`), or images: board images (`Images`): exactly one.
+    matching: how they pair into stations (`Matching`; default: row k with row k).
+    problem: ``axyb`` (default: both unknowns from the stations) or ``axxb`` (the camera only,
+        from the motions between stations); pairing: axxb's motions, ``all`` (default) or
+        ``consecutive``.
+    solver, backend: default ``auto`` (``reprojection`` for images when installed, giving way to
+        the pose-based answer when the robot's errors dominate); options: solver options.
+    tz_X, tz_Y: a planar robot's unobservable translation (docs/planar.md); camera_scale:
+        ``unknown`` for a camera known up to scale (docs/camera-scale.md). They may also be given
+        in `options`, not both.
+    orthonormalize: re-orthonormalise rotations exported with few decimals (both streams).
+    checks: run the plausibility checks (default True). frame_ids: (parent, child) of the ROS,
+        URDF and xacro exports (default per setup, `handeye.workflow.frames.ROS_FRAMES`).
+    time_limit: seconds a solve may take (None: no limit for handeye's own solvers, 600 s for a
+        third party's; 0: no limit). outputs: the command line's result files (`Outputs`).
+    """
+
+    robot: PoseStream
+    setup: str
+    camera: CameraStream | None = None
+    images: Images | None = None
+    matching: Matching = dataclasses.field(default_factory=Matching)
+    problem: str = "axyb"
+    pairing: str | None = None
+    solver: str | None = None
+    backend: str | None = None
+    options: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    tz_X: float | None = None
+    tz_Y: float | None = None
+    camera_scale: str | None = None
+    orthonormalize: bool = False
+    checks: bool = True
+    frame_ids: tuple[str, str] | str | None = None
+    time_limit: float | None = None
+    outputs: Outputs = dataclasses.field(default_factory=Outputs)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.options, Mapping) or not all(isinstance(k, str) and k for k in self.options):
+            raise InputError(f"`options` must map option names to values, got {shown(self.options)}")
+        object.__setattr__(self, "options", types.MappingProxyType(dict(self.options)))
+        object.__setattr__(self, "frame_ids", _frame_ids(self.frame_ids))
+        for name, kind in (("robot", PoseStream), ("camera", CameraStream), ("images", Images),
+                           ("matching", Matching), ("outputs", Outputs)):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, kind):
+                raise InputError(f"`{name}` must be a handeye.workflow.cell.{kind.__name__}, got "
+                                 f"{type(value).__name__} (a mapping: build the cell with Cell.from_dict)")
+        if self.robot is None:
+            raise InputError("`robot.file: FILE` is required: the robot's flange poses (a pose file, a folder of "
+                             "one pose file per station, or a ROS bag)")
+        check_choice(self.setup, SETUPS, "setup")
+        check_choice(self.problem, PROBLEMS, "problem")
+        self.robot.check("robot")
+        if self.robot.file is None:
+            raise InputError("`robot.file: FILE` is required: the robot's flange poses (a pose file, a folder of "
+                             "one pose file per station, or a ROS bag)")
+        self._check_camera_side()
+        self.matching.check(images=self.images is not None)
+        self.outputs.check()
+        check_choice(self.pairing, PAIRINGS, "pairing", optional=True)
+        if self.pairing is not None and self.problem != "axxb":
+            raise InputError("`pairing` applies to `problem: axxb` (motions between stations); with axyb every "
+                             "station is one pair: drop it")
+        for name in ("solver", "backend"):
+            check_text(getattr(self, name), name)
+        for name in ("tz_X", "tz_Y"):
+            check_number(getattr(self, name), name, what="length in the robot's unit")
+        check_choice(self.camera_scale, ("known", "unknown"), "camera_scale", optional=True)
+        for name in FACTS:
+            if getattr(self, name) is not None and name in self.options:
+                raise InputError(f"`{name}` is given twice: as `{name}` and in `options`; give it once")
+        check_flag(self.orthonormalize, "orthonormalize")
+        check_flag(self.checks, "checks")
+        check_number(self.time_limit, "time_limit", low=0.0, what="number of seconds (0: no limit)")
+        if self.images is not None and self.facts().get("camera_scale") == "unknown":
+            raise InputError("`camera_scale: unknown` does not apply to `images`: the board's size gives the "
+                             "camera's translations in the board's unit; drop it")
+
+    def _check_camera_side(self) -> None:
+        """Exactly one of a camera pose file and board images, each complete."""
+        camera, images = self.camera, self.images
+        if images is not None and camera is not None and not camera.given():  # nothing said about a camera file
+            object.__setattr__(self, "camera", None)
+            camera = None
+        if images is not None:
+            images.check()
+            if images.folder is None:
+                stray = " and ".join(f"`images.{g}`" for g in ("board", "intrinsics") if getattr(images, g) is not None)
+                if not stray:
+                    raise InputError("`images` needs `images.folder: DIR`, the folder of board images")
+                raise InputError(f"{stray} appl{'y' if ' and ' in stray else 'ies'} to `images.folder: DIR`; give "
+                                 "it or drop them")
+            given = [] if camera is None else [g for g in camera.given() if g != "poses"]
+            if given:
+                names = ", ".join(f"`camera.{g}`" for g in given)
+                raise InputError("`images` replaces `camera` and `camera.format`: give either `images` (a folder of "
+                                 "board images, with `images.board`) or `camera` (a pose file, with `camera.format`), "
+                                 f"not both (drop {names})")
+            if camera is not None and camera.poses != "board-in-camera":
+                raise InputError("`camera.poses` applies to a camera pose file, not to `images`; drop it")
+            if images.board is None:
+                raise InputError("`images` needs `images.board: SPEC` (e.g. `images.board: chessboard:9x6:25mm`; "
+                                 "docs/boards.md)")
+            return
+        if camera is None or camera.file is None:
+            raise InputError("give the camera's side: `camera.file: FILE` `camera.format: FORMAT` (board poses) or "
+                             "`images.folder: DIR` `images.board: SPEC` (board images)")
+        camera.check("camera")
+
+    # ------------------------------------------------------------------------- derived
+
+    def facts(self) -> dict[str, Any]:
+        """The facts given, from their fields or from `options` (``tz_X``, ``tz_Y``, ``camera_scale``)."""
+        facts = {name: getattr(self, name) for name in FACTS if getattr(self, name) is not None}
+        facts.update({name: self.options[name] for name in FACTS if name in self.options})
+        return facts
+
+    def solver_options(self) -> dict[str, Any]:
+        """The solver options: `options` without the facts."""
+        return {k: v for k, v in self.options.items() if k not in FACTS}
+
+    def replace(self, **changes: Any) -> Cell:
+        """A copy with `changes` (checked as a new cell)."""
+        return dataclasses.replace(self, **changes)
+
+    # ------------------------------------------------------------------------- files
+
+    def to_dict(self, *, relative_to: str | os.PathLike | None = None) -> dict[str, Any]:
+        """The cell as the cell file's mapping: the settings that differ from their defaults (and
+        always `setup`, `problem`, `matching.method`); paths relative to folder `relative_to` when
+        they lie inside it (else absolute), as given when it is None."""
+        from handeye.workflow.cell_file import cell_to_dict
+
+        return cell_to_dict(self, relative_to)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, base: str | os.PathLike | None = None,
+                  where: str = "cell") -> Cell:
+        """The cell of a mapping as a cell file holds it; relative paths are taken relative to
+        folder `base` (default: as they are). Unknown keys are an InputError naming the key and
+        the known ones; `where` names the source in messages."""
+        from handeye.workflow.cell_file import cell_from_dict
+
+        return cell_from_dict(data, base=base, where=where)
+
+    @classmethod
+    def from_file(cls, path: str | os.PathLike) -> Cell:
+        """The cell of a YAML cell file; relative paths in it are relative to the file's folder."""
+        from handeye.workflow.cell_file import read_cell
+
+        return read_cell(path)
+
+    def to_yaml(self, *, relative_to: str | os.PathLike | None = None) -> str:
+        """The cell file's text (YAML with a header comment), paths as `to_dict` writes them."""
+        from handeye.workflow.cell_file import cell_yaml
+
+        return cell_yaml(self, relative_to)
+
+    def to_file(self, path: str | os.PathLike, *, force: bool = False) -> Path:
+        """Write the cell file `path` (paths relative to its folder when inside it), whole or not
+        at all; an existing file is replaced only with `force` (`handeye.io.output_files`)."""
+        from handeye.io.output_files import write_text
+
+        folder = Path(path).parent if str(Path(path).parent) else Path(".")
+        return write_text(path, self.to_yaml(relative_to=folder), force=force, flag="cell file")

@@ -1,0 +1,103 @@
+"""Which solver a calibration runs and how long it may take, when the user chose neither: the
+defaults shared by ``handeye.calibrate``, ``handeye calibrate`` and ``handeye solve``.
+
+- `default_solver`: ``auto`` when installed, else ``kron-lstsq`` (`DEFAULT_SOLVERS`);
+- board images (axyb): `REPROJECTION_SOLVER` when installed (`image_solver`), which gives way to
+  the pose-based default when the robot's pose errors dominate the pixel noise
+  (`pose_based_instead`): its model takes the robot's poses as exact;
+- `time_limit`: none for handeye's own solvers, `PLUGIN_TIME_LIMIT` for a third party's, so a
+  hanging plugin cannot hang a calibration; 0 means no limit.
+
+Also the statuses whose unknowns must not be used (`UNUSABLE`) and the camera's translations
+scaled into the robot's unit when the camera scale was estimated (`in_robot_unit`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from handeye.framework.errors import InputError
+from handeye.framework.registry import get_registry
+from handeye.framework.solution import Solution, Status
+
+#: solvers tried, in order, when none is chosen
+DEFAULT_SOLVERS = ("auto", "kron-lstsq")
+#: the solver that refines on the corners' reprojection error, the default for board images
+REPROJECTION_SOLVER = "reprojection"
+#: statuses whose unknowns must not be used (the answer is shown for inspection only)
+UNUSABLE = (Status.NOT_CONVERGED, Status.FAILED)
+#: seconds a third-party plugin's solver may take by default
+PLUGIN_TIME_LIMIT = 600.0
+
+
+def default_solver(problem: str) -> str:
+    """The first of `DEFAULT_SOLVERS` registered for `problem`; InputError when none is."""
+    names = get_registry().solver_names(problem)
+    for name in DEFAULT_SOLVERS:
+        if name in names:
+            return name
+    raise InputError(f"no default solver for problem {problem!r}; set `solver` to one of {names}")
+
+
+def image_solver(problem: str) -> str | None:
+    """`REPROJECTION_SOLVER` for axyb when it is installed, else None (the default solver)."""
+    if problem == "axyb" and REPROJECTION_SOLVER in get_registry().solver_names("axyb"):
+        return REPROJECTION_SOLVER
+    return None
+
+
+def pose_based_instead(solution: Solution, defaulted: bool) -> str | None:
+    """Why the default reprojection answer gives way to the pose-based default solver, or None:
+    when the robot's poses explain the corners far worse than each image alone does
+    (``robot_misfit`` above the solver's limit), the robot's pose errors dominate, which the
+    reprojection model (robot poses exact) does not describe; only when no solver was chosen."""
+    d = solution.diagnostics
+    if not defaulted or solution.solver != REPROJECTION_SOLVER or d.get("robot_misfit") is None:
+        return None
+    # the solver's own limit (a core module naming a plugin: the reprojection solver defines it)
+    from handeye.plugins.reprojection import robot_errors_dominate
+
+    if not robot_errors_dominate(d):
+        return None
+    return (f"the robot's poses explain the board corners only to {d['rms_px']:.2g} px RMS while "
+            f"each image alone fits them to {d['pnp_rms_px']:.2g} px: the robot's pose errors "
+            "dominate the pixel noise, so the answer is the pose-based one (noise on both sides), not the "
+            "reprojection fit (exact robot poses; `solver: reprojection` forces it)")
+
+
+def image_data(image_set: Any, solver: str, problem: str) -> dict[str, Any]:
+    """The image observations as the solver's ``images`` field, for the reprojection solver only."""
+    if image_set is None or solver != REPROJECTION_SOLVER or problem != "axyb":
+        return {}
+    return {"images": image_set.observations}
+
+
+def time_limit(given: float | None, problem: str, solver: str) -> float | None:
+    """The time limit of a solve, in seconds or None: `given` (0: none), else `PLUGIN_TIME_LIMIT`
+    for a third party's solver and none for handeye's own. InputError for a negative or
+    non-finite `given`."""
+    if given is not None:
+        if not 0 <= given < math.inf:
+            raise InputError(f"`time_limit` must be a number of seconds >= 0 (0: no limit), got {given:g}")
+        return given or None
+    registry = get_registry()
+    if solver in registry.solver_names(problem) and not registry.is_builtin(solver, problem):
+        return PLUGIN_TIME_LIMIT
+    return None
+
+
+def in_robot_unit(data: Mapping[str, Any], facts: Mapping[str, Any],
+                  diagnostics: Mapping[str, Any]) -> Mapping[str, Any]:
+    """The data with the camera's translations (B) in the robot's unit: multiplied by the camera
+    scale the solve estimated when the scale is unknown; else the data as they are (for the
+    residuals shown to the user)."""
+    scale = diagnostics.get("camera_scale") if facts.get("camera_scale") == "unknown" else None
+    if scale is None:
+        return data
+    B = np.array(data["B"], dtype=float)
+    B[:, :3, 3] *= scale
+    return {**data, "B": B}
