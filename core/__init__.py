@@ -72,7 +72,8 @@ _MOVED = {
     "problems.axxb_geometry": "problems.axxb.geometry", "problems.axbycz_geometry": "problems.axbycz.geometry",
     "problems.axbycz_kronecker": "problems.axbycz.kronecker",
     # lmi-sdp's modules before its package
-    **{f"plugins.lmi_sdp_{m}": f"plugins.lmi_sdp.{m}" for m in ("axxb", "axbycz", "casadi", "clarabel")},
+    "plugins.lmi_sdp_axxb": "plugins.lmi_sdp.axxb", "plugins.lmi_sdp_axbycz": "plugins.lmi_sdp.axbycz",
+    "plugins.lmi_sdp_casadi": "plugins.lmi_sdp.casadi", "plugins.lmi_sdp_clarabel": "plugins.lmi_sdp.clarabel",
 }
 
 

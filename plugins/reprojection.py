@@ -303,6 +303,8 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     pnp_rms = _pnp_rms(data)
     misfit = diagnostics["rms_px"] / max(pnp_rms, 1e-300)
     diagnostics["pnp_rms_px"], diagnostics["robot_misfit"] = pnp_rms, misfit
+    # the verdict itself, for whoever shows the answer (handeye.calibrate gives way to the pose-based one)
+    diagnostics["robot_errors_dominate"] = robot_errors_dominate(diagnostics)
     if robot_errors_dominate(diagnostics):
         warnings.append(f"the robot's poses explain the board corners only to {diagnostics['rms_px']:.2g} px RMS "
                         f"while each image alone fits them to {pnp_rms:.2g} px: the robot's pose errors, which this "

@@ -64,7 +64,7 @@ def test_a_cell_has_the_command_lines_defaults():
 
 @pytest.mark.parametrize("changes, message", [
     ({"setup": "sideways"}, "`setup` must be one of eye-in-hand, eye-to-hand, got 'sideways'"),
-    ({"problem": "axbycz"}, "`problem` must be one of axyb, axxb"),
+    ({"problem": "axbycz"}, "`problem` must be one of axxb, axyb (the registered problems a cell's stations"),
     ({"robot": PoseStream("r.csv", format="fanuc")}, "`robot.format`: unknown pose format 'fanuc'"),
     ({"robot": PoseStream("r.csv", unit="cm")}, "`robot.unit` must be one of mm, m, got 'cm'"),
     ({"robot": PoseStream(None, format="fanuc-wpr")}, "`robot.file: FILE` is required"),

@@ -147,3 +147,91 @@ def test_the_cli_lists_and_simulates_it(installed_problem, tmp_path, capsys):
     assert code == 0, err
     saved = json.loads(path.read_text())
     assert np.asarray(saved["truth"]["X"]).shape in ((1, 4, 4), (4, 4))
+
+
+def test_bench_times_it(installed_problem, capsys):
+    """The benchmark on the problem's own simulator, every solver of it, the first row the
+    reference (the problem states no bench settings)."""
+    from handeye.harness.bench import run_bench
+    from handeye.harness.bench_report import table
+
+    run = run_bench(NAME, pairs=(10,), repeats=2, progress=False)
+    labels = [row.label for row in run.rows]
+    assert {f"{SOLVER}/numpy", "refine/numpy", "auto/numpy"} <= set(labels)
+    assert all(cell.call is not None and cell.call > 0 for cell in run.cells.values())
+    assert "1.00x" in table(run, "call")
+    code, out, err = run_cli(capsys, "bench", "--problem", NAME, "--pairs", "10", "--repeats", "1", "--no-progress")
+    assert code == 0, err
+    assert f"handeye bench ({NAME})" in out and f"{SOLVER}/numpy" in out
+
+
+def _stations(tmp_path, module, *, pairs=12, seed=8, noise=None):
+    """A cell's files: the robot's flange poses and the camera's board poses T_cam_target."""
+    from handeye.geometry.se3 import inverse
+    from handeye.io.pose_readers import write_poses
+
+    data, truth = module.PROBLEM.simulate(pairs=pairs, seed=seed, noise=noise)
+    write_poses(tmp_path / "robot.csv", data["A"], "xyz-quat-xyzw", unit="mm")
+    write_poses(tmp_path / "camera.csv", inverse(data["B"]), "xyz-quat-xyzw", unit="mm")
+    return truth
+
+
+def test_calibrate_reads_a_cell_for_it(installed_problem, tmp_path, capsys):
+    """`handeye.calibrate` and `handeye calibrate` on a cell's two files, through the problem's
+    station reader; the same answer on both paths, the truth to 1e-9, no ROS line (the problem
+    publishes no camera pose)."""
+    from handeye.workflow.cell import CameraStream, Cell, PoseStream
+
+    truth = _stations(tmp_path, installed_problem)
+    cell = Cell(robot=PoseStream(str(tmp_path / "robot.csv"), "xyz-quat-xyzw", "mm"),
+                camera=CameraStream(str(tmp_path / "camera.csv"), "xyz-quat-xyzw", "mm"),
+                setup="eye-in-hand", problem=NAME)
+    result = handeye.calibrate(cell)
+    assert result.status is handeye.Status.OPTIMAL and result.plausible and result.published is None
+    assert installed_problem.PROBLEM.errors(result.unknowns, truth)["X"]["translation"] < 1e-9
+    assert result.frames["X"].name == "T_flange_cam"
+    assert result.to_dict()["ros"] is None and set(result.to_dict()["poses"]) == {"X[0]"}
+    with pytest.raises(handeye.InputError, match="names no camera pose to publish"):
+        result.ros2_static_transform()
+    out_file = tmp_path / "result.json"
+    code, out, err = run_cli(capsys, "calibrate", "--robot", tmp_path / "robot.csv", "--robot-format", "xyz-quat-xyzw",
+                             "--robot-unit", "mm", "--camera", tmp_path / "camera.csv", "--camera-format",
+                             "xyz-quat-xyzw", "--camera-unit", "mm", "--setup", "eye-in-hand", "--problem", NAME,
+                             "-o", out_file)
+    assert code == 0, err
+    assert "X[0] = T_flange_cam" in out and "ROS 2" not in out
+    written = json.loads(out_file.read_text())
+    assert np.array_equal(np.asarray(written["X[0]"]), result.X[0])
+
+
+def test_calibrate_finds_a_setup_mistake_for_it(installed_problem, tmp_path):
+    """The plausibility check tries the usual mistakes with the problem's own closed form: robot
+    poses given as T_flange_base."""
+    from handeye.geometry.se3 import inverse
+    from handeye.io.pose_readers import read_poses, write_poses
+    from handeye.workflow.cell import CameraStream, Cell, PoseStream
+
+    _stations(tmp_path, installed_problem, noise=NOISE)
+    robot = read_poses(tmp_path / "robot.csv", "xyz-quat-xyzw", unit="mm")
+    write_poses(tmp_path / "robot.csv", inverse(robot.poses), "xyz-quat-xyzw", unit="mm")
+    cell = Cell(robot=PoseStream(str(tmp_path / "robot.csv"), "xyz-quat-xyzw", "mm"),
+                camera=CameraStream(str(tmp_path / "camera.csv"), "xyz-quat-xyzw", "mm"),
+                setup="eye-in-hand", problem=NAME)
+    result = handeye.calibrate(cell)
+    assert result.status is handeye.Status.UNRELIABLE and not result.plausible
+    assert "the robot poses are inverted" in result.warnings[0]
+
+
+def test_the_report_shows_it(installed_problem, tmp_path, capsys):
+    """`handeye solve --report` on a data file of the problem: the HTML names its equation, its
+    unknown's poses and their 1-sigma."""
+    from handeye.io.data_files import save_data
+
+    data, truth = installed_problem.PROBLEM.simulate(pairs=20, seed=9, noise=NOISE, bodies=2)
+    path = save_data(tmp_path / "reg.json", data, truth, problem=NAME, metadata={"units": "mm"})
+    report = tmp_path / "report.html"
+    code, out, err = run_cli(capsys, "solve", path, "--problem", NAME, "--report", report)
+    assert code == 0, err
+    assert "X[0] = T_flange_cam" in out and "X[1] = T_flange_cam" in out
+    html = report.read_text()
+    assert "A_i X_b(i) = B_i" in html and "X[1]" in html and "T_flange_cam" in html

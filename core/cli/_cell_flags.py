@@ -14,6 +14,8 @@ import argparse
 import re
 from typing import Any
 
+from handeye.io.data_files import station_readers
+
 #: setting (as the cell file writes it) -> flag; a section's name alone is its file / folder flag
 FIELD_FLAGS = {
     **{f"{which}{key}": flag for which in ("robot", "camera")
@@ -94,7 +96,8 @@ def merged(base: dict[str, Any], flags: dict[str, Any]) -> dict[str, Any]:
         keep = {"time": ("max_dt",), "interpolate": ("time_offset", "max_offset", "max_gap", "min_speed",
                                                       "max_pairs")}.get(method, ())
         out["matching"] = {k: v for k, v in out["matching"].items() if k in keep}
-    if flags.get("problem") == "axyb":
+    reader = station_readers().get(flags.get("problem"))
+    if reader is not None and not reader.pairing:  # the flags solve a problem without motions
         out.pop("pairing", None)
     for key, value in flags.items():
         if isinstance(value, dict) and isinstance(out.get(key), dict):

@@ -95,12 +95,11 @@ from handeye.workflow.cell import (
     CAMERA_POSES,
     MATCH_METHODS,
     PAIRINGS,
-    PROBLEMS,
     SETUPS,
     Cell,
     Matching,
 )
-from handeye.workflow.frames import EQUATIONS, FRAMES
+from handeye.workflow.frames import equation_of, frame_names, unknown_of
 from handeye.workflow.quality_report import check_new_report, report_files
 from handeye.workflow.result import CalibrationResult
 from handeye.workflow.solving import UNUSABLE
@@ -180,9 +179,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--setup", choices=SETUPS,
                         help="eye-in-hand: camera on the flange, board fixed; eye-to-hand: camera fixed, board "
                              "on the flange; required unless --config gives it")
-    parser.add_argument("--problem", choices=PROBLEMS,
-                        help="axyb (default): hand-eye and robot-world from the stations; axxb: hand-eye only, "
-                             "from the motions between stations")
+    parser.add_argument("--problem", metavar="PROBLEM",
+                        help="a registered problem a cell's stations make data for (handeye list): the default, axyb, "
+                             "finds hand-eye and robot-world from the stations; axxb hand-eye only, from the motions "
+                             "between stations")
     parser.add_argument("--robot-unit", choices=UNITS, help="length unit of --robot (default: the file's or the "
                                                             "robot maker's); the answer is in this unit")
     parser.add_argument("--camera-unit", choices=UNITS, help="length unit of --camera (default: the file's); "
@@ -265,7 +265,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(dump_json(r))
     else:
-        print(in_cli_words(_text(r, FRAMES[(cell.problem, cell.setup)], result.solution.diagnostics)))
+        print(in_cli_words(_text(r, frame_names(result.cell.problem, cell.setup), result.solution.diagnostics)))
     for path in written:
         print(f"wrote {path}", file=log_to)
     if result.status is Status.UNRELIABLE:
@@ -308,7 +308,7 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
     cam_unit = inp["camera"]["unit"] + (f", converted to {unit}" if inp["camera"]["unit"] != unit else "")
     if inp["camera"].get("holds") == "T_target_cam":
         cam_unit += ", T_target_cam inverted"
-    equation, item = EQUATIONS[r["problem"]]
+    equation, item = equation_of(r["problem"])
     lines = [(f"{r['stations']} stations: robot {inp['robot']['file']} ({inp['robot']['format']}, {unit}), "
               f"camera {inp['camera']['file']} ({inp['camera']['format']}, {cam_unit})"),
              # the image path prints its pairing with the images' summary, before this
@@ -318,11 +318,10 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
              + (f", {r['residuals']['count']} motions ({r['pairing']} pairs of stations)" if "pairing" in r else ""),
              f"solver {r['solver']} (backend {r['backend']}): status {r['status']}, {r['seconds'] * 1e3:.1f} ms"
              + _setup_note(diagnostics)]
-    for name in frames:
-        if name not in r["poses"]:
-            continue
-        p = r["poses"][name]
-        lines += ["", f"{name} = {frames[name][0]} ({frames[name][1]}), lengths in {unit}:", format_pose(np.array(r[name]))]
+    for name, p in r["poses"].items():
+        frame = frames.get(unknown_of(name))
+        named = f" = {frame[0]} ({frame[1]})" if frame else ""
+        lines += ["", f"{name}{named}, lengths in {unit}:", format_pose(np.array(r[name]))]
         x = p["xyz_quat"]
         lines.append(f"  xyz  {x[0]:.6g} {x[1]:.6g} {x[2]:.6g}   quaternion (x, y, z, w)  "
                      + " ".join(f"{v:.8f}" for v in x[3:]))
@@ -341,8 +340,9 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
         lines.append(f"  {label:<18}" + "".join(f"{res[key][s]:12.4g}" for s in ("median", "rms", "max")))
     lines += noise_lines(diagnostics, unit)
     ros = r["ros"]
-    lines += ["", f"ROS 2 ({ros['unknown']}: {ros['child_frame_id']} in {ros['frame_id']}, metres):",
-              "  " + ros["command"]]
+    if ros is not None:
+        lines += ["", f"ROS 2 ({ros['unknown']}: {ros['child_frame_id']} in {ros['frame_id']}, metres):",
+                  "  " + ros["command"]]
     if r["status"] in ("not_converged", "failed"):
         lines.append(f"warning: status {r['status']}: the solver did not reach its answer; do not use it")
     elif r["status"] == "unreliable":

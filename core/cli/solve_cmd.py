@@ -65,8 +65,13 @@ from handeye.io.data_files import (
     station_readers,
     supported_extensions,
 )
-from handeye.io.examples import DEFAULT_EXAMPLE, list_examples, load_example
-from handeye.workflow.frames import EQUATIONS, FRAMES  # noqa: F401 (FRAMES, EQUATIONS: also read from here)
+from handeye.io.examples import (
+    DEFAULT_EXAMPLE,
+    EXAMPLE_PROBLEM,
+    list_examples,
+    load_example,
+)
+from handeye.workflow.frames import equation_of, frame_names, single_poses, unknown_of
 from handeye.workflow.quality_report import (
     check_new_report,
     collect,
@@ -87,8 +92,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--example", nargs="?", const=DEFAULT_EXAMPLE, metavar="NAME",
                         help=f"solve a bundled example instead of a file: {', '.join(list_examples())} "
                              f"(default {DEFAULT_EXAMPLE})")
-    parser.add_argument("--problem", default="axyb", help="problem: axyb (A_i X = Y B_i, default) or axxb "
-                                                          "(A_i X = X B_i, relative motions); see handeye list")
+    parser.add_argument("--problem", default=None,
+                        help="registered problem (handeye list shows them): the default, axyb (A_i X = Y B_i), axxb "
+                             "(A_i X = X B_i, relative motions), ...")
     parser.add_argument("--setup", choices=SETUPS,
                         help="file of absolute poses: eye-in-hand (camera on the flange) or eye-to-hand (camera "
                              "fixed); decides what X (and Y) are, docs/conventions.md; overrides the file's setup")
@@ -114,6 +120,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
+    args.problem = args.problem or get_registry().default_problem()
     if (args.file is None) == (args.example is None):
         raise InputError("give either a data FILE or --example [NAME] (not both, not neither)")
     if args.report:
@@ -146,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
                                metadata.get("pairing"), facts=facts), residuals)
         if not checks.plausible:
             solution = dataclasses.replace(solution, status=Status.UNRELIABLE)
-    frames = FRAMES.get((args.problem, metadata.get("setup", "")), {})
+    frames = frame_names(args.problem, metadata.get("setup"))
     report = {
         "source": source,
         "problem": args.problem,
@@ -156,7 +163,8 @@ def run(args: argparse.Namespace) -> int:
         **_stations(pose_file, args.problem),
         "options": options,
         **solution.to_dict(),
-        "frames": {name: frames[name][0] for name in solution.unknowns if name in frames},
+        "frames": {name: frames[unknown_of(name)][0] for name in single_poses(solution.unknowns)
+                   if unknown_of(name) in frames},
         "residuals": {k: _summary(v) for k, v in residuals.items()},
         "residuals_per_pair": {k: np.asarray(v).tolist() for k, v in residuals.items()},
         "errors": errors,
@@ -165,8 +173,8 @@ def run(args: argparse.Namespace) -> int:
     }
     print(dump_json(report) if args.json else in_cli_words(_text(report, frames)))
     if args.report:
-        robot_poses = (pose_file.poses["robot_poses"] if pose_file.poses is not None
-                       else data["A"] if args.problem == "axyb" else None)  # axyb: A_i = T_base_flange
+        robot_poses = (pose_file.poses["robot_poses"] if pose_file.poses is not None  # the stations' T_base_flange
+                       else data["A"] if args.problem == get_registry().cell_problem() else None)
         units = metadata.get("units")
         written = write_report(args.report, force=args.force, r=collect(
             problem=args.problem, setup=metadata.get("setup"), unit=units, solution=solution, residuals=residuals,
@@ -189,23 +197,26 @@ def run(args: argparse.Namespace) -> int:
 
 
 def example_file(name: str, problem: str, *, setup: str | None = None, pairing: str | None = None) -> PoseFile:
-    """A bundled example (``axyb`` data) as data of `problem`: as it is for ``axyb``; for another
-    problem that reads absolute poses (``axxb``), its stations: robot_poses = A_i, camera_poses =
-    T_cam_target (B_i^-1 eye-in-hand, B_i eye-to-hand; docs/conventions.md), with its truth X
-    (eye-in-hand: the ``axyb`` X = T_flange_cam; eye-to-hand: the ``axyb`` Y = T_base_cam)."""
+    """A bundled example (`EXAMPLE_PROBLEM` data, one pair per station) as data of `problem`: as
+    it is for that problem; for another problem that reads absolute poses (``axxb``), its stations:
+    robot_poses = A_i, camera_poses = T_cam_target (B_i^-1 eye-in-hand, B_i eye-to-hand;
+    docs/conventions.md), with the truth of its unknowns taken from the cell's
+    (`StationReader.cell_truth`: ``axxb``'s X is the example's X eye-in-hand, its Y eye-to-hand)."""
     data, truth, metadata = load_example(name)
-    if problem == "axyb":
+    if problem == EXAMPLE_PROBLEM:
         if setup is not None or pairing is not None:
             raise InputError("--setup and --pairing apply to files of absolute poses (robot_poses, camera_poses); "
-                             "the bundled examples hold 'axyb' pairs A, B")
+                             f"the bundled examples hold {EXAMPLE_PROBLEM!r} pairs A, B")
         return PoseFile(data, truth, metadata)
-    if problem not in station_readers():
-        raise InputError(f"the bundled examples are 'axyb' data (or stations for {sorted(station_readers())}), "
+    readers = station_readers()
+    if problem not in readers:
+        raise InputError(f"the bundled examples are {EXAMPLE_PROBLEM!r} data (or stations for {sorted(readers)}), "
                          f"not {problem!r}")
     own_setup = metadata.get("setup", "eye-in-hand")
     camera = inverse(data["B"]) if own_setup == "eye-in-hand" else data["B"]
+    cell = readers[problem].cell_truth
     if truth is not None and setup in (None, own_setup):
-        truth = {"X": truth["X"] if own_setup == "eye-in-hand" else truth["Y"]}
+        truth = {u: truth[c] for u, c in cell[own_setup].items()} if cell else truth
     else:
         truth = None  # another setup than the recording's: its X has no known truth
     return from_poses(data["A"], camera, problem, setup=setup, pairing=pairing, truth=truth,
@@ -236,7 +247,7 @@ def _summary(values: np.ndarray) -> dict[str, float]:
 
 def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
     unit = r["units"] or "data units"
-    equation, item = EQUATIONS.get(r["problem"], ("the problem's equation", "pair"))
+    equation, item = equation_of(r["problem"])
     head = f"{r['source']}: {r['pairs']} {item}s"
     if "pairing" in r:
         head += f" from {r['stations']} stations"
@@ -247,8 +258,9 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
              f"solver time {_ms(r['seconds'])}" + _setup_note(r["diagnostics"])]
     diagnostics = r["diagnostics"]
     std_all = standard_deviations(diagnostics)
-    for name, T in r["unknowns"].items():
-        frame = f" = {frames[name][0]} ({frames[name][1]})" if name in frames else ""
+    for name, T in single_poses(r["unknowns"]).items():
+        known = frames.get(unknown_of(name))
+        frame = f" = {known[0]} ({known[1]})" if known else ""
         lines += ["", f"{name}{frame} =", format_pose(np.array(T))]
         std = std_all.get(name)
         if std is not None:

@@ -194,6 +194,23 @@ class Registry:
         claimed = [name for name, p in self.problems.items() if p.default]
         return (claimed or list(self.problems))[0]
 
+    def cell_problem(self) -> str:
+        """The problem whose data are a cell's stations as recorded: one pair (A, B) per station,
+        its unknowns the cell's X and Y (a `StationReader` without pairing or renamed unknowns:
+        A_i X = Y B_i). Fits of a cell's raw stations (a clock offset's profile) solve it. The
+        default problem when it is one; InputError when none is registered."""
+        def fits(p: Problem) -> bool:
+            reader = p.station_reader
+            return (reader is not None and not reader.pairing and reader.cell_truth is None
+                    and tuple(p.unknowns) == ("X", "Y") and tuple(p.data_fields) == ("A", "B"))
+
+        default = self.default_problem()
+        names = [default] + [n for n in self.problems if n != default]
+        for name in names:
+            if fits(self.problems[name]):
+                return name
+        raise InputError("no registered problem solves a cell's stations as recorded (A_i X = Y B_i)")
+
     def problem_of(self, data: Any) -> Problem:
         """The registered problem whose validated data `data` are (`Problem.data_type`, the
         most specific class first); InputError when no problem claims them."""

@@ -205,7 +205,8 @@ def _finish(raw: RawFile, path: Path, problem: str, writing: bool = False, *,
     spec = get_registry().problem(problem)
     fields, unknowns = tuple(spec.data_fields), tuple(spec.unknowns)
     where = f"{str(path)!r}"
-    unexpected = [k for k in raw.unexpected if k not in fields and k not in POSE_FIELDS]
+    optional = [f for f in spec.optional_fields if f in raw.data]  # facts a file may carry (e.g. labels)
+    unexpected = [k for k in raw.unexpected if k not in fields and k not in POSE_FIELDS and k not in optional]
     if unexpected:
         raise InputError(
             f"{where}: unexpected key(s) {sorted(unexpected)}; a {problem!r} file holds "
@@ -228,7 +229,7 @@ def _finish(raw: RawFile, path: Path, problem: str, writing: bool = False, *,
                 f"{where}: missing data key(s) {missing} for problem {problem!r}; found "
                 f"{sorted(raw.data) or 'none'}; expected {_key_listing(path, problem, fields, unknowns)}"
             )
-        extra = sorted(set(raw.data) - set(fields))
+        extra = sorted(set(raw.data) - set(fields) - set(optional))
         if extra:
             hint = ""
             if set(extra) & set(POSE_FIELDS):
@@ -236,6 +237,7 @@ def _finish(raw: RawFile, path: Path, problem: str, writing: bool = False, *,
                         f"{sorted(readers)} only")
             raise InputError(f"{where}: unexpected data key(s) {extra}; problem {problem!r} has data {list(fields)}{hint}")
         data, poses = {f: _poses(raw.data[f], f, where) for f in fields}, None
+        data.update({f: np.asarray(raw.data[f]) for f in optional})  # the problem's validation checks them
 
     truth = None
     if raw.truth is not None:
@@ -459,6 +461,9 @@ def _write_json(fh: BinaryIO, pose_file: PoseFile) -> None:
     parts = [f"  {json.dumps(k)}: {json.dumps(v)}" for k, v in pose_file.metadata.items()]
     stacks = pose_file.poses if pose_file.poses is not None else pose_file.data
     for name, stack in stacks.items():
+        if np.ndim(stack) != 3:  # a fact the problem's data carry besides its stacks (labels, a length)
+            parts.append(f"  {json.dumps(name)}: {json.dumps(np.asarray(stack).tolist())}")
+            continue
         rows = ",\n".join("    " + pose(T) for T in stack)
         parts.append(f"  {json.dumps(name)}: [\n{rows}\n  ]")
     if pose_file.truth is not None:

@@ -51,8 +51,6 @@ MAX_GRID = 40_000
 MAX_LAGS = 2000
 #: smallest overlap of the two speed signals a lag is scored on, as a fraction of the shorter span
 MIN_OVERLAP = 0.5
-#: closed-form solver of the profile cost
-PROFILE_SOLVER = "kron-lstsq"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -154,15 +152,17 @@ def profile_cost(robot_t: NDArray, robot_T: NDArray, camera_t: NDArray, B: NDArr
     """S(offset) of the module docstring on the camera samples `camera_t` (all must be
     interpolable; B: the camera side at them): (S, pairs, rms rotation rad, rms translation)."""
     from handeye.framework.api import solve
-    from handeye.problems.axyb import PROBLEM
+    from handeye.framework.registry import get_registry
 
+    name = get_registry().cell_problem()
+    problem = get_registry().problem(name)
     res = resample_poses(robot_t, robot_T, camera_t + offset, max_gap)
     if len(res.kept) != len(camera_t):
         raise SolverError(f"internal: {len(camera_t) - len(res.kept)} stations could not be interpolated at offset "
                           f"{offset:.6f} s")
     A = res.poses
-    sol = solve("axyb", solver=PROFILE_SOLVER, A=A, B=B)
-    r = PROBLEM.residuals(PROBLEM.validate(A=A, B=B), sol.unknowns)
+    sol = solve(name, solver=problem.quick_solver or problem.starts[0], A=A, B=B)  # a closed form
+    r = problem.residuals(problem.validate(A=A, B=B), sol.unknowns)
     rot, tr = np.asarray(r["rotation"]), np.asarray(r["translation"])
     S = float(np.sum(rot**2) + np.sum((tr / length) ** 2))
     return S, len(A), float(np.sqrt(np.mean(rot**2))), float(np.sqrt(np.mean(tr**2)))

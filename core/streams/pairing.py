@@ -82,8 +82,8 @@ class StreamPairs:
     def __len__(self) -> int:
         return len(self.robot_poses)
 
-    def data(self, problem: str = "axyb", *, setup: str, pairing: str | None = None) -> dict[str, Any]:
-        """The problem's data fields (``A``, ``B``) via `handeye.io.from_poses`."""
+    def data(self, problem: str | None = None, *, setup: str, pairing: str | None = None) -> dict[str, Any]:
+        """The data fields of `problem` (default: the default problem) via `handeye.io.from_poses`."""
         from handeye.io.data_files import from_poses
 
         return from_poses(self.robot_poses, self.camera_poses, problem, setup=setup, pairing=pairing,

@@ -33,6 +33,7 @@ from handeye.framework.solution import Status
 from handeye.geometry.se3 import inverse
 from handeye.io.data_files import from_poses
 from handeye.workflow.cell import Cell
+from handeye.workflow.image_stations import image_stations
 from handeye.workflow.reading import rereader
 from handeye.workflow.result import CalibrationResult
 from handeye.workflow.solving import (
@@ -44,7 +45,7 @@ from handeye.workflow.solving import (
     pose_based_instead,
     time_limit,
 )
-from handeye.workflow.stations import Log, find_stations, reliable, take
+from handeye.workflow.stations import Log, pose_stations, reliable, take
 
 
 def calibrate(cell: Cell, *, log: Log | None = None) -> CalibrationResult:
@@ -57,7 +58,7 @@ def calibrate(cell: Cell, *, log: Log | None = None) -> CalibrationResult:
     if not isinstance(cell, Cell):
         raise InputError(f"calibrate expects a handeye.Cell (e.g. handeye.Cell.from_file('cell.yaml')), got "
                          f"{type(cell).__name__}")
-    stations = find_stations(cell, log)
+    stations = image_stations(cell, log) if cell.images is not None else pose_stations(cell, log)
     robot = stations.robot
     warnings = list(stations.warnings)
     invert = cell.camera is not None and cell.camera.poses == "camera-in-board"

@@ -31,6 +31,8 @@ from pathlib import Path
 from typing import Any
 
 from handeye.framework.errors import InputError, shown
+from handeye.io.data_files import station_readers
+from handeye.workflow import cell_file
 from handeye.workflow.cell_parts import (  # noqa: F401 (the parts and their names, as handeye.workflow.cell's)
     CAMERA_POSES,
     FACTS,
@@ -38,7 +40,6 @@ from handeye.workflow.cell_parts import (  # noqa: F401 (the parts and their nam
     INTERPOLATE_ONLY,
     MATCH_METHODS,
     PAIRINGS,
-    PROBLEMS,
     SETUPS,
     UNITS,
     CameraStream,
@@ -54,6 +55,19 @@ from handeye.workflow.cell_parts import (  # noqa: F401 (the parts and their nam
 from handeye.workflow.frames import frame_ids as _frame_ids
 
 
+def _stations_problem(problem: str | None) -> str:
+    """`problem` (None: the default problem), checked to be a registered problem that a cell's
+    stations make data for (`Problem.station_reader`)."""
+    from handeye.framework.registry import get_registry
+
+    problem = get_registry().default_problem() if problem is None else problem
+    readers = station_readers()
+    if problem not in readers:
+        raise InputError(f"`problem` must be one of {', '.join(sorted(readers))} (the registered problems a cell's "
+                         f"stations make data for), got {shown(problem)}")
+    return problem
+
+
 @dataclasses.dataclass(frozen=True)
 class Cell:
     """What a calibration cell recorded and how to read and solve it (module docstring).
@@ -62,9 +76,10 @@ class Cell:
     setup: ``eye-in-hand`` (camera on the flange) or ``eye-to-hand`` (camera fixed).
     camera: the board poses (`CameraStream`), or images: board images (`Images`): exactly one.
     matching: how they pair into stations (`Matching`; default: row k with row k).
-    problem: ``axyb`` (default: both unknowns from the stations) or ``axxb`` (the camera only,
-        from the motions between stations); pairing: axxb's motions, ``all`` (default) or
-        ``consecutive``.
+    problem: a registered problem read from a cell's stations (`Problem.station_reader`): the
+        default problem (None: ``axyb``, both unknowns from the stations), or e.g. ``axxb`` (the
+        camera only, from the motions between stations); pairing: for a problem of motions,
+        ``all`` (default) or ``consecutive``.
     solver, backend: default ``auto`` (``reprojection`` for images when installed, giving way to
         the pose-based answer when the robot's errors dominate); options: solver options.
     tz_X, tz_Y: a planar robot's unobservable translation (docs/planar.md); camera_scale:
@@ -72,7 +87,7 @@ class Cell:
         in `options`, not both.
     orthonormalize: re-orthonormalise rotations exported with few decimals (both streams).
     checks: run the plausibility checks (default True). frame_ids: (parent, child) of the ROS,
-        URDF and xacro exports (default per setup, `handeye.workflow.frames.ROS_FRAMES`).
+        URDF and xacro exports (default: the problem's per setup, `Problem.published`).
     time_limit: seconds a solve may take (None: no limit for handeye's own solvers, 600 s for a
         third party's; 0: no limit). outputs: the command line's result files (`Outputs`).
     """
@@ -82,7 +97,7 @@ class Cell:
     camera: CameraStream | None = None
     images: Images | None = None
     matching: Matching = dataclasses.field(default_factory=Matching)
-    problem: str = "axyb"
+    problem: str | None = None
     pairing: str | None = None
     solver: str | None = None
     backend: str | None = None
@@ -111,7 +126,7 @@ class Cell:
             raise InputError("`robot.file: FILE` is required: the robot's flange poses (a pose file, a folder of "
                              "one pose file per station, or a ROS bag)")
         check_choice(self.setup, SETUPS, "setup")
-        check_choice(self.problem, PROBLEMS, "problem")
+        object.__setattr__(self, "problem", _stations_problem(self.problem))
         self.robot.check("robot")
         if self.robot.file is None:
             raise InputError("`robot.file: FILE` is required: the robot's flange poses (a pose file, a folder of "
@@ -120,8 +135,10 @@ class Cell:
         self.matching.check(images=self.images is not None)
         self.outputs.check()
         check_choice(self.pairing, PAIRINGS, "pairing", optional=True)
-        if self.pairing is not None and self.problem != "axxb":
-            raise InputError("`pairing` applies to `problem: axxb` (motions between stations); with axyb every "
+        readers = station_readers()
+        if self.pairing is not None and not readers[self.problem].pairing:
+            motions = " or ".join(f"`problem: {name}`" for name, reader in sorted(readers.items()) if reader.pairing)
+            raise InputError(f"`pairing` applies to {motions} (motions between stations); with {self.problem} every "
                              "station is one pair: drop it")
         for name in ("solver", "backend"):
             check_text(getattr(self, name), name)
@@ -191,9 +208,7 @@ class Cell:
         """The cell as the cell file's mapping: the settings that differ from their defaults (and
         always `setup`, `problem`, `matching.method`); paths relative to folder `relative_to` when
         they lie inside it (else absolute), as given when it is None."""
-        from handeye.workflow.cell_file import cell_to_dict
-
-        return cell_to_dict(self, relative_to)
+        return cell_file.cell_to_dict(self, relative_to)
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, base: str | os.PathLike | None = None,
@@ -201,22 +216,16 @@ class Cell:
         """The cell of a mapping as a cell file holds it; relative paths are taken relative to
         folder `base` (default: as they are). Unknown keys are an InputError naming the key and
         the known ones; `where` names the source in messages."""
-        from handeye.workflow.cell_file import cell_from_dict
-
-        return cell_from_dict(data, base=base, where=where)
+        return cell_file.cell_from_dict(cls, data, base=base, where=where)
 
     @classmethod
     def from_file(cls, path: str | os.PathLike) -> Cell:
         """The cell of a YAML cell file; relative paths in it are relative to the file's folder."""
-        from handeye.workflow.cell_file import read_cell
-
-        return read_cell(path)
+        return cell_file.read_cell(cls, path)
 
     def to_yaml(self, *, relative_to: str | os.PathLike | None = None) -> str:
         """The cell file's text (YAML with a header comment), paths as `to_dict` writes them."""
-        from handeye.workflow.cell_file import cell_yaml
-
-        return cell_yaml(self, relative_to)
+        return cell_file.cell_yaml(self, relative_to)
 
     def to_file(self, path: str | os.PathLike, *, force: bool = False) -> Path:
         """Write the cell file `path` (paths relative to its folder when inside it), whole or not

@@ -28,9 +28,8 @@ from typing import Any
 
 from handeye.framework.errors import InputError, shown
 from handeye.io.input_files import check_not_looping, load_yaml
-from handeye.workflow.cell import (
+from handeye.workflow.cell_parts import (
     CameraStream,
-    Cell,
     Images,
     Matching,
     Outputs,
@@ -67,14 +66,15 @@ def _is_board_file(board: Any) -> bool:
 # ----------------------------------------------------------------------------- reading
 
 
-def cell_from_dict(data: Mapping[str, Any], *, base: str | os.PathLike | None = None, where: str = "cell") -> Cell:
-    """The `Cell` of a cell file's mapping (module docstring); relative paths are joined to
+def cell_from_dict(cls: type, data: Mapping[str, Any], *, base: str | os.PathLike | None = None,
+                   where: str = "cell") -> Any:
+    """The cell (of class `cls`, `Cell`) of a cell file's mapping (module docstring); relative paths are joined to
     folder `base` (None: kept as they are). InputError for unknown keys, sections that are not
     mappings, and whatever `Cell` refuses."""
     if not isinstance(data, Mapping):
         raise InputError(f"{where}: expected a mapping of settings (setup, robot, camera or images, matching, ...), "
                          f"got {shown(data)}")
-    known = _keys(Cell)
+    known = _keys(cls)
     unknown = [k for k in data if k not in known]
     if unknown:
         raise InputError(f"{where}: unknown key {str(unknown[0])!r}; known keys: {', '.join(map(repr, known))}")
@@ -100,7 +100,7 @@ def cell_from_dict(data: Mapping[str, Any], *, base: str | os.PathLike | None = 
         values[name] = kind(**section)
     values.setdefault("robot", None)
     values.setdefault("setup", None)
-    return Cell(**values)
+    return cls(**values)
 
 
 def _joined(value: Any, base: str | os.PathLike) -> Any:
@@ -111,7 +111,7 @@ def _joined(value: Any, base: str | os.PathLike) -> Any:
     return str(path if path.is_absolute() else Path(base) / path)
 
 
-def read_cell(path: str | os.PathLike) -> Cell:
+def read_cell(cls: type, path: str | os.PathLike) -> Any:
     """The cell of YAML file `path`, relative paths joined to its folder. InputError (one line,
     naming the file) for a file that is missing, too long, not YAML, or not a valid cell."""
     path = Path(path)
@@ -128,7 +128,7 @@ def read_cell(path: str | os.PathLike) -> Cell:
         raise InputError(f"{where} is not text (UTF-8); a cell file is YAML") from None
     folder = path.parent if str(path.parent) else Path(".")
     try:
-        return cell_from_dict({} if data is None else data, base=folder, where=where)
+        return cell_from_dict(cls, {} if data is None else data, base=folder, where=where)
     except InputError as exc:
         text = str(exc)
         text = text if text.startswith(where) else f"{where}: {text}"
@@ -165,12 +165,12 @@ def _section(value: Any, name: str, folder: str | os.PathLike | None) -> dict[st
     return out
 
 
-def cell_to_dict(cell: Cell, relative_to: str | os.PathLike | None = None) -> dict[str, Any]:
+def cell_to_dict(cell: Any, relative_to: str | os.PathLike | None = None) -> dict[str, Any]:
     """The cell file's mapping of `cell` (`Cell.to_dict`): `setup`, `problem`, `matching.method`
     and every setting that differs from its default, in `ORDER`."""
     out: dict[str, Any] = {}
     defaults = {f.name: f.default if f.default is not dataclasses.MISSING else f.default_factory()
-                for f in dataclasses.fields(Cell) if f.name not in ("robot", "setup")}
+                for f in dataclasses.fields(cell) if f.name not in ("robot", "setup")}
     for name in ORDER:
         value = getattr(cell, name)
         if name in SECTIONS:
@@ -183,7 +183,7 @@ def cell_to_dict(cell: Cell, relative_to: str | os.PathLike | None = None) -> di
     return out
 
 
-def cell_yaml(cell: Cell, relative_to: str | os.PathLike | None = None) -> str:
+def cell_yaml(cell: Any, relative_to: str | os.PathLike | None = None) -> str:
     """The cell file's text: `HEADER` and the YAML of `cell_to_dict`."""
     import yaml
 

@@ -22,8 +22,6 @@ from handeye.framework.errors import InputError, shown
 
 #: the setups: camera on the flange (board fixed), or camera fixed (board on the flange)
 SETUPS = ("eye-in-hand", "eye-to-hand")
-#: the problems a cell calibrates: both unknowns from the stations, or the camera alone from motions
-PROBLEMS = ("axyb", "axxb")
 #: what a camera pose file holds: T_cam_target (as solvePnP gives it) or T_target_cam
 CAMERA_POSES = ("board-in-camera", "camera-in-board")
 #: length units of pose files

@@ -1,14 +1,10 @@
-"""What the unknowns of a calibration are in the cell: their frames per problem and setup
-(docs/conventions.md), the equation each problem's residuals are measured on, and which unknown a
-ROS graph publishes under which frame ids.
+"""What the unknowns of a calibration are in the cell, read from the problem (`handeye.Problem`:
+`frames`, `published`, `equation`, `item`), in the forms the printouts, the exports and the report
+use; and the ROS frame ids the exports take.
 
-One table each, read by `handeye.calibrate` (its result's `frames`), by ``handeye solve`` and
-``handeye calibrate`` (the printed frames) and by the exports (ROS line, URDF, xacro).
-
-- eye-in-hand (camera on the flange, board fixed): axyb X = T_flange_cam, Y = T_base_target;
-  axxb X = T_flange_cam;
-- eye-to-hand (camera fixed, board on the flange): axyb X = T_flange_target, Y = T_base_cam;
-  axxb X = T_base_cam.
+For the built-in problems (docs/conventions.md): eye-in-hand (camera on the flange, board fixed)
+AX=YB X = T_flange_cam, Y = T_base_target, AX=XB X = T_flange_cam; eye-to-hand (camera fixed,
+board on the flange) AX=YB X = T_flange_target, Y = T_base_cam, AX=XB X = T_base_cam.
 
 ``T_parent_child`` is the child frame's pose in the parent frame. The camera frame is the optical
 frame of ``cv2.solvePnP`` (z forward, x right, y down), hence the default ROS child id
@@ -19,38 +15,24 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
 
 from handeye.framework.errors import InputError
+from handeye.framework.problem import Published
+from handeye.framework.registry import get_registry
 
-#: (problem, setup) -> unknown -> (frame name, what it is)
-FRAMES: dict[tuple[str, str], dict[str, tuple[str, str]]] = {
-    ("axyb", "eye-in-hand"): {"X": ("T_flange_cam", "camera in the flange frame"),
-                              "Y": ("T_base_target", "target in the robot base frame")},
-    ("axyb", "eye-to-hand"): {"X": ("T_flange_target", "target in the flange frame"),
-                              "Y": ("T_base_cam", "camera in the robot base frame")},
-    ("axxb", "eye-in-hand"): {"X": ("T_flange_cam", "camera in the flange frame")},
-    ("axxb", "eye-to-hand"): {"X": ("T_base_cam", "camera in the robot base frame")},
-}
-#: problem -> its equation and what one data pair is, for the residual lines
-EQUATIONS = {"axyb": ("A_i X = Y B_i", "pair"), "axxb": ("A_i X = X B_i", "motion")}
-#: the short names in a frame name T_parent_child -> the frame's name in words
+#: the short names of frames in T_parent_child -> the frame's name in words
 FRAME_WORDS = {"flange": "flange", "base": "base", "cam": "camera", "target": "target"}
-#: (problem, setup) -> (the unknown published on ROS: always the camera's pose, default parent
-#: frame id, default child frame id)
-ROS_FRAMES: dict[tuple[str, str], tuple[str, str, str]] = {
-    ("axyb", "eye-in-hand"): ("X", "flange", "camera_optical_frame"),
-    ("axyb", "eye-to-hand"): ("Y", "base", "camera_optical_frame"),
-    ("axxb", "eye-in-hand"): ("X", "flange", "camera_optical_frame"),
-    ("axxb", "eye-to-hand"): ("X", "base", "camera_optical_frame"),
-}
 #: a ROS frame id: graph resource names (letters, digits, underscores, starting with a letter; '/'
 #: separating namespaces), which a shell never interprets and an XML attribute takes as they are
 ROS_FRAME_ID = re.compile(r"[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*")
 
 
 @dataclasses.dataclass(frozen=True)
-class Frame:
+class CellFrame:
     """One unknown as a frame of the cell: ``T_parent_child``, the child's pose in the parent.
 
     unknown: ``"X"`` or ``"Y"``; name: e.g. ``"T_flange_cam"``; parent, child: the frames in words
@@ -64,13 +46,49 @@ class Frame:
     description: str
 
 
-def frames_of(problem: str, setup: str) -> dict[str, Frame]:
-    """The unknowns of `problem` in `setup` as `Frame`s, X first."""
-    out = {}
-    for unknown, (name, description) in FRAMES[(problem, setup)].items():
-        _, parent, child = name.split("_")
-        out[unknown] = Frame(unknown, name, FRAME_WORDS[parent], FRAME_WORDS[child], description)
+def frame_names(problem: str, setup: str | None) -> dict[str, tuple[str, str]]:
+    """Per unknown of `problem` in `setup`: (its frame name T_parent_child, what it is); empty
+    when the problem does not say (`Problem.frames`)."""
+    frames = get_registry().problem(problem).frames(setup)
+    return {unknown: (f.symbol, f.meaning) for unknown, f in frames.items()}
+
+
+def frames_of(problem: str, setup: str | None) -> dict[str, CellFrame]:
+    """The unknowns of `problem` in `setup` as `CellFrame`s, in the problem's order."""
+    frames = get_registry().problem(problem).frames(setup)
+    return {unknown: CellFrame(unknown, f.symbol, FRAME_WORDS.get(f.parent, f.parent),
+                               FRAME_WORDS.get(f.child, f.child), f.meaning)
+            for unknown, f in frames.items()}
+
+
+def equation_of(problem: str) -> tuple[str, str]:
+    """(the problem's equation as printed, what one row of its data is: "pair", "motion", ...)."""
+    spec = get_registry().problem(problem)
+    return spec.equation or f"the equations of problem {problem!r}", spec.item
+
+
+def published_of(problem: str, setup: str | None) -> Published | None:
+    """The unknown the exports publish (the camera's pose) with its default frame ids, or None
+    when `problem` publishes none (`Problem.published`)."""
+    return get_registry().problem(problem).published(setup)
+
+
+def single_poses(unknowns: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """The unknowns as named single 4x4 poses, for printing and exports: a stack of k poses
+    (`Problem.stack_sizes`) as ``X[0]``, ..., ``X[k-1]`` (the names of its 1-sigma entries)."""
+    out: dict[str, np.ndarray] = {}
+    for name, T in unknowns.items():
+        T = np.asarray(T, dtype=float)
+        if T.ndim == 3:
+            out.update({f"{name}[{k}]": pose for k, pose in enumerate(T)})
+        else:
+            out[name] = T
     return out
+
+
+def unknown_of(name: str) -> str:
+    """The unknown a name of `single_poses` belongs to (``X[2]`` -> ``X``)."""
+    return name.split("[", 1)[0]
 
 
 def frame_ids(ids: str | Sequence[str] | None, field: str = "`frame_ids`") -> tuple[str, str] | None:

@@ -110,16 +110,21 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
     (frame name, what it is); checks: `plausibility.Report.to_dict()` or None; warnings: every
     warning the command printed; inputs: label -> text (files, formats, units); robot_poses:
     (n, 4, 4) T_base_flange of the stations (for the 3D plot; None without absolute poses);
-    stations, pairing: for data made of stations (axxb: which stations each motion joins);
+    stations, pairing: for data made of stations (a problem of motions: which stations each motion
+    joins);
     command: the command line as given; images: an image run's entry
     (`handeye.report_images.image_entries`), or None.
     """
     from handeye import __version__
+    from handeye.framework.registry import get_registry
+    from handeye.workflow.frames import single_poses, unknown_of
 
     rot = np.degrees(np.asarray(residuals["rotation"], dtype=float))
     trans = np.asarray(residuals["translation"], dtype=float)
     diagnostics = dict(solution.diagnostics)
-    joined = _joined(stations, pairing) if stations is not None and problem == "axxb" else None
+    spec = get_registry().problem(problem)
+    motions = spec.station_reader is not None and spec.station_reader.pairing
+    joined = _joined(stations, pairing) if stations is not None and motions else None
     # auto's outliers: indices of pairs, or of stations when it solved axxb on the stations
     outlier_list = diagnostics.get("outliers")
     on_stations = "formulation" in diagnostics and joined is not None
@@ -133,7 +138,7 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
         else:
             outliers = idx
     data = dict(diagnostics.get("data") or {})
-    if robot_poses is not None and problem == "axyb" and len(robot_poses) > 1:
+    if robot_poses is not None and len(robot_poses) > 1:  # where the problem's own figures lack it
         data.setdefault("largest_rotation", largest_relative_angle(np.asarray(robot_poses, dtype=float)[:, :3, :3]))
     return jsonable({
         "command": command,
@@ -145,10 +150,14 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
         "backend": solution.backend,
         "status": str(getattr(solution.status, "value", solution.status)),
         "seconds": float(solution.seconds),
-        "unknowns": {name: np.asarray(T, dtype=float).tolist() for name, T in solution.unknowns.items()},
-        "frames": {name: list(frames[name]) for name in solution.unknowns if name in frames},
+        "unknowns": {name: T.tolist() for name, T in single_poses(solution.unknowns).items()},
+        "frames": {name: list(frames[unknown_of(name)]) for name in single_poses(solution.unknowns)
+                   if unknown_of(name) in frames},
         "std": _std_of(diagnostics),
-        "item": "motion" if problem == "axxb" else "pair",
+        "item": spec.item,
+        "equation": spec.equation or f"the equations of problem {problem!r}",
+        # one data pair per station (the stations as recorded), not motions between them
+        "one_per_station": spec.station_reader is not None and not spec.station_reader.pairing,
         "residuals": {"rotation_deg": rot.tolist(), "translation": trans.tolist()},
         "joined": joined,
         "outliers": outliers,

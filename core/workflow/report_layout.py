@@ -118,8 +118,7 @@ def _residuals(r: Mapping[str, Any]) -> list[Block]:
     rot, trans = r["residuals"]["rotation_deg"], r["residuals"]["translation"]
     out: list[Block] = [
         Heading(f"Residuals per {item}"),
-        Text("Angle and distance between the two sides of the problem's equation "
-             f"({'A_i X = X B_i' if r['problem'] == 'axxb' else 'A_i X = Y B_i'})."),
+        Text(f"Angle and distance between the two sides of the problem's equation ({r['equation']})."),
         table(["", "median", "RMS", "max"], [["rotation [deg]", *(f"{v:.4g}" for v in stats(rot))],
                                              [f"translation [{unit}]", *(f"{v:.4g}" for v in stats(trans))]]),
         Figure("residuals", f"residuals per {item}"),
@@ -231,7 +230,7 @@ def advice(r: Mapping[str, Any]) -> list[tuple[str, str]]:
             what = f"station{'s' if many else ''} (file row{'s' if many else ''}) {rows}"
         else:
             what = f"{item}{'s' if len(r['outliers']) > 1 else ''} " + ", ".join(str(i) for i in r["outliers"])
-            if r.get("stations") and r["problem"] == "axyb":
+            if r.get("stations") and r.get("one_per_station"):
                 what += (f" (file row{'s' if len(r['outliers']) > 1 else ''} "
                          + ", ".join(str(i + 1) for i in r["outliers"]) + ")")
         many = len(r.get("outlier_stations") or r["outliers"]) > 1
@@ -251,7 +250,7 @@ def advice(r: Mapping[str, Any]) -> list[tuple[str, str]]:
         out.append(((f"{item}s {', '.join(str(i) for i in data['likely_mismatched'])} rotate by a different angle "
                     "for the robot than for the camera"),
                     "check that row k of the robot file and of the camera file are the same station"))
-    n = r.get("stations") or (len(r["residuals"]["rotation_deg"]) if r["problem"] == "axyb" else None)
+    n = r.get("stations") or (len(r["residuals"]["rotation_deg"]) if r.get("one_per_station") else None)
     if n is not None and n < RECOMMENDED_STATIONS:
         cover(lambda w: w.startswith(f"only {n} stations"))
         out.append((f"only {n} stations", (f"record at least {RECOMMENDED_STATIONS} stations (10-20 are usual), "
@@ -309,7 +308,7 @@ def diag_rows(r: Mapping[str, Any]) -> list[tuple[str, str]]:
     if "axis_spread" in data:
         rows.append(("rotation axis spread", f"{math.degrees(data['axis_spread']):.3g} deg (weak below 5.7 deg)"))
     if "largest_rotation" in data:
-        between = " between two stations" if r["problem"] == "axyb" else " of a motion"
+        between = " between two stations" if r.get("one_per_station") else f" of a {r['item']}"
         rows.append(("largest rotation" + between, f"{math.degrees(data['largest_rotation']):.3g} deg"))
     if "angle_difference_max" in data:
         rows.append(("largest robot/camera angle difference", f"{math.degrees(data['angle_difference_max']):.3g} deg"))
@@ -359,6 +358,6 @@ def pair_label(r: Mapping[str, Any], k: int) -> str:
     if r.get("joined"):
         i, j = r["joined"][k]
         return f"rows {i + 1}-{j + 1}"
-    if r.get("stations") and r["problem"] == "axyb":
+    if r.get("stations") and r.get("one_per_station"):
         return f"row {k + 1}"
     return ""

@@ -97,9 +97,16 @@ def residual_plot(r: Mapping[str, Any]) -> bytes:
         handles.append(Patch(color=OUTLIER_COLOUR, label="outlier (left out)"))
     handles.append(next(line for line in axes[0].get_lines() if line.get_label() == "median"))
     axes[0].legend(handles=handles, loc="upper right", fontsize="small")
-    axes[0].set_title(f"residuals per {r['item']} ({'A_i X = X B_i' if r['problem'] == 'axxb' else 'A_i X = Y B_i'})")
+    axes[0].set_title(f"residuals per {r['item']} ({r['equation']})")
     fig.tight_layout()
     return _png(fig)
+
+
+def _parent(frame: str | None) -> str | None:
+    """'T_flange_cam' -> 'flange' (None: no frame name)."""
+    if not frame or not frame.startswith("T_") or frame.count("_") < 2:
+        return None
+    return frame.split("_", 2)[1]
 
 
 def _child(frame: str | None, default: str) -> str:
@@ -123,14 +130,13 @@ def pose_plot(r: Mapping[str, Any]) -> bytes:
     A = np.asarray(r["robot_poses"], dtype=float)
     U = {k: np.asarray(v, dtype=float) for k, v in r["unknowns"].items()}
     frames = {k: v[0] for k, v in r.get("frames", {}).items()}
-    setup, problem = r.get("setup"), r["problem"]
     per_station, fixed = {}, {}
-    if problem == "axxb" and setup == "eye-to-hand":
-        fixed[_child(frames.get("X"), "X")] = U["X"]  # X = T_base_cam
-    else:
-        per_station[_child(frames.get("X"), "A_i X")] = A @ U["X"]
-        if "Y" in U:
-            fixed[_child(frames.get("Y"), "Y")] = U["Y"]
+    for name, T in U.items():  # a pose in the flange frame moves with each station, one in the base stays
+        parent = _parent(frames.get(name)) or {"X": "flange", "Y": "base"}.get(name)  # no setup: as AX=YB's
+        if parent == "flange":
+            per_station[_child(frames.get(name), f"A_i {name}")] = A @ T
+        elif parent == "base":
+            fixed[_child(frames.get(name), name)] = T
     points = [A[:, :3, 3], np.zeros((1, 3)), *(T[:, :3, 3] for T in per_station.values()),
               *(T[None, :3, 3] for T in fixed.values())]
     allp = np.concatenate(points)

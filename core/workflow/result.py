@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from handeye.framework.errors import InputError
 from handeye.framework.solution import Solution, Status, standard_deviations
 from handeye.io.pose_readers import PoseStack
 from handeye.workflow.cell import Cell
@@ -31,7 +32,15 @@ from handeye.workflow.exports import (
     urdf_joint,
     xacro_macro,
 )
-from handeye.workflow.frames import EQUATIONS, FRAMES, ROS_FRAMES, Frame, frames_of
+from handeye.workflow.frames import (
+    CellFrame,
+    equation_of,
+    frame_names,
+    frames_of,
+    published_of,
+    single_poses,
+    unknown_of,
+)
 from handeye.workflow.solving import UNUSABLE
 from handeye.workflow.stations import Dropped, Stations
 
@@ -96,7 +105,7 @@ class CalibrationResult:
         return self.solution.unknowns.get("Y")
 
     @property
-    def frames(self) -> dict[str, Frame]:
+    def frames(self) -> dict[str, CellFrame]:
         """Each unknown as a frame of the cell (``X`` -> T_flange_cam eye-in-hand, ...)."""
         return frames_of(self.cell.problem, self.cell.setup)
 
@@ -111,43 +120,53 @@ class CalibrationResult:
         return None if self.checks is None else bool(self.checks.plausible)
 
     @property
-    def ros_frame_ids(self) -> tuple[str, str]:
-        """(parent, child) of the camera's pose in the ROS, URDF and xacro exports."""
-        return self.cell.frame_ids or ROS_FRAMES[(self.cell.problem, self.cell.setup)][1:]
+    def ros_frame_ids(self) -> tuple[str, str] | None:
+        """(parent, child) of the camera's pose in the ROS, URDF and xacro exports (None: the
+        problem publishes none, `Problem.published`)."""
+        published = published_of(self.cell.problem, self.cell.setup)
+        return None if published is None else self.cell.frame_ids or (published.parent, published.child)
 
     @property
-    def published(self) -> str:
-        """The unknown that is the camera's pose (X eye-in-hand; eye-to-hand axyb Y, axxb X)."""
-        return ROS_FRAMES[(self.cell.problem, self.cell.setup)][0]
+    def published(self) -> str | None:
+        """The unknown that is the camera's pose (X eye-in-hand; eye-to-hand axyb Y, axxb X), or
+        None when the problem publishes none."""
+        published = published_of(self.cell.problem, self.cell.setup)
+        return None if published is None else published.unknown
+
+    def _published_pose(self) -> np.ndarray:
+        if self.published is None:
+            raise InputError(f"problem {self.cell.problem!r} names no camera pose to publish; export the unknowns "
+                             "with to_json or to_yaml")
+        return self.unknowns[self.published]
 
     # ------------------------------------------------------------------------- exports
 
     def ros2_static_transform(self) -> str:
         """``ros2 run tf2_ros static_transform_publisher ...`` publishing the camera's pose
         (metres) under `ros_frame_ids`."""
-        return ros_line(self.unknowns[self.published], self.unit, *self.ros_frame_ids)
+        return ros_line(self._published_pose(), self.unit, *self.ros_frame_ids)
 
     def urdf_joint(self) -> str:
         """The camera's pose as a URDF fixed joint from parent to child link (`ros_frame_ids`)."""
-        return urdf_joint(self.unknowns[self.published], self.unit, *self.ros_frame_ids)
+        return urdf_joint(self._published_pose(), self.unit, *self.ros_frame_ids)
 
     def xacro(self) -> str:
         """A xacro file with macro ``handeye_calibration`` adding that joint (params parent, child)."""
-        return xacro_macro(self.unknowns[self.published], self.unit, *self.ros_frame_ids)
+        return xacro_macro(self._published_pose(), self.unit, *self.ros_frame_ids)
 
     def to_dict(self) -> dict[str, Any]:
         """The result as ``handeye calibrate -o`` writes it (docs/calibrate.md lists the keys)."""
         cell, solution, robot = self.cell, self.solution, self.stations.robot
         std_all = standard_deviations(solution.diagnostics)
-        frames = FRAMES[(cell.problem, cell.setup)]
-        unknowns = {name: pose_entry(T, robot.format, std_all.get(name)) for name, T in solution.unknowns.items()}
-        parent, child = self.ros_frame_ids
-        item = EQUATIONS[cell.problem][1]
+        frames = frame_names(cell.problem, cell.setup)
+        unknowns = {name: pose_entry(T, robot.format, std_all.get(name))
+                    for name, T in single_poses(solution.unknowns).items()}
+        item = equation_of(cell.problem)[1]
         rot, trans = np.degrees(self.residuals["rotation"]), np.asarray(self.residuals["translation"])
         images = self.stations.images
         result: dict[str, Any] = {
             **{name: e["matrix"] for name, e in unknowns.items()},
-            "frames": {name: frames[name][0] for name in solution.unknowns},
+            "frames": {name: frames[unknown_of(name)][0] for name in unknowns if unknown_of(name) in frames},
             "units": {"translation": self.unit, "rotation": "deg"},
             "setup": cell.setup,
             "problem": cell.problem,
@@ -176,8 +195,9 @@ class CalibrationResult:
                            "holds": "T_target_cam" if self._inverted else "T_cam_target"},
                 "orthonormalize": bool(cell.orthonormalize),
             },
-            "ros": {"command": self.ros2_static_transform(), "unknown": self.published, "frame_id": parent,
-                    "child_frame_id": child, "translation_unit": "m"},
+            "ros": None if self.published is None else {
+                "command": self.ros2_static_transform(), "unknown": self.published, "frame_id": self.ros_frame_ids[0],
+                "child_frame_id": self.ros_frame_ids[1], "translation_unit": "m"},
         }
         if images is not None:  # where the board poses came from, the intrinsics, the images' stations
             from handeye.workflow.image_stations import inputs_entry, result_entries
@@ -219,7 +239,7 @@ class CalibrationResult:
             camera_input = f"{cell.camera.file} ({self.camera_read.format}, {self.camera_read.unit})"
         robot_file = self.stations.robot_file
         return collect(problem=cell.problem, setup=cell.setup, unit=self.unit, solution=self.solution,
-                       residuals=self.residuals, frames=FRAMES[(cell.problem, cell.setup)],
+                       residuals=self.residuals, frames=frame_names(cell.problem, cell.setup),
                        checks=None if self.checks is None else self.checks.to_dict(),
                        warnings=[words(w) for w in self.warnings],
                        inputs={"robot file": f"{cell.robot.file} ({robot_file.format}, {robot_file.unit})",

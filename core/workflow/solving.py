@@ -44,8 +44,9 @@ def default_solver(problem: str) -> str:
 
 
 def image_solver(problem: str) -> str | None:
-    """`REPROJECTION_SOLVER` for axyb when it is installed, else None (the default solver)."""
-    if problem == "axyb" and REPROJECTION_SOLVER in get_registry().solver_names("axyb"):
+    """`REPROJECTION_SOLVER` when it is installed for `problem` (it fits the board images
+    themselves), else None (the default solver)."""
+    if REPROJECTION_SOLVER in get_registry().solver_names(problem):
         return REPROJECTION_SOLVER
     return None
 
@@ -53,15 +54,11 @@ def image_solver(problem: str) -> str | None:
 def pose_based_instead(solution: Solution, defaulted: bool) -> str | None:
     """Why the default reprojection answer gives way to the pose-based default solver, or None:
     when the robot's poses explain the corners far worse than each image alone does
-    (``robot_misfit`` above the solver's limit), the robot's pose errors dominate, which the
-    reprojection model (robot poses exact) does not describe; only when no solver was chosen."""
+    (the solver's own verdict, ``robot_errors_dominate``), the robot's pose errors dominate,
+    which the reprojection model (robot poses exact) does not describe; only when no solver was
+    chosen."""
     d = solution.diagnostics
-    if not defaulted or solution.solver != REPROJECTION_SOLVER or d.get("robot_misfit") is None:
-        return None
-    # the solver's own limit (a core module naming a plugin: the reprojection solver defines it)
-    from handeye.plugins.reprojection import robot_errors_dominate
-
-    if not robot_errors_dominate(d):
+    if not defaulted or solution.solver != REPROJECTION_SOLVER or not d.get("robot_errors_dominate"):
         return None
     return (f"the robot's poses explain the board corners only to {d['rms_px']:.2g} px RMS while "
             f"each image alone fits them to {d['pnp_rms_px']:.2g} px: the robot's pose errors "
@@ -70,8 +67,10 @@ def pose_based_instead(solution: Solution, defaulted: bool) -> str | None:
 
 
 def image_data(image_set: Any, solver: str, problem: str) -> dict[str, Any]:
-    """The image observations as the solver's ``images`` field, for the reprojection solver only."""
-    if image_set is None or solver != REPROJECTION_SOLVER or problem != "axyb":
+    """The image observations as the solver's ``images`` field, for the reprojection solver only
+    (of a problem whose data take them, ``images`` among its `Problem.optional_fields`)."""
+    if (image_set is None or solver != REPROJECTION_SOLVER
+            or "images" not in get_registry().problem(problem).optional_fields):
         return {}
     return {"images": image_set.observations}
 

@@ -78,13 +78,10 @@ class Stations:
         return len(self.robot)
 
 
-def find_stations(cell: Cell, log: Log | None = None) -> Stations:
-    """Read the cell's streams and pair them into stations (module docstring). `log` is called
-    with what the pairing did as soon as it is known (the command line prints it)."""
-    if cell.images is not None:
-        from handeye.workflow.image_stations import image_stations
-
-        return image_stations(cell, log)
+def pose_stations(cell: Cell, log: Log | None = None) -> Stations:
+    """Read the cell's two pose streams and pair them into stations (module docstring; a cell of
+    images: `handeye.workflow.image_stations`). `log` is called with what the pairing did as soon
+    as it is known (the command line prints it)."""
     robot_file = read_stream(cell.robot, "robot", cell.orthonormalize)
     camera_file = read_stream(cell.camera, "camera", cell.orthonormalize)
     if cell.matching.method == "interpolate":  # robot poses interpolated, not rows of the file
