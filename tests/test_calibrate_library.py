@@ -238,6 +238,23 @@ def test_a_camera_file_one_row_off_is_unreliable_on_both_paths(tmp_path, capsys)
     assert result.checks.warnings[0] == cli["warnings"][0] and "one station" in cli["warnings"][0]
 
 
+def test_a_setup_mistake_is_named_as_a_setting_in_python_and_as_a_flag_on_the_command_line(tmp_path, capsys):
+    """Camera poses written as T_target_cam: the library's warning names the cell's setting, the
+    command line's the flag that says the same."""
+    data, _, _ = load_example("simulated")
+    write_poses(tmp_path / "robot.csv", data["A"], "fanuc-wpr", unit="mm")
+    write_poses(tmp_path / "board.csv", inverse(data["B"]), "opencv-rvec", unit="mm")  # camera-in-board
+    result = handeye.calibrate(Cell(robot=PoseStream(tmp_path / "robot.csv", "fanuc-wpr"),
+                                    camera=CameraStream(tmp_path / "board.csv", "opencv-rvec", "mm"),
+                                    setup="eye-to-hand"))
+    assert result.status is handeye.Status.UNRELIABLE
+    assert "`camera.poses: camera-in-board`" in result.warnings[0]
+    code, out, err = run_cli(capsys, "calibrate", "--robot", tmp_path / "robot.csv", "--robot-format", "fanuc-wpr",
+                             "--camera", tmp_path / "board.csv", "--camera-format", "opencv-rvec", "--camera-unit", "mm",
+                             "--setup", "eye-to-hand")
+    assert code == 1 and "--camera-poses camera-in-board" in err and "`" not in err
+
+
 # ----------------------------------------------------------------------------- the result
 
 

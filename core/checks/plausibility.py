@@ -231,13 +231,13 @@ def _hypotheses(s: Streams) -> list[tuple[str, str, np.ndarray, np.ndarray, str]
     out: list[tuple[str, str, np.ndarray, np.ndarray, str]] = []
     if "camera-inverted" in tried:
         out.append((("the camera poses are inverted (T_target_cam, the camera's pose in the board, instead of "
-                     "T_cam_target)"), "invert the camera poses (--camera-poses camera-in-board)", s.robot,
+                     "T_cam_target)"), "invert the camera poses (`camera.poses: camera-in-board`)", s.robot,
                     inverse(s.camera), s.setup))
     if "robot-inverted" in tried:
         out.append(("the robot poses are inverted (T_flange_base instead of T_base_flange)",
                     "invert the robot poses before calibrating", inverse(s.robot), s.camera, s.setup))
     if "other-setup" in tried:
-        out.append((f"the setup is {other}", f"--setup {other}", s.robot, s.camera, other))
+        out.append((f"the setup is {other}", f"`setup: {other}`", s.robot, s.camera, other))
     n = len(s.robot)
     if n >= 4 and "shifted" in tried:
         out += [
@@ -256,10 +256,10 @@ def _hypotheses(s: Streams) -> list[tuple[str, str, np.ndarray, np.ndarray, str]
             continue
         if s.camera_unit is not None and other_unit[s.camera_unit] == true_unit:
             text = f"the camera file is in {true_unit}, not {s.camera_unit}"
-            sugg = f"--camera-unit {true_unit}"
+            sugg = f"`camera.unit: {true_unit}`"
         else:
             text = f"the camera translations are {word}"
-            sugg = "check the camera file's length unit (--camera-unit) and the robot's (--robot-unit)"
+            sugg = "check the camera file's length unit (`camera.unit`) and the robot's (`robot.unit`)"
         out.append((text, sugg, s.robot, cam, s.setup))
     for which, reread, fmt in (("robot", s.reread_robot, s.robot_format), ("camera", s.reread_camera, s.camera_format)):
         if reread is None or "euler" not in tried:
@@ -280,14 +280,15 @@ def _hypotheses(s: Streams) -> list[tuple[str, str, np.ndarray, np.ndarray, str]
 
 
 def _euler_flag(which: str, seq: str, fmt: str | None) -> str:
-    """``--robot-format euler:SEQ:deg`` in the angle unit of `fmt`, with the presets of that sequence."""
+    """```robot.format: euler:SEQ:deg``` in the angle unit of `fmt`, with the presets of that sequence
+    (a cell's setting: the command line shows its flag, ``--robot-format euler:SEQ:deg``)."""
     from handeye.io.pose_formats import PRESETS, parse_format
 
     try:
         degrees = parse_format(fmt).degrees if fmt else True
     except HandEyeError:
         degrees = True
-    flag = f"--{which}-format euler:{seq}:{'rad' if degrees is False else 'deg'}"
+    flag = f"`{which}.format: euler:{seq}:{'rad' if degrees is False else 'deg'}`"
     presets = [name for name, f in PRESETS.items() if f.kind == "euler" and f.seq == seq]
     return flag + (f", as the preset{'s' if len(presets) > 1 else ''} {' / '.join(presets)}" if presets else "")
 
