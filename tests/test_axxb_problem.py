@@ -307,3 +307,21 @@ def test_so3_sdp_solves_data_whose_cost_entries_pass_1e154():
         T[:, :3, 3] *= 1e80
     sol = handeye.solve("axxb", solver="so3-sdp", normalize=False, **data)
     assert PROBLEM.errors(sol.unknowns, truth)["X"]["rotation"] < 1e-9
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_a_motion_mispaired_by_a_few_degrees_is_flagged(seed):
+    """Among 14 noisy motions (the accuracy study's noise), one whose camera side turns 4 deg more
+    than its robot side cannot be a true pair (the angle is invariant under A = X B X^-1): the
+    diagnosis names it, at ~25 robust sigmas of the others' disagreement (threshold 5)."""
+    from scipy.spatial.transform import Rotation
+
+    noise = NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)})
+    data, _ = PROBLEM.simulate(pairs=15, seed=seed, noise=noise, pairing="consecutive")
+    B = np.array(data["B"])
+    rv = Rotation.from_matrix(B[6, :3, :3]).as_rotvec()
+    angle = np.linalg.norm(rv)
+    B[6, :3, :3] = Rotation.from_rotvec(rv / angle * (angle + np.radians(4.0))).as_matrix()
+    diagnosis = PROBLEM.diagnose(PROBLEM.validate(A=data["A"], B=B))
+    assert diagnosis["likely_mismatched"] == [6]
+    assert any("rotate by a different angle" in w for w in diagnosis["warnings"])

@@ -278,3 +278,17 @@ def test_validate_names_a_missing_or_unexpected_field():
         PROBLEM.validate(A=data["A"])
     with pytest.raises(handeye.InputError, match=r"takes data \['A', 'B'\], not \['C'\]"):
         PROBLEM.validate(**data, C=data["A"])
+
+
+def test_a_robot_that_barely_rotates_is_refused():
+    """Stations whose rotations differ by ~1e-6 rad (a robot that only translates, with encoder
+    jitter) leave the rotations of X and Y undetermined: rotation excitation ~4e-13, below the
+    threshold (1e-10), so validation refuses them rather than solving the jitter."""
+    from handeye.problems.axyb import PAPER_X, PAPER_Y
+
+    rng = np.random.default_rng(1)
+    R = so3_exp(np.array([0.3, -0.2, 0.5])) @ so3_exp(1e-6 * rng.standard_normal((12, 3)))
+    t = np.array([400.0, 0.0, 300.0]) + rng.uniform(-150.0, 150.0, (12, 3))
+    A = np.stack([make_pose(R[k], t[k]) for k in range(12)])
+    with pytest.raises(handeye.DegenerateDataError, match="rotate about fewer than two different axes"):
+        handeye.solve("axyb", A=A, B=inverse(PAPER_Y) @ A @ PAPER_X)
