@@ -1,5 +1,5 @@
 """How often `so3-sdp` certifies its local answer without solving the SDP, and whether the answer
-is the SDP's (plugins/so3_sdp.py, ``local_first``; docs/solvers/so3-sdp.md, "Local certificate").
+is the SDP's (plugins/so3_sdp/single.py, ``local_first``; docs/solvers/so3-sdp.md, "Local certificate").
 
 For every data set: so3-sdp as it runs by default (local minimum, certificate from its first-order
 conditions, the SDP only when that fails) and with ``local_first=False`` (always the SDP), on the

@@ -156,12 +156,13 @@ def check_contract(problem: str, solver: str, backend: str, data: dict[str, Any]
         return None
     assert set(sol.unknowns) == set(handeye.get_registry().problem(problem).unknowns)
     for name, T in sol.unknowns.items():
-        assert isinstance(T, np.ndarray) and T.shape == (4, 4) and T.dtype == np.float64, (name, T)
-        assert np.all(np.isfinite(T)), (name, T)
-        R = T[:3, :3]
-        assert np.abs(R.T @ R - np.eye(3)).max() <= 1e-9, (name, T)
-        assert abs(np.linalg.det(R) - 1.0) <= 1e-9, (name, T)
-        assert T[3].tolist() == [0.0, 0.0, 0.0, 1.0], (name, T)
+        assert isinstance(T, np.ndarray) and T.shape[-2:] == (4, 4) and T.ndim in (2, 3), (name, T)
+        assert T.dtype == np.float64 and np.all(np.isfinite(T)), (name, T)
+        for P in T.reshape(-1, 4, 4):  # one pose, or a stack (`Problem.stack_sizes`)
+            R = P[:3, :3]
+            assert np.abs(R.T @ R - np.eye(3)).max() <= 1e-9, (name, T)
+            assert abs(np.linalg.det(R) - 1.0) <= 1e-9, (name, T)
+            assert P[3].tolist() == [0.0, 0.0, 0.0, 1.0], (name, T)
     assert isinstance(sol.status, Status)
     for w in sol.warnings:
         _one_line(w, "warning")

@@ -251,7 +251,7 @@ def test_cvxpy_solver_scs_is_certified_only_when_its_numbers_say_so(monkeypatch)
     # at its own default (eps 1e-4) SCS still claims "optimal"; the certificate does not (gap
     # 8.8e-2, rotation 1.5e-4 rad off): uncertified, and the host's self-check finds the answer
     # far from the exact fit of these noise-free data: unreliable, never a silent "optimal"
-    monkeypatch.setattr(so3_sdp, "CVXPY_SETTINGS", {"CLARABEL": so3_sdp.CLARABEL_SETTINGS})
+    monkeypatch.setattr(so3_sdp.single, "CVXPY_SETTINGS", {"CLARABEL": so3_sdp.CLARABEL_SETTINGS})
     loose = handeye.solve("axyb", solver="so3-sdp", **SDP, backend="cvxpy", cvxpy_solver="SCS", polish=False, **data)
     assert loose.diagnostics["sdp_status"] == "optimal"
     assert loose.status is Status.UNRELIABLE and not loose.diagnostics["certified"]
@@ -345,10 +345,10 @@ def test_clarabel_failures_are_solver_errors(monkeypatch):
 
     data, _ = simulate(8, seed=13)
     settings = so3_sdp.CLARABEL_SETTINGS
-    monkeypatch.setattr(so3_sdp, "CLARABEL_SETTINGS", {**settings, "max_iter": 2})
+    monkeypatch.setattr(so3_sdp.single, "CLARABEL_SETTINGS", {**settings, "max_iter": 2})
     with pytest.raises(SolverError, match="so3-sdp: Clarabel returned status 'MaxIterations'"):
         handeye.solve("axyb", solver="so3-sdp", **SDP, **data)
-    monkeypatch.setattr(so3_sdp, "CLARABEL_SETTINGS", {**settings, "direct_solve_method": "nonesuch"})
+    monkeypatch.setattr(so3_sdp.single, "CLARABEL_SETTINGS", {**settings, "direct_solve_method": "nonesuch"})
     assert handeye.solve("axyb", solver="so3-sdp", **SDP, **data).status is Status.OPTIMAL
 
 
@@ -373,7 +373,7 @@ def test_local_certificate_gives_the_sdp_answer_without_solving_it(problem, seed
     def no_sdp(*args):
         raise AssertionError("the SDP was solved")
 
-    monkeypatch.setattr(so3_sdp, "_solve_clarabel", no_sdp)
+    monkeypatch.setattr(so3_sdp.single, "_solve_clarabel", no_sdp)
     fast = handeye.solve(problem, solver="so3-sdp", **data)
     d = fast.diagnostics
     assert fast.status is Status.OPTIMAL and d["certified"] and d["certificate_path"] == "local"

@@ -49,8 +49,19 @@ NOT_INVARIANT_CHANGE = 1e-6
 
 def is_pose_stack(value) -> bool:
     """Whether a data field is a stack of poses (the others, e.g. the board's image observations
-    of `reprojection`, are passed through, and rescaled by their own `scaled`)."""
-    return not hasattr(value, "scaled")
+    of `reprojection` or the indices of `axyb-multi`, are passed through, and rescaled by their
+    own `scaled` where they have one)."""
+    return not hasattr(value, "scaled") and np.ndim(value) == 3 and np.shape(value)[1:] == (4, 4)
+
+
+def rescaled(value, s: float):
+    """A data field that is not a pose stack, with its lengths divided by s where it has any."""
+    return value.scaled(s) if hasattr(value, "scaled") else value
+
+
+def poses(T: np.ndarray) -> np.ndarray:
+    """An unknown as a stack of poses: (1, 4, 4) for one pose, (k, 4, 4) for a stack."""
+    return np.asarray(T).reshape(-1, 4, 4)
 
 
 def fresh_arrays(data: dict) -> dict:
@@ -129,19 +140,22 @@ def test_noisy_accuracy(solver_case, noisy_solution, noisy):
         assert not [w for w in noisy_solution.warnings if w.startswith("self-check:")], noisy_solution.warnings
 
 
-def test_output_is_exactly_se3(solver_case, noisy_solution):
+def test_output_is_exactly_se3(solver_case, noisy_solution, noisy):
     assert set(noisy_solution.unknowns) == set(problem_of(solver_case).unknowns)
+    sizes = problem_of(solver_case).stack_sizes(problem_of(solver_case).validate(**noisy[0]))
     for name, T in noisy_solution.unknowns.items():
         assert T is getattr(noisy_solution, name)
-        assert isinstance(T, np.ndarray) and T.dtype == np.float64 and T.shape == (4, 4)
-        R = T[:3, :3]
-        np.testing.assert_allclose(R.T @ R, np.eye(3), rtol=0, atol=1e-9)
-        assert abs(np.linalg.det(R) - 1.0) < 1e-9
-        assert T[3].tolist() == [0.0, 0.0, 0.0, 1.0]  # exactly
+        shape = (sizes[name], 4, 4) if name in sizes else (4, 4)
+        assert isinstance(T, np.ndarray) and T.dtype == np.float64 and T.shape == shape
+        for P in poses(T):
+            R = P[:3, :3]
+            np.testing.assert_allclose(R.T @ R, np.eye(3), rtol=0, atol=1e-9)
+            assert abs(np.linalg.det(R) - 1.0) < 1e-9
+            assert P[3].tolist() == [0.0, 0.0, 0.0, 1.0]  # exactly
         assert np.all(np.isfinite(T))
         assert not T.flags.writeable
         with pytest.raises(ValueError):
-            T[0, 3] = 1.0
+            T[..., 0, 3] = 1.0
 
 
 def test_status_timing_and_names(solver_case, noisy_solution, noisy):
@@ -185,15 +199,17 @@ def invariance_variants(case) -> list[dict]:
 def unit_change(case, data: dict, base: handeye.Solution, s: float, options: dict) -> tuple[float, float]:
     """(rotation [rad], translation / data scale): the largest difference over the unknowns
     between `base` and the answer for `data` with every translation multiplied by s (divided back)."""
-    scaled = {k: np.array(v) if is_pose_stack(v) else v.scaled(1.0 / s) for k, v in data.items()}
+    scaled = {k: np.array(v) if is_pose_stack(v) else rescaled(v, 1.0 / s) for k, v in data.items()}
     for T in filter(is_pose_stack, scaled.values()):
         T[:, :3, 3] *= s
     sol = case.solve(**scaled, **options)
     problem = problem_of(case)
     scale = problem.validate(**data).translation_scale
     new, old = sol.unknowns, base.unknowns
-    angle = max(float(rotation_angle(new[n][:3, :3] @ old[n][:3, :3].T)) for n in problem.unknowns)
-    dt = max(float(np.linalg.norm(new[n][:3, 3] / s - old[n][:3, 3])) for n in problem.unknowns)
+    angle = max(float(rotation_angle(poses(new[n])[:, :3, :3] @ np.swapaxes(poses(old[n])[:, :3, :3], 1, 2)).max())
+                for n in problem.unknowns)
+    dt = max(float(np.linalg.norm(poses(new[n])[:, :3, 3] / s - poses(old[n])[:, :3, 3], axis=1).max())
+             for n in problem.unknowns)
     return angle, dt / scale
 
 

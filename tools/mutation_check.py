@@ -142,7 +142,7 @@ FAULTS: tuple[Fault, ...] = (
           "clock offset: the parabolic refinement of the correlation peak steps the wrong way",
           ("tests/test_streams.py",)),
     # --- solver plugins
-    Fault("kron-lstsq-no-sign-choice", "plugins/kron_lstsq.py",
+    Fault("kron-lstsq-no-sign-choice", "plugins/kron_lstsq/single.py",
           "    (RX, RY), flipped = signed_blocks(system, MX, MY)\n    tX, tY = solve_translations(data, RX, RY)",
           "    (RX, RY), flipped = project_to_so3(np.stack([MX, MY])), False\n    tX, tY = solve_translations(data, RX, RY)",
           "kron-lstsq (axyb): the sign of the rotation blocks no longer chosen by eq. 8's cost (dropped step)",
@@ -182,7 +182,7 @@ FAULTS: tuple[Fault, ...] = (
           "    k = int(np.argmin(result.w - rho**2))",
           "lmi-sdp (axbycz): in the hard case the missing norm goes along the wrong eigenvector",
           ("tests/test_axbycz_linear.py", "tests/test_solvers.py")),
-    Fault("so3-sdp-multipliers-unscaled", "plugins/so3_sdp.py",
+    Fault("so3-sdp-multipliers-unscaled", "plugins/so3_sdp/single.py",
           "    cert = certificate(M, y, nu * norm, options.redundant)",
           "    cert = certificate(M, y, nu, options.redundant)",
           "so3-sdp: the SDP's multipliers (of M / |M|) not scaled back before the certificate",

@@ -4,6 +4,7 @@
 Solution, Status), `errors`, `hookspecs` and `registry` (plugins found through entry points and
 pluggy), and the host: `api` (`solve`, `run_registered`: the one door to a solver, its checks
 before and the self-check after), `isolation` (a solver in a worker process under a time limit)
-and `processes` (worker processes that end with their parent). Depends on the layers below it
+`processes` (worker processes that end with their parent) and `threads` (one BLAS thread while
+solving). Depends on the layers below it
 (checks, estimation, geometry), never on a built-in problem or plugin.
 """

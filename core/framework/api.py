@@ -24,6 +24,7 @@ from handeye.framework.isolation import call_with_time_limit
 from handeye.framework.options import parse_options
 from handeye.framework.registry import get_registry
 from handeye.framework.solution import Solution, SolverOutput, Status
+from handeye.framework.threads import one_blas_thread
 from handeye.geometry.se3 import orthonormality_error
 
 DEFAULT_SOLVER = "auto"
@@ -82,10 +83,11 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
     if missing:
         raise InputError(f"problem {problem!r} needs data {list(fields)}; missing {missing}")
     given = tuple(fields) + tuple(f for f in spec_problem.optional_fields if f in data_and_options)
-    with _problem_faults(registry, problem):
-        data = spec_problem.validate(**{f: data_and_options[f] for f in given})
-    options = {k: v for k, v in data_and_options.items() if k not in given}
-    return _host(registry, problem, solver, spec, backend, data, options, time_limit, self_check=True)
+    with one_blas_thread():  # small matrices: threads only wait for each other (`handeye.framework.threads`)
+        with _problem_faults(registry, problem):
+            data = spec_problem.validate(**{f: data_and_options[f] for f in given})
+        options = {k: v for k, v in data_and_options.items() if k not in given}
+        return _host(registry, problem, solver, spec, backend, data, options, time_limit, self_check=True)
 
 
 def run_registered(solver: str, data: Any, *, problem: str, backend: str | None = None,
@@ -104,7 +106,8 @@ def run_registered(solver: str, data: Any, *, problem: str, backend: str | None 
     registry.problem(problem)
     spec, backend = _spec(registry, problem, solver, backend)
     _check_time_limit(time_limit)
-    return _host(registry, problem, solver, spec, backend, data, dict(options or {}), time_limit, self_check)
+    with one_blas_thread():
+        return _host(registry, problem, solver, spec, backend, data, dict(options or {}), time_limit, self_check)
 
 
 def _spec(registry: Any, problem: str, solver: str, backend: str | None) -> tuple[Any, str]:

@@ -124,10 +124,15 @@ def simulate(study: Study, cell: Cell, trial: int) -> tuple[dict[str, np.ndarray
     return data, truth, seed
 
 
-def _in_units(poses: dict[str, np.ndarray], divisor: float) -> dict[str, np.ndarray]:
-    """Copies with every translation divided by `divisor` (mm -> the study's units)."""
-    out = {}
+def _in_units(poses: dict[str, Any], divisor: float) -> dict[str, Any]:
+    """Copies with every translation divided by `divisor` (mm -> the study's units). Fields that
+    are not poses (a problem's indices or names, e.g. axyb-multi's ``x_index``) are passed as they
+    are."""
+    out: dict[str, Any] = {}
     for name, T in poses.items():
+        if np.ndim(T) < 2 or np.shape(T)[-2:] != (4, 4):
+            out[name] = T
+            continue
         T = np.array(T, dtype=float, copy=True)
         T[..., :3, 3] /= divisor
         out[name] = T

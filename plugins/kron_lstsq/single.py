@@ -1,4 +1,5 @@
-"""`kron-lstsq`: closed-form least squares on a Kronecker system. Problems ``axyb``, ``axxb``, ``axbycz``.
+"""`kron-lstsq` for the problems of one pose per unknown: closed-form least squares on a Kronecker
+system. Problems ``axyb``, ``axxb``, ``axbycz`` (``axyb-multi``: `handeye.plugins.kron_lstsq.multi`).
 
 ``axyb`` (eq. 8): beta = argmin |H beta - w| (the optimum of the paper's eq. 14, without an SDP
 solver), R_X and R_Y projected onto SO(3) by SVD (det +1), then t_X, t_Y re-solved by least
@@ -43,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye import SolverOutput, SolverSpec, Status
 from handeye.estimation.kronecker import reduce_normal_equations
 from handeye.estimation.rotation_cost import (
     RotationCost,
@@ -210,10 +211,3 @@ SPEC_AXBYCZ = dataclasses.replace(
     planar_mode=False,
     simulate_options={"protocol": "free"},
 )
-
-
-@hookimpl
-def register_solvers(register):
-    register(SPEC)
-    register(SPEC_AXXB)
-    register(SPEC_AXBYCZ)

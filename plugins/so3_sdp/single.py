@@ -1,6 +1,7 @@
-"""`so3-sdp`: a Kronecker cost minimised under exact SO(3) constraints, with a certificate of
-global optimality (a Shor relaxation of a QCQP, solved as an SDP). Problems ``axyb`` (eq. 8,
-two rotations) and ``axxb`` (A_i X = X B_i, one rotation); one spec per problem, one pipeline.
+"""`so3-sdp` for one pose per unknown: a Kronecker cost minimised under exact SO(3) constraints,
+with a certificate of global optimality (a Shor relaxation of a QCQP, solved as an SDP). Problems
+``axyb`` (eq. 8, two rotations) and ``axxb`` (A_i X = X B_i, one rotation); one spec per problem,
+one pipeline (`solve_relaxation`, also used by `handeye.plugins.so3_sdp.multi`).
 
 Formulation (docs/solvers/so3-sdp.md has the details and the measurements):
 
@@ -50,7 +51,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye import SolverOutput, SolverSpec, Status
 from handeye.estimation import camera_scale
 from handeye.estimation.rotation_cost import (
     RotationCost,
@@ -257,11 +258,14 @@ def _solve_picos(M: np.ndarray, redundant: bool,
 # --------------------------------------------------------------------------------------------
 
 
-def solve_relaxation(cost: RotationCost, options: Options, backend: str
+def solve_relaxation(cost: RotationCost, options: Options, backend: str, sdp_skipped: str | None = None
                      ) -> tuple[list[np.ndarray], tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """The pipeline of the module docstring for any number k of rotations: (rotations, the k
     translations t(r) in the units of `cost`, status, diagnostics). With ``local_first`` the
-    local minimum is tried first and returned when its certificate holds (no SDP is solved)."""
+    local minimum is tried first and returned when its certificate holds (no SDP is solved).
+    `sdp_skipped`: why the SDP is out of reach (too large to solve): the local minimum is then
+    the answer, `uncertified` unless its certificate holds, with that reason in the diagnostics
+    (``sdp_skipped``); None (default) solves the SDP whenever the local certificate fails."""
     check_backend_options("so3-sdp", options, backend, BACKEND_ONLY_OPTIONS)
     solver = resolve_cvxpy_solver(options.cvxpy_solver) if backend == "cvxpy" else None
     k = cost.rotations
@@ -271,10 +275,16 @@ def solve_relaxation(cost: RotationCost, options: Options, backend: str
         raise SolverError("so3-sdp: the cost matrix built from the poses is zero or not finite")
 
     local: dict[str, Any] = {}
-    if options.local_first:
+    if options.local_first or sdp_skipped is not None:
         Rs, local = _local(cost, norm)
         if local["certified"]:
             return Rs, cost.translations(rotations_vector(*Rs)), Status.OPTIMAL, local
+        if sdp_skipped is not None:
+            if not Rs:
+                raise SolverError(f"so3-sdp: the local solve failed numerically and the SDP is out of reach "
+                                  f"({sdp_skipped})")
+            return (Rs, cost.translations(rotations_vector(*Rs)), Status.UNCERTIFIED,
+                    {**local, "sdp_skipped": sdp_skipped})
 
     if backend == "clarabel":
         Z, nu, info = _solve_clarabel(M / norm, options.redundant, k)
@@ -414,8 +424,3 @@ SPEC_AXXB = dataclasses.replace(
              "Rosen et al., IJRR 2019",
 )
 
-
-@hookimpl
-def register_solvers(register):
-    register(SPEC)
-    register(SPEC_AXXB)
