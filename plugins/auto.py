@@ -375,7 +375,7 @@ def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, d
         new_poses, new_status, new_diag = _refine.fit(_refine.model_of(subset), subset, fit, sub_settings, ropts.noise)
     except DegenerateDataError:
         return poses, status, diag, [], (
-            f"{what} {_listing(np.flatnonzero(flagged))} are far off the others, but the rest do not determine "
+            f"{what} {_listing(np.flatnonzero(flagged), data)} are far off the others, but the rest do not determine "
             "the unknowns: least squares on every pair")
     e = model.residuals(new_poses)
     rot = np.rad2deg(np.linalg.norm(e[:, :3], axis=1))
@@ -385,7 +385,7 @@ def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, d
     worst = idx[np.argmax(trans[idx] / max(float(np.median(trans[inliers])), 1e-300)
                           + rot[idx] / max(float(np.median(rot[inliers])), 1e-300))]
     label = what if k > 1 else what[:-1]  # "pairs 3, 17 are", "pair 3 is"
-    note = (f"{label} {_listing(idx)} {'is' if k == 1 else 'are'} far off the others (residual "
+    note = (f"{label} {_listing(idx, data)} {'is' if k == 1 else 'are'} far off the others (residual "
             f"{'up to ' if k > 1 else ''}{rot[worst]:.3g} deg / {trans[worst]:.3g} against a typical "
             f"{np.median(rot[inliers]):.2g} deg / {np.median(trans[inliers]):.2g}, translations in the data's "
             f"length unit) and {'was' if k == 1 else 'were'} left out; outliers='keep' uses every pair")
@@ -415,10 +415,17 @@ def _better_robust_fit(data: Any, model: Any, fit: tuple[np.ndarray, ...], robus
     return other if cost[1] < cost[0] else fit
 
 
-def _listing(idx: np.ndarray) -> str:
+#: at most this many items named in a warning (then "and N more"; diagnostics["outliers"] has all)
+LISTED = 8
+
+
+def _listing(idx: np.ndarray, data: Any = None) -> str:
     """Indices as the user counts them: from 1 (row k of a file), with the 0-based index of the
-    arrays beside them, e.g. "no. 4 (index 3)"."""
-    return ", ".join(f"no. {int(i) + 1} (index {int(i)})" for i in idx)
+    arrays beside them, e.g. "no. 4 (index 3)", and what the item is where the data can say
+    (`item_label`, e.g. axyb-multi's "marker3 with cam5 at station 4"); at most LISTED."""
+    label = getattr(data, "item_label", None)
+    items = [f"no. {int(i) + 1} (index {int(i)}{': ' + label(int(i)) if label else ''})" for i in idx[:LISTED]]
+    return ", ".join(items) + (f" and {len(idx) - LISTED} more" if len(idx) > LISTED else "")
 
 
 def _diagnostics(pipeline: list[str], start: str, init_status: Status, init_diag: dict[str, Any],

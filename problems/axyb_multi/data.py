@@ -145,6 +145,12 @@ class AXYBMultiData:
 
         return AXYBMultiModel(self)
 
+    def item_label(self, i: int) -> str:
+        """Observation i in the user's words, for messages: "marker3 with cam5 at station 4"
+        (stations numbered from 0 in the order they first appear, `station_index`)."""
+        return (f"{self.x_names[self.x_index[i]]} with {self.y_names[self.y_index[i]]} at station "
+                f"{int(self.station_index[i])}")
+
     def observations_of(self, x: int | None = None, y: int | None = None) -> np.ndarray:
         """Indices of the observations of X `x` and/or Y `y`."""
         keep = np.ones(self.m, dtype=bool)
