@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import re
 from typing import Any
 
@@ -77,8 +78,22 @@ def flag_settings(args: argparse.Namespace, options: dict[str, Any] | None) -> d
                           max_pairs=args.max_pairs),
         "outputs": given(json=args.output, yaml=args.yaml, report=args.report),
     }
+    tables = getattr(args, "observations", None)
+    if tables:  # several cameras and targets: the --camera-* flags describe every table
+        common = given(format=args.camera_format, unit=args.camera_unit, columns=args.camera_columns,
+                       poses=args.camera_poses)
+        out["observations"] = [{**_table(item), **common} for item in tables]
+        sections["camera"] = given(file=args.camera, topic=args.camera_topic)  # left for the cell to refuse
     out.update({name: section for name, section in sections.items() if section})
     return out
+
+
+def _table(item: str) -> dict[str, str]:
+    """``--observations [CAMERA=]FILE``: the file, and the camera whose poses it holds if named."""
+    camera, sep, file = item.partition("=")
+    if sep and camera and not os.path.exists(item) and "/" not in camera and os.sep not in camera:
+        return {"camera": camera, "file": file}
+    return {"file": item}
 
 
 def merged(base: dict[str, Any], flags: dict[str, Any]) -> dict[str, Any]:
@@ -90,6 +105,10 @@ def merged(base: dict[str, Any], flags: dict[str, Any]) -> dict[str, Any]:
     if "images" in flags and "folder" in flags["images"]:
         out.pop("camera", None)
     if "camera" in flags and "file" in flags["camera"]:
+        out.pop("images", None)
+        out.pop("observations", None)
+    if "observations" in flags:  # the tables replace the file's camera side
+        out.pop("camera", None)
         out.pop("images", None)
     method = flags.get("matching", {}).get("method")
     if method is not None and "matching" in out:

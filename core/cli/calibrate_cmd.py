@@ -11,6 +11,11 @@ residuals and a ROS 2 static_transform_publisher line; ``-o`` / ``--yaml`` write
 JSON / YAML (the output says "wrote FILE"; an existing file is kept, and nothing solved, unless
 ``--force`` is given).
 
+Several cameras and targets (``--problem axyb-multi``, the default with tables): ``--observations
+FILE`` (a table: station, camera, target, the camera's pose of the target) or ``--observations
+CAMERA=FILE`` per camera, beside ``--robot`` (one pose per station, matched by its name column);
+every X and Y is printed, exported and reported by its camera's or target's name.
+
 Board images instead of a camera file: ``--images DIR --board SPEC [--intrinsics FILE]`` detects
 the board in each image, calibrates the camera from the same images without ``--intrinsics``,
 solves the board poses and pairs them with the robot poses (``--match index|name|time``); an
@@ -138,6 +143,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--camera-poses", choices=CAMERA_POSES,
                         help="board-in-camera (default): the camera file holds T_cam_target; camera-in-board: it "
                              "holds T_target_cam (the camera's pose in the board frame), inverted on reading")
+    parser.add_argument("--observations", action="append", metavar="[CAMERA=]FILE",
+                        help="a cell of several cameras and targets (--problem axyb-multi): a table of observations "
+                             "(station, camera, target, the camera's pose of the target; .csv .json .npz), or with "
+                             "CAMERA= one camera's file (station, target, pose); repeatable, instead of --camera; "
+                             "--camera-format/-unit/-poses/-columns apply to every table (docs/calibrate.md, "
+                             "'Several cameras and targets')")
     parser.add_argument("--images", metavar="DIR",
                         help="a folder of board images, one per station (instead of --camera/--camera-format): the "
                              "board is detected in each and its pose solved; paired with the robot poses by --match "
@@ -232,8 +243,11 @@ def cell_of(args: argparse.Namespace) -> Cell:
 
 def run(args: argparse.Namespace) -> int:
     cell = cell_of(args)
-    inputs = [cell.robot.file, cell.images.folder if cell.images else cell.camera.file,
-              cell.images.intrinsics if cell.images else None, cell.images.board if cell.images else None]
+    if cell.observations is not None:  # several cameras and targets: the tables of observations
+        inputs = [cell.robot.file, *(s.file for s in cell.observations)]
+    else:
+        inputs = [cell.robot.file, cell.images.folder if cell.images else cell.camera.file,
+                  cell.images.intrinsics if cell.images else None, cell.images.board if cell.images else None]
     if args.write_config:
         check_outputs_apart([("--write-config", args.write_config)], inputs)
         check_new_file("--write-config", args.write_config, args.force)
@@ -306,11 +320,13 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
     unit = r["units"]["translation"]
     inp = r["inputs"]
     cam_unit = inp["camera"]["unit"] + (f", converted to {unit}" if inp["camera"]["unit"] != unit else "")
+    camera_file = inp["camera"]["file"] if "files" not in inp["camera"] else ", ".join(inp["camera"]["files"])
     if inp["camera"].get("holds") == "T_target_cam":
         cam_unit += ", T_target_cam inverted"
     equation, item = equation_of(r["problem"])
     lines = [(f"{r['stations']} stations: robot {inp['robot']['file']} ({inp['robot']['format']}, {unit}), "
-              f"camera {inp['camera']['file']} ({inp['camera']['format']}, {cam_unit})"),
+              f"{'observations' if 'files' in inp['camera'] else 'camera'} {camera_file} ({inp['camera']['format']}, "
+              f"{cam_unit})"),
              # the image path prints its pairing with the images' summary, before this
              *([r["matching"]["message"]] if "message" in r["matching"] and not inp["camera"]["format"].startswith("images")
                else []),
@@ -320,8 +336,10 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
              + _setup_note(diagnostics)]
     for name, p in r["poses"].items():
         frame = frames.get(unknown_of(name))
-        named = f" = {frame[0]} ({frame[1]})" if frame else ""
-        lines += ["", f"{name}{named}, lengths in {unit}:", format_pose(np.array(r[name]))]
+        symbol = r["frames"].get(name) or (frame[0] if frame else None)
+        named = f" = {symbol}" + (f" ({frame[1]})" if frame else "") if symbol else ""
+        label = f"{name} {r['names'][name]}" if name in r.get("names", {}) else name
+        lines += ["", f"{label}{named}, lengths in {unit}:", format_pose(np.array(r[name]))]
         x = p["xyz_quat"]
         lines.append(f"  xyz  {x[0]:.6g} {x[1]:.6g} {x[2]:.6g}   quaternion (x, y, z, w)  "
                      + " ".join(f"{v:.8f}" for v in x[3:]))
@@ -333,14 +351,24 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
         else:
             lines.append(f"  1-sigma  not reported by solver {r['solver']} (solver auto or refine reports it)")
     res = r["residuals"]
+    per_pair = (r.get("observations") or {}).get("per_pair") or []
     lines += ["", (f"residuals over the {res['count']} {item}s (angle and distance between the two sides "
                    f"of {equation}):"),
               "  " + " " * 18 + "".join(f"{s:>12}" for s in ("median", "rms", "max"))]
     for label, key in (("rotation [deg]", "rotation_deg"), (f"translation [{unit}]", "translation")):
         lines.append(f"  {label:<18}" + "".join(f"{res[key][s]:12.4g}" for s in ("median", "rms", "max")))
+    if per_pair:
+        lines += ["", "residuals per pair (RMS and max over its observations):",
+                  f"  {'X':<14}{'Y':<14}{'obs':>5}{'rot rms [deg]':>15}{'rot max':>10}"
+                  f"{f'trans rms [{unit}]':>18}{'trans max':>11}"]
+        lines += [f"  {row['X']:<14}{row['Y']:<14}{row['observations']:>5}{row['rotation_rms_deg']:>15.4g}"
+                  f"{row['rotation_max_deg']:>10.4g}{row['translation_rms']:>18.4g}{row['translation_max']:>11.4g}"
+                  for row in per_pair]
     lines += noise_lines(diagnostics, unit)
     ros = r["ros"]
-    if ros is not None:
+    if ros is not None and "transforms" in ros:
+        lines += ["", "ROS 2 (every pose by name, metres):", *(f"  {t['command']}" for t in ros["transforms"])]
+    elif ros is not None:
         lines += ["", f"ROS 2 ({ros['unknown']}: {ros['child_frame_id']} in {ros['frame_id']}, metres):",
                   "  " + ros["command"]]
     if r["status"] in ("not_converged", "failed"):

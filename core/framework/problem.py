@@ -14,7 +14,10 @@ gets every shared tool with no edit to handeye (docs/plugins.md, "A problem plug
   and the report, and how a cell's recorded stations become its data (`Problem.station_reader`);
 - the settings of studies and benchmarks (`Problem.study_noise`, `Problem.protocols`,
   `Problem.bench`) and which setup mistakes the plausibility check may try (`Problem.mistakes`);
-- unknowns that are stacks of poses (`Problem.stack_sizes`), checked by the host pose by pose.
+- unknowns that are stacks of poses (`Problem.stack_sizes`), checked by the host pose by pose;
+- how a cell's table of observations (several cameras and targets, `Observations`) becomes its
+  data (`Problem.from_observations`), and its residuals per pair of unknowns
+  (`Problem.residual_table`) for the report.
 """
 
 from __future__ import annotations
@@ -147,6 +150,39 @@ class StationReader:
     cell_truth: Mapping[str, Mapping[str, str]] | None = None
 
 
+@dataclasses.dataclass(frozen=True)
+class Observations:
+    """A cell's observations as recorded, one row per (station, camera, target): which camera
+    saw which target at which station, the robot's pose there and the camera's pose of the
+    target, so that a problem of several cameras and targets makes its data from them
+    (`Problem.from_observations`).
+
+    station, camera, target: (m,) names (text); robot: (m, 4, 4) T_base_flange of each row's
+    station; camera_poses: (m, 4, 4) T_cam_target, the target's pose in the camera frame as
+    ``cv2.solvePnP`` gives it, in the robot's length unit.
+    """
+
+    station: tuple[str, ...]
+    camera: tuple[str, ...]
+    target: tuple[str, ...]
+    robot: np.ndarray
+    camera_poses: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.station)
+
+
+@dataclasses.dataclass(frozen=True)
+class ObservationData:
+    """What `Problem.from_observations` makes: `fields`, the keyword arguments of
+    `handeye.solve` for the problem (its data fields and optional fields), and `names`, per
+    stacked unknown the user's name of each of its poses (e.g. ``{"Y": ("cam0", "cam1")}``), so
+    that printouts and exports name the poses as the cell does."""
+
+    fields: Mapping[str, Any]
+    names: Mapping[str, tuple[str, ...]]
+
+
 #: the setup mistakes `handeye.plausibility` knows how to undo and try (`Problem.mistakes`)
 MISTAKES = ("camera-inverted", "robot-inverted", "other-setup", "shifted", "camera-unit", "euler")
 
@@ -266,6 +302,25 @@ class Problem(ABC):
         (e.g. one camera pose per camera of the cell): such an unknown is a (k, 4, 4) array,
         each pose checked by the host as a single one. Default: none, every unknown one pose."""
         return {}
+
+    def from_observations(self, observations: Observations, setup: str) -> ObservationData | None:
+        """The problem's data made from a cell's table of observations (several cameras and
+        targets) in `setup`, with the names of its stacked unknowns' poses; None (the default):
+        the problem is not made from such a table. Raises `InputError` naming what is wrong."""
+        return None
+
+    @property
+    def reads_observations(self) -> bool:
+        """Whether the problem is made from a table of observations (`from_observations`)."""
+        return type(self).from_observations is not Problem.from_observations
+
+    def residual_table(self, data: Any, unknowns: Poses) -> list[dict[str, Any]]:
+        """Residuals per pair of poses the observations tie (e.g. one camera and one marker): rows
+        naming the poses by unknown (``{"X": "marker0", "Y": "cam1", "observations": 12,
+        "rotation_rms_deg": ..., "translation_rms": ..., "rotation_max_deg": ...,
+        "translation_max": ...}``), for the report's table and graph; empty (the default): the
+        problem has no such pairs."""
+        return []
 
     def random_unknowns(self, rng: np.random.Generator, translation_scale: float = 500.0) -> dict[str, np.ndarray]:
         """Random unknowns for tests and studies: uniform rotations, translations

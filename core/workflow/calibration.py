@@ -58,6 +58,13 @@ def calibrate(cell: Cell, *, log: Log | None = None) -> CalibrationResult:
     if not isinstance(cell, Cell):
         raise InputError(f"calibrate expects a handeye.Cell (e.g. handeye.Cell.from_file('cell.yaml')), got "
                          f"{type(cell).__name__}")
+    if cell.observations is not None:  # several cameras and targets: tables of observations
+        from handeye.workflow.observation_cell import calibrate_observations
+
+        result = calibrate_observations(cell)
+        if log is not None:
+            log("matching", result.stations.matching["message"])
+        return result
     stations = image_stations(cell, log) if cell.images is not None else pose_stations(cell, log)
     robot = stations.robot
     warnings = list(stations.warnings)

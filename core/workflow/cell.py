@@ -3,7 +3,8 @@
 A `Cell` says where the robot's flange poses are (`PoseStream`: a pose file, a folder of one
 pose file per station, or a ROS bag; format, length unit, column layout, bag topic), where the
 camera's side is (`CameraStream`, the board's pose per station, or `Images`, board images with
-the board and optionally the intrinsics), the setup, how robot and camera poses pair into
+the board and optionally the intrinsics; or, for a cell of several cameras and targets, its
+tables of observations, `ObservationStream`), the setup, how robot and camera poses pair into
 stations (`Matching`), what is solved and by whom (problem, solver, backend, options, the facts
 ``tz_X`` / ``tz_Y`` / ``camera_scale``), whether the plausibility checks run, the ROS frame ids,
 and where the command line writes its results (`Outputs`). ``handeye.calibrate(cell)`` runs it;
@@ -45,6 +46,7 @@ from handeye.workflow.cell_parts import (  # noqa: F401 (the parts and their nam
     CameraStream,
     Images,
     Matching,
+    ObservationStream,
     Outputs,
     PoseStream,
     check_choice,
@@ -53,6 +55,32 @@ from handeye.workflow.cell_parts import (  # noqa: F401 (the parts and their nam
     check_text,
 )
 from handeye.workflow.frames import frame_ids as _frame_ids
+
+
+def _observations_problem(problem: str | None) -> str:
+    """`problem`, checked to be a registered problem made from a table of observations
+    (`Problem.from_observations`); None: the one registered problem that is, if exactly one."""
+    from handeye.framework.registry import get_registry
+
+    registry = get_registry()
+    readers = sorted(name for name, spec in registry.problems.items() if spec.reads_observations)
+    if problem is None and len(readers) == 1:
+        return readers[0]
+    if problem not in readers:
+        raise InputError(f"`observations` need `problem` to be one of {', '.join(readers) or '(none registered)'} "
+                         f"(the registered problems made from a table of observations), got {shown(problem)}")
+    return problem
+
+
+def _observation_streams(value: Any) -> tuple[ObservationStream, ...] | None:
+    """`observations` as a tuple of `ObservationStream` (one given alone becomes a tuple of one)."""
+    if value is None:
+        return None
+    items = (value,) if isinstance(value, ObservationStream) else value
+    if not isinstance(items, (list, tuple)) or not items or not all(isinstance(v, ObservationStream) for v in items):
+        raise InputError("`observations` must be a handeye.workflow.cell.ObservationStream or a non-empty list of "
+                         f"them (a mapping: build the cell with Cell.from_dict), got {shown(value)}")
+    return tuple(items)
 
 
 def _stations_problem(problem: str | None) -> str:
@@ -90,6 +118,11 @@ class Cell:
         URDF and xacro exports (default: the problem's per setup, `Problem.published`).
     time_limit: seconds a solve may take (None: no limit for handeye's own solvers, 600 s for a
         third party's; 0: no limit). outputs: the command line's result files (`Outputs`).
+    observations: a cell of several cameras and targets instead of `camera` / `images`: its tables
+        of observations (`ObservationStream`: one table naming each row's camera, or one file
+        per camera), solved by a problem made from them (`Problem.from_observations`; default:
+        the one registered, ``axyb-multi``); `matching`, `pairing`, the facts and `frame_ids`
+        do not apply (`handeye.workflow.observation_cell`).
     """
 
     robot: PoseStream
@@ -110,6 +143,7 @@ class Cell:
     frame_ids: tuple[str, str] | str | None = None
     time_limit: float | None = None
     outputs: Outputs = dataclasses.field(default_factory=Outputs)
+    observations: tuple[ObservationStream, ...] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.options, Mapping) or not all(isinstance(k, str) and k for k in self.options):
@@ -126,6 +160,10 @@ class Cell:
             raise InputError("`robot.file: FILE` is required: the robot's flange poses (a pose file, a folder of "
                              "one pose file per station, or a ROS bag)")
         check_choice(self.setup, SETUPS, "setup")
+        object.__setattr__(self, "observations", _observation_streams(self.observations))
+        if self.observations is not None:
+            self._check_observations()
+            return
         object.__setattr__(self, "problem", _stations_problem(self.problem))
         self.robot.check("robot")
         if self.robot.file is None:
@@ -154,6 +192,46 @@ class Cell:
         if self.images is not None and self.facts().get("camera_scale") == "unknown":
             raise InputError("`camera_scale: unknown` does not apply to `images`: the board's size gives the "
                              "camera's translations in the board's unit; drop it")
+
+    def _check_observations(self) -> None:
+        """A cell of several cameras and targets: tables of observations, one robot pose file of
+        the stations, neither `camera` nor `images`, no settings of one camera's stations."""
+        object.__setattr__(self, "problem", _observations_problem(self.problem))
+        self.robot.check("robot")
+        if self.robot.file is None:
+            raise InputError("`robot.file: FILE` is required: the robot's flange poses, one per station")
+        stray = [name for name in ("camera", "images") if getattr(self, name) is not None
+                 and (name == "images" or getattr(self, name).given())]
+        if stray:
+            raise InputError(f"`observations` replace `{stray[0]}`: the tables give every camera's poses; drop "
+                             f"`{stray[0]}`")
+        object.__setattr__(self, "camera", None)
+        for k, stream in enumerate(self.observations):
+            stream.check(f"observations[{k}]")
+        named = [s.camera for s in self.observations]
+        if len(self.observations) > 1 and None in named:
+            raise InputError("several `observations` files: name each file's camera (`camera: NAME`), or give one "
+                             "table with a camera column")
+        repeated = sorted({c for c in named if c is not None and named.count(c) > 1})
+        if repeated:
+            raise InputError(f"camera {repeated[0]!r} is named by two `observations` files; give each camera once")
+        if self.matching.given():
+            raise InputError("`matching` applies to one camera's stations; the tables of observations name each "
+                             "row's station (matched to the robot file's names, else its 0-based rows): drop it")
+        if self.pairing is not None:
+            raise InputError("`pairing` applies to problems of motions; drop it")
+        if self.frame_ids is not None:
+            raise InputError("`frame_ids` names one camera's frames; with `observations` every pose is published from "
+                             "its unknown's frame (base, flange) to its name in the tables: drop it")
+        self.outputs.check()
+        for name in ("solver", "backend"):
+            check_text(getattr(self, name), name)
+        for name in FACTS:
+            if getattr(self, name) is not None:
+                raise InputError(f"`{name}` does not apply to `observations`; drop it")
+        check_flag(self.orthonormalize, "orthonormalize")
+        check_flag(self.checks, "checks")
+        check_number(self.time_limit, "time_limit", low=0.0, what="number of seconds (0: no limit)")
 
     def _check_camera_side(self) -> None:
         """Exactly one of a camera pose file and board images, each complete."""

@@ -32,6 +32,7 @@ from handeye.workflow.cell_parts import (
     CameraStream,
     Images,
     Matching,
+    ObservationStream,
     Outputs,
     PoseStream,
 )
@@ -42,12 +43,12 @@ MAX_CELL_FILE_BYTES = 1_000_000
 SECTIONS: dict[str, type] = {"robot": PoseStream, "camera": CameraStream, "images": Images, "matching": Matching,
                              "outputs": Outputs}
 #: the keys of each section that are paths (relative to the cell file's folder)
-PATH_KEYS = {"robot": ("file",), "camera": ("file",), "images": ("folder", "intrinsics"),
+PATH_KEYS = {"robot": ("file",), "camera": ("file",), "images": ("folder", "intrinsics"), "observations": ("file",),
              "outputs": ("json", "yaml", "report")}
 #: a board spec ending so is a board file (a path)
 BOARD_FILE_SUFFIXES = (".yaml", ".yml", ".json")
 #: top-level keys in the order a cell file lists them
-ORDER = ("setup", "problem", "robot", "camera", "images", "matching", "pairing", "solver", "backend", "options",
+ORDER = ("setup", "problem", "robot", "camera", "images", "observations", "matching", "pairing", "solver", "backend", "options",
          "tz_X", "tz_Y", "camera_scale", "orthonormalize", "checks", "frame_ids", "time_limit", "outputs")
 HEADER = ("# handeye cell file: what this cell records and how to calibrate it (docs/calibrate.md,\n"
           "# \"Cell files and Python\").\n"
@@ -98,9 +99,35 @@ def cell_from_dict(cls: type, data: Mapping[str, Any], *, base: str | os.PathLik
             if name == "images" and _is_board_file(section.get("board")):
                 section["board"] = _joined(section["board"], base)
         values[name] = kind(**section)
+    if data.get("observations") is not None:
+        values["observations"] = _observations(data["observations"], base, where)
     values.setdefault("robot", None)
     values.setdefault("setup", None)
     return cls(**values)
+
+
+def _observations(value: Any, base: str | os.PathLike | None, where: str) -> tuple[ObservationStream, ...]:
+    """The `observations` of a cell file: one mapping (a table naming each row's camera) or a list
+    of them (e.g. one file per camera, each with its `camera`), paths joined to `base`."""
+    items = [value] if isinstance(value, Mapping) else value
+    keys = _keys(ObservationStream)
+    if not isinstance(items, list) or not items:
+        raise InputError(f"{where}: 'observations' must be a mapping of {', '.join(map(repr, keys))} or a list of "
+                         f"them (one per file); got {shown(value)}")
+    out = []
+    for k, item in enumerate(items):
+        if not isinstance(item, Mapping):
+            raise InputError(f"{where}: 'observations[{k}]' must be a mapping of {', '.join(map(repr, keys))}; got "
+                             f"{shown(item)}")
+        odd = [key for key in item if key not in keys]
+        if odd:
+            raise InputError(f"{where}: unknown key 'observations[{k}].{odd[0]}'; the keys of an observations file "
+                             f"are {', '.join(map(repr, keys))}")
+        item = dict(item)
+        if base is not None:
+            item["file"] = _joined(item.get("file"), base)
+        out.append(ObservationStream(**item))
+    return tuple(out)
 
 
 def _joined(value: Any, base: str | os.PathLike) -> Any:
@@ -173,7 +200,12 @@ def cell_to_dict(cell: Any, relative_to: str | os.PathLike | None = None) -> dic
                 for f in dataclasses.fields(cell) if f.name not in ("robot", "setup")}
     for name in ORDER:
         value = getattr(cell, name)
-        if name in SECTIONS:
+        if name == "matching" and cell.observations is not None:  # the tables name each row's station
+            continue
+        if name == "observations":
+            if value is not None:
+                out[name] = [_section(stream, name, relative_to) for stream in value]
+        elif name in SECTIONS:
             if value is not None:
                 section = _section(value, name, relative_to)
                 if section:

@@ -165,6 +165,29 @@ class CameraStream(PoseStream):
 
 
 @dataclasses.dataclass(frozen=True)
+class ObservationStream(CameraStream):
+    """A table of observations of a cell with several cameras and targets (`handeye.io.
+    observation_tables`): a row per (station, camera, target) with the camera's pose of the
+    target, in pose format `format` (a `CameraStream`: unit, columns, poses as for one camera).
+
+    camera: the camera whose poses the file holds, when it holds one camera's (one file per
+    camera); None: the table names each row's camera in a ``camera`` column.
+    """
+
+    camera: str | None = None
+
+    def check(self, name: str) -> None:
+        """As `CameraStream.check`, the file required (a format only for text tables), and the
+        camera's name."""
+        super().check(name)
+        if self.file is None:
+            raise InputError(f"`{name}.file: FILE` is required: the table of observations")
+        check_text(self.camera, f"{name}.camera")
+        if self.topic is not None:
+            raise InputError(f"`{name}.topic` applies to ROS bags; a table of observations is a file: drop it")
+
+
+@dataclasses.dataclass(frozen=True)
 class Images:
     """Board images instead of camera poses: one image per station.
 

@@ -92,6 +92,17 @@ def xacro_macro(T: np.ndarray, unit: str, parent: str, child: str, macro: str = 
                       "</robot>"])
 
 
+def xacro_joints(poses: list[tuple[np.ndarray, str, str]], unit: str, macro: str = "handeye_calibration") -> str:
+    """A xacro file defining macro `macro` (no params) that adds a fixed joint per (T, parent,
+    child) of `poses` (T = T_parent_child), e.g. every camera and marker of a cell: include it in
+    the robot's xacro and call ``<xacro:handeye_calibration/>``."""
+    lines = ['<?xml version="1.0"?>', '<robot xmlns:xacro="http://www.ros.org/wiki/xacro">',
+             f'  <xacro:macro name="{macro}" params="">']
+    for T, parent, child in poses:
+        lines += ["    " + line for line in urdf_joint(T, unit, parent, child).splitlines()]
+    return "\n".join([*lines, "  </xacro:macro>", "</robot>"])
+
+
 def plain(value: Any) -> Any:
     """`value` as plain JSON data: mappings (keys as str), sequences, numpy arrays and scalars
     converted, enums as their value, NaN and infinities as None."""

@@ -40,7 +40,7 @@ from handeye.workflow.report_render import html_page, markdown
 #: extension -> report format
 FORMATS = {".html": "html", ".htm": "html", ".md": "markdown"}
 #: the plots a markdown report writes next to it, as <stem>_<plot>.png (`handeye.report_plots.draw_all`)
-PLOTS = ("residuals", "poses", "overlay1", "overlay2", "overlay3")
+PLOTS = ("residuals", "poses", "graph", "overlay1", "overlay2", "overlay3")
 
 
 # ----------------------------------------------------------------------------- the report's data
@@ -102,7 +102,8 @@ def _joined(n: int, pairing: str | None) -> list[tuple[int, int]] | None:
 def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any, residuals: Mapping[str, Any],
             frames: Mapping[str, tuple[str, str]], checks: Mapping[str, Any] | None, warnings: Sequence[str],
             inputs: Mapping[str, str], robot_poses: np.ndarray | None = None, stations: int | None = None,
-            pairing: str | None = None, command: str = "", images: Mapping[str, Any] | None = None) -> dict[str, Any]:
+            pairing: str | None = None, command: str = "", images: Mapping[str, Any] | None = None,
+            pair_table: Sequence[Mapping[str, Any]] | None = None) -> dict[str, Any]:
     """The report's data, JSON-ready.
 
     solution: the `Solution` as reported (status possibly set to unreliable by the checks);
@@ -113,7 +114,9 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
     stations, pairing: for data made of stations (a problem of motions: which stations each motion
     joins);
     command: the command line as given; images: an image run's entry
-    (`handeye.report_images.image_entries`), or None.
+    (`handeye.report_images.image_entries`), or None; pair_table: the residuals per pair of
+    poses of a cell of several cameras and targets (`Problem.residual_table`: the table and the
+    graph of the report), or None.
     """
     from handeye import __version__
     from handeye.framework.registry import get_registry
@@ -171,6 +174,7 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
         "inputs": dict(inputs),
         "robot_poses": None if robot_poses is None else np.asarray(robot_poses, dtype=float).tolist(),
         "images": None if images is None else dict(images),
+        "pair_table": None if not pair_table else [dict(row) for row in pair_table],
     })
 
 

@@ -78,7 +78,7 @@ def blocks(r: Mapping[str, Any]) -> list[Block]:
     """Every block of the report of `r`, in order."""
     bad = r["status"] in ("not_converged", "failed", "unreliable")
     out: list[Block] = [Heading("Hand-eye calibration report", 1), Text(status_line(r), f"status {'bad' if bad else 'ok'}")]
-    out += _answer(r) + _advice(r) + _residuals(r) + _images(r) + _diagnostics(r)
+    out += _answer(r) + _advice(r) + _residuals(r) + _pairs(r) + _images(r) + _diagnostics(r)
     if r.get("robot_poses") is not None:
         out += [Heading("Poses and solved frames"), Figure("poses", "robot flange positions and the solved frames")]
     out += [Heading("Run"), table(None, run_rows(r), left=2)]
@@ -132,6 +132,36 @@ def _residuals(r: Mapping[str, Any]) -> list[Block]:
     out.append(table([item, "file rows" if r.get("joined") else "file row", "rotation [deg]",
                       f"translation [{unit}]", ""], rows, left=2, marked=[k in outliers for k in range(len(rot))]))
     return out
+
+
+def _pairs(r: Mapping[str, Any]) -> list[Block]:
+    """A cell of several cameras and targets: the residuals per pair of poses (which camera saw
+    which target) as a table, and their graph with each edge's RMS residuals."""
+    rows = r.get("pair_table")
+    if not rows:
+        return []
+    unit = r["unit"] or "data units"
+    keys = [k for k in rows[0] if k in ("X", "Y")]
+    frames = r.get("frames", {})
+    header = [f"{k} ({frames_word(frames, k)})" for k in keys]
+    body = [[*(str(row[k]) for k in keys), str(row["observations"]), f"{row['rotation_rms_deg']:.4g}",
+             f"{row['rotation_max_deg']:.4g}", f"{row['translation_rms']:.4g}", f"{row['translation_max']:.4g}"]
+            for row in rows]
+    return [Heading("Residuals per pair"),
+            Text("Each pair of poses the observations tie (a camera and a target), with the RMS and largest "
+                 "residuals over its observations: a pair far above the others points at that camera's or "
+                 "target's detections."),
+            table([*header, "observations", "rotation RMS [deg]", "rotation max [deg]", f"translation RMS [{unit}]",
+                   f"translation max [{unit}]"], body, left=len(keys)),
+            Figure("graph", "the graph of cameras and targets, each edge with its RMS residuals")]
+
+
+def frames_word(frames: Mapping[str, Any], unknown: str) -> str:
+    """What the poses of `unknown` are, from a frame name of one of them (``T_base_cam0`` ->
+    ``in base``), else the unknown's name."""
+    symbol = next((v[0] if isinstance(v, (list, tuple)) else v for k, v in frames.items()
+                   if k.split("[", 1)[0] == unknown), None)
+    return f"in {symbol.split('_')[1]}" if symbol and symbol.count("_") >= 2 else unknown
 
 
 def _images(r: Mapping[str, Any]) -> list[Block]:

@@ -56,6 +56,8 @@ def draw_all(r: Mapping[str, Any]) -> dict[str, bytes]:
     images = {"residuals": residual_plot(r)}
     if r.get("robot_poses") is not None:
         images["poses"] = pose_plot(r)
+    if r.get("pair_table"):
+        images["graph"] = graph_plot(r)
     if r.get("images"):
         from handeye.workflow.report_images import overlay_png
 
@@ -99,6 +101,53 @@ def residual_plot(r: Mapping[str, Any]) -> bytes:
     axes[0].legend(handles=handles, loc="upper right", fontsize="small")
     axes[0].set_title(f"residuals per {r['item']} ({r['equation']})")
     fig.tight_layout()
+    return _png(fig)
+
+
+def graph_plot(r: Mapping[str, Any]) -> bytes:
+    """The observation graph of a cell of several cameras and targets (`r["pair_table"]`): the
+    poses of one unknown in a column on the left, the other's on the right, an edge per pair
+    observed, its width growing with its observations and its colour with its RMS rotation
+    residual, labelled with its RMS residuals (deg, data unit)."""
+    plt = _pyplot()
+    rows = r["pair_table"]
+    keys = [k for k in rows[0] if k in ("X", "Y")][:2]
+    left = list(dict.fromkeys(row[keys[0]] for row in rows))
+    right = list(dict.fromkeys(row[keys[1]] for row in rows))
+    y_of = lambda names: {n: (len(names) - 1) / 2 - k for k, n in enumerate(names)}  # noqa: E731
+    yl, yr = y_of(left), y_of(right)
+    rot = np.array([row["rotation_rms_deg"] for row in rows])
+    top = float(rot.max()) or 1.0
+    most = max(row["observations"] for row in rows)
+    cmap = plt.get_cmap("viridis")
+    height = max(len(left), len(right))
+    fig, ax = plt.subplots(figsize=(7.5, max(3.0, 0.9 * height + 1.0)))
+    unit = r.get("unit") or "data units"
+    for row, value in zip(rows, rot):
+        a, b = (0.0, yl[row[keys[0]]]), (1.0, yr[row[keys[1]]])
+        ax.plot([a[0], b[0]], [a[1], b[1]], color=cmap(value / top), lw=1.0 + 3.0 * row["observations"] / most,
+                alpha=0.85, zorder=1)
+        # labels spread along the edges by their right end, so that a node's edges do not stack them
+        t = 0.22 + 0.56 * (right.index(row[keys[1]]) / max(1, len(right) - 1)) if len(right) > 1 else 0.5
+        ax.text(a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]),
+                f"{value:.3g}° {row['translation_rms']:.3g} {unit}", fontsize=7, ha="center",
+                va="center", bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8}, zorder=2)
+    for x, names, ys, colour in ((0.0, left, yl, "#4c72b0"), (1.0, right, yr, "#dd8452")):
+        for n in names:
+            ax.scatter([x], [ys[n]], s=420, color=colour, zorder=3)
+            ax.text(x + (-0.06 if x == 0 else 0.06), ys[n], n, ha="right" if x == 0 else "left", va="center",
+                    fontsize=9, zorder=4)
+    frames = r.get("frames", {})
+    for x, key in ((0.0, keys[0]), (1.0, keys[1])):
+        symbol = next((v[0] if isinstance(v, (list, tuple)) else v for k, v in frames.items()
+                       if k.split("[", 1)[0] == key), None)
+        ax.text(x, (height - 1) / 2 + 0.8, key + (f" ({symbol.split('_')[1]} frame)" if symbol else ""),
+                ha="center", fontsize=10, weight="bold")
+    ax.set_xlim(-0.6, 1.6)
+    ax.set_ylim(-(height - 1) / 2 - 0.8, (height - 1) / 2 + 1.2)
+    ax.axis("off")
+    ax.set_title("which camera saw which target: edges labelled with their RMS residuals\n"
+                 "(rotation, translation; width: observations, colour: RMS rotation)", fontsize=10)
     return _png(fig)
 
 

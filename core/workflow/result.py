@@ -14,6 +14,7 @@ report, HTML or markdown; `handeye.workflow.quality_report`).
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -30,6 +31,7 @@ from handeye.workflow.exports import (
     pose_entry,
     ros_line,
     urdf_joint,
+    xacro_joints,
     xacro_macro,
 )
 from handeye.workflow.frames import (
@@ -43,6 +45,26 @@ from handeye.workflow.frames import (
 )
 from handeye.workflow.solving import UNUSABLE
 from handeye.workflow.stations import Dropped, Stations
+
+
+@dataclasses.dataclass(frozen=True)
+class NamedPose:
+    """One pose of a stacked unknown by its user's name: label (``Y[1]``), name (``cam1``),
+    the ROS frame ids parent (the unknown's parent frame, ``base``) and child (the name), and
+    T = T_parent_child (4, 4) in the cell's unit."""
+
+    label: str
+    name: str
+    parent: str
+    child: str
+    T: np.ndarray
+
+
+def _frame_id(name: str) -> str:
+    """`name` as a ROS frame id: characters other than letters, digits, '_' and '/' as '_', a
+    leading non-letter prefixed by 'f'."""
+    text = re.sub(r"[^A-Za-z0-9_/]", "_", name.strip()) or "frame"
+    return text if text[0].isalpha() else f"f{text}"
 
 
 def _summary(values: np.ndarray) -> dict[str, float]:
@@ -77,6 +99,11 @@ class CalibrationResult:
     pairing: str | None
     facts: Mapping[str, Any]
     warnings: tuple[str, ...]
+    #: a cell of several cameras and targets (`Cell.observations`): per stacked unknown the names
+    #: of its poses (``{"X": ("marker0", ...), "Y": ("cam0", ...)}``), else None
+    names: Mapping[str, tuple[str, ...]] | None = None
+    #: such a cell's residuals per pair of poses (`Problem.residual_table`), else None
+    pair_table: tuple[dict[str, Any], ...] | None = None
 
     # ------------------------------------------------------------------------- the answer
 
@@ -133,6 +160,25 @@ class CalibrationResult:
         published = published_of(self.cell.problem, self.cell.setup)
         return None if published is None else published.unknown
 
+    def named_poses(self) -> list[NamedPose]:
+        """A cell of several cameras and targets: every pose of the stacked unknowns by its name,
+        with ROS frame ids (the unknown's parent frame, e.g. ``base``, and the name), in the
+        problem's order; empty for a cell of one camera."""
+        if not self.names:
+            return []
+        frames = frames_of(self.cell.problem, self.cell.setup)
+        out = []
+        for label, T in single_poses(self.solution.unknowns).items():
+            unknown = unknown_of(label)
+            names = self.names.get(unknown)
+            if names is None:
+                continue
+            name = names[int(label[len(unknown) + 1:-1])]
+            frame = frames.get(unknown)
+            parent = _frame_id(frame.parent if frame is not None else unknown)
+            out.append(NamedPose(label, name, parent, _frame_id(name), T))
+        return out
+
     def _published_pose(self) -> np.ndarray:
         if self.published is None:
             raise InputError(f"problem {self.cell.problem!r} names no camera pose to publish; export the unknowns "
@@ -143,15 +189,25 @@ class CalibrationResult:
 
     def ros2_static_transform(self) -> str:
         """``ros2 run tf2_ros static_transform_publisher ...`` publishing the camera's pose
-        (metres) under `ros_frame_ids`."""
+        (metres) under `ros_frame_ids`; for a cell of several cameras and targets one line per
+        named pose (`named_poses`, e.g. ``base`` -> ``cam0``)."""
+        if self.names:
+            return "\n".join(ros_line(p.T, self.unit, p.parent, p.child) for p in self.named_poses())
         return ros_line(self._published_pose(), self.unit, *self.ros_frame_ids)
 
     def urdf_joint(self) -> str:
-        """The camera's pose as a URDF fixed joint from parent to child link (`ros_frame_ids`)."""
+        """The camera's pose as a URDF fixed joint from parent to child link (`ros_frame_ids`);
+        for a cell of several cameras and targets a joint per named pose."""
+        if self.names:
+            return "\n".join(urdf_joint(p.T, self.unit, p.parent, p.child) for p in self.named_poses())
         return urdf_joint(self._published_pose(), self.unit, *self.ros_frame_ids)
 
     def xacro(self) -> str:
-        """A xacro file with macro ``handeye_calibration`` adding that joint (params parent, child)."""
+        """A xacro file with macro ``handeye_calibration`` adding that joint (params parent, child);
+        for a cell of several cameras and targets the macro adds a joint per named pose
+        (`handeye.workflow.exports.xacro_joints`, no params)."""
+        if self.names:
+            return xacro_joints([(p.T, p.parent, p.child) for p in self.named_poses()], self.unit)
         return xacro_macro(self._published_pose(), self.unit, *self.ros_frame_ids)
 
     def to_dict(self) -> dict[str, Any]:
@@ -199,12 +255,41 @@ class CalibrationResult:
                 "command": self.ros2_static_transform(), "unknown": self.published, "frame_id": self.ros_frame_ids[0],
                 "child_frame_id": self.ros_frame_ids[1], "translation_unit": "m"},
         }
+        if self.names:  # several cameras and targets: every pose by name, the residuals per pair
+            result.update(self._named_entries(unknowns))
         if images is not None:  # where the board poses came from, the intrinsics, the images' stations
             from handeye.workflow.image_stations import inputs_entry, result_entries
 
             result["inputs"]["camera"] = inputs_entry(cell, images)
             result.update(result_entries(cell, images))
         return result
+
+    def _named_entries(self, unknowns: Mapping[str, dict[str, Any]]) -> dict[str, Any]:
+        """The entries of a cell of several cameras and targets (`to_dict`): names, frames per
+        pose, transforms by name, ROS lines per pose, the observations and residuals per pair."""
+        named = self.named_poses()
+        cell, stations = self.cell, self.stations
+        camera = {"files": [s.file for s in cell.observations], "format": self.camera_read.format,
+                  "unit": self.camera_read.unit, "poses": len(self.camera_read),
+                  "holds": "T_target_cam" if any(s.poses == "camera-in-board" for s in cell.observations)
+                  else "T_cam_target"}
+        return {
+            "names": {p.label: p.name for p in named},
+            "frames": {p.label: f"T_{p.parent}_{p.child}" for p in named},
+            "transforms": {p.name: {"unknown": p.label, "parent": p.parent, "child": p.child,
+                                    "matrix": unknowns[p.label]["matrix"], "xyz_quat": unknowns[p.label]["xyz_quat"]}
+                           for p in named},
+            "stations": int(stations.matching["stations"]),
+            "observations": {"count": len(self.camera_read), "cameras": sorted(set(self.names.get("Y", ())) |
+                                                                               set(self.names.get("X", ()))),
+                             "per_pair": [dict(row) for row in self.pair_table or ()]},
+            "inputs": {"robot": {"file": cell.robot.file, "format": stations.robot_file.format,
+                                 "unit": stations.robot_file.unit, "poses": len(stations.robot_file)},
+                       "camera": camera, "orthonormalize": bool(cell.orthonormalize)},
+            "ros": {"transforms": [{"unknown": p.label, "frame_id": p.parent, "child_frame_id": p.child,
+                                    "command": ros_line(p.T, self.unit, p.parent, p.child)} for p in named],
+                    "translation_unit": "m"},
+        }
 
     @property
     def _inverted(self) -> bool:
@@ -232,6 +317,16 @@ class CalibrationResult:
         from handeye.workflow.report_images import image_entries
 
         cell, robot, words = self.cell, self.stations.robot, words or (lambda text: text)
+        robot_file = self.stations.robot_file
+        if self.names:  # several cameras and targets: the tables, each pose named
+            camera_input = f"{self.camera_read.source} ({self.camera_read.format}, {self.camera_read.unit})"
+            return self._named_report(collect(
+                problem=cell.problem, setup=cell.setup, unit=self.unit, solution=self.solution,
+                residuals=self.residuals, frames=frame_names(cell.problem, cell.setup), checks=None,
+                warnings=[words(w) for w in self.warnings],
+                inputs={"robot file": f"{cell.robot.file} ({robot_file.format}, {robot_file.unit})",
+                        "observations": camera_input},
+                robot_poses=robot.poses, stations=len(robot), command=command, pair_table=self.pair_table))
         images = self.stations.images
         if images is not None:
             camera_input = f"{cell.images.folder} (images, board {cell.images.board})"
@@ -248,6 +343,14 @@ class CalibrationResult:
                        images=None if images is None else image_entries(
                            images, cell.images.board, cell.setup, robot.poses, self.solution.unknowns,
                            intrinsics_source(cell)))
+
+    def _named_report(self, r: dict[str, Any]) -> dict[str, Any]:
+        """The report's data with each pose's frame named by its user's name (``T_base_cam0``)."""
+        named = {p.label: p for p in self.named_poses()}
+        frames = dict(r["frames"])
+        for label, p in named.items():
+            frames[label] = [f"T_{p.parent}_{p.child}", f"{p.name}: {frames.get(label, ['', ''])[1]}"]
+        return {**r, "frames": frames}
 
     def write_report(self, path: str | Path, *, force: bool = False, command: str = "handeye.calibrate(cell)",
                      words: Callable[[str], str] | None = None) -> list[Path]:

@@ -107,6 +107,12 @@ class AXYBMulti(Problem):
     def stack_sizes(self, data: AXYBMultiData) -> Mapping[str, int]:
         return {"X": data.nX, "Y": data.nY}
 
+    def from_observations(self, observations: Any, setup: str) -> Any:
+        """A cell's table of observations as these data (`cell_files.from_observations`)."""
+        from handeye.problems.axyb_multi import cell_files
+
+        return cell_files.from_observations(observations, setup)
+
     def validate(self, **data: Any) -> AXYBMultiData:
         """The validated data (`data.validated`: the stacks, the indices, the names), refused when
         a component of the observation graph cannot determine its X's and Y's

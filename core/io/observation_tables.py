@@ -1,0 +1,188 @@
+"""Tables of observations: a cell of several cameras and targets as one long table, a row per
+(station, camera, target) with the camera's pose of the target (T_cam_target, as solvePnP gives
+it), or one such file per camera (its camera then named by the caller).
+
+Forms (docs/formats.md, "Tables of observations"):
+
+- text (.csv .tsv .txt) with a header: ``station`` (the station's id: the robot pose file's
+  name/index column, or its 0-based row), ``camera`` (or ``sensor``; optional in a file of one
+  camera's poses), ``target`` (or ``marker``, ``board``), and the pose's columns in the table's
+  pose format, found by header as the pose readers find them (`handeye.io.pose_readers`);
+- JSON / NPZ (as handeye's data files, `handeye.io.data_files`): arrays ``station``, ``camera``,
+  ``target`` (text), ``camera_poses`` (m, 4, 4) and ``units``.
+
+A repeated (station, camera, target) is an error naming both rows: one observation is one pose.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from handeye.framework.errors import InputError
+from handeye.io.input_files import check_not_looping, load_json
+from handeye.io.npz import load_npz
+from handeye.io.pose_formats import normalise_header
+from handeye.io.pose_readers import (
+    TEXT_EXTENSIONS,
+    PoseStack,
+    _read_text,
+    poses_from_rows,
+    read_poses,
+)
+
+#: the id columns of a table and the header names each is found by (case-insensitive)
+ID_COLUMNS = {"station": ("station", "station_id", "stationid"),
+              "camera": ("camera", "sensor", "cam", "camera_name", "sensor_name"),
+              "target": ("target", "marker", "board", "target_name", "marker_name", "board_name")}
+#: the extensions of a table
+EXTENSIONS = (*TEXT_EXTENSIONS, ".json", ".npz")
+#: the keys of a JSON / NPZ table
+ARRAY_KEYS = ("station", "camera", "target", "camera_poses", "units")
+
+
+@dataclasses.dataclass(frozen=True)
+class ObservationTable:
+    """One file's observations: station, camera, target (m,) names; poses: the camera's pose of
+    the target per row (`PoseStack`, T_cam_target as the file holds it, its unit); where: each row's place in the file (``line 4``, ``row 3``), for messages; source: the file."""
+
+    station: tuple[str, ...]
+    camera: tuple[str, ...]
+    target: tuple[str, ...]
+    poses: PoseStack
+    where: tuple[str, ...]
+    source: str
+
+    def __len__(self) -> int:
+        return len(self.station)
+
+
+def read_observation_table(path: str | Path, format: str | None, *, unit: str | None = None,
+                           camera: str | None = None, orthonormalize: bool = False,
+                           columns: Sequence[str] | None = None) -> ObservationTable:
+    """The observations of file `path` (module docstring). format: the pose format of a text
+    table's pose columns (JSON / NPZ hold 4x4 matrices); unit: its length unit (default: the
+    file's ``units``); camera: the camera of every row when the file holds one camera's poses
+    (then a camera column, if any, must name it); columns: what each column holds, in file order
+    (``station``, ``camera``, ``target``, the format's fields, ``-``), default: by header."""
+    path = Path(path)
+    src = repr(str(path))
+    ext = path.suffix.lower()
+    if ext not in EXTENSIONS:
+        raise InputError(f"table of observations {src}: unsupported extension {ext or '(none)'!r}; use "
+                         f"{', '.join(EXTENSIONS)}")
+    check_not_looping(path, "table of observations")
+    if not path.is_file():
+        raise InputError(f"table of observations not found: {src}")
+    if ext in TEXT_EXTENSIONS:
+        if format is None:
+            raise InputError(f"table of observations {src}: give its pose format (e.g. opencv-rvec for solvePnP's "
+                             "tvec and rvec columns; docs/formats.md)")
+        table = _text_table(path, src, format, unit, orthonormalize, columns)
+    else:
+        table = _array_table(path, src, ext, unit)
+    return _finished(table, camera, src)
+
+
+def _column(header: Sequence[str], key: str) -> int | None:
+    names = [normalise_header(h) for h in header]
+    hits = [i for i, n in enumerate(names) if n in ID_COLUMNS[key]]
+    return hits[0] if hits else None
+
+
+def _text_table(path: Path, src: str, format: str, unit: str | None, orthonormalize: bool,
+                columns: Sequence[str] | None) -> ObservationTable:
+    raw = _read_text(path, src, None)
+    header = tuple(columns) if columns is not None else raw.header
+    if header is None:
+        raise InputError(f"table of observations {src}: no header line; name its columns (station, camera, target, "
+                         "then the pose's columns, e.g. x,y,z,rx,ry,rz for opencv-rvec)")
+    if len(header) != len(raw.rows[0]):
+        raise InputError(f"table of observations {src}: {len(header)} column names for {len(raw.rows[0])} columns")
+    at = {key: _column(header, key) for key in ID_COLUMNS}
+    for key in ("station", "target"):
+        if at[key] is None:
+            raise InputError(f"table of observations {src}: missing column {key!r} (header: {', '.join(header)}); "
+                             f"name it {' or '.join(repr(n) for n in ID_COLUMNS[key][:3])}")
+    ids = {i for i in at.values() if i is not None}
+    layout = ["name" if i == at["station"] else "-" if i in ids else h for i, h in enumerate(header)]
+    poses = read_poses(path, format, unit=unit, layout=layout, orthonormalize=orthonormalize)
+    text = lambda i: tuple(row[i] for row in raw.rows)  # noqa: E731
+    return ObservationTable(text(at["station"]), () if at["camera"] is None else text(at["camera"]),
+                            text(at["target"]), poses, tuple(raw.where), str(path))
+
+
+def _array_table(path: Path, src: str, ext: str, unit: str | None) -> ObservationTable:
+    if ext == ".npz":
+        values: dict[str, Any] = dict(load_npz(path, src))
+    else:
+        try:
+            values = load_json(path.read_text(encoding="utf-8"), src)
+        except UnicodeDecodeError:
+            raise InputError(f"table of observations {src}: not UTF-8 text") from None
+        if not isinstance(values, dict):
+            raise InputError(f"table of observations {src}: expected an object with keys {', '.join(ARRAY_KEYS)}")
+    odd = [k for k in values if k not in ARRAY_KEYS]
+    if odd:
+        raise InputError(f"table of observations {src}: unknown key {odd[0]!r}; the keys are {', '.join(ARRAY_KEYS)}")
+    for key in ("station", "target", "camera_poses"):
+        if key not in values:
+            raise InputError(f"table of observations {src}: missing column {key!r}")
+    units = values.get("units")
+    units = None if units is None else str(np.asarray(units).item() if isinstance(units, np.ndarray) else units)
+    if unit is None and units is None:
+        raise InputError(f"table of observations {src}: give its length unit (mm or m) or a 'units' entry")
+    unit = unit or units
+
+    def names(key: str) -> tuple[str, ...]:
+        if key not in values:
+            return ()
+        array = np.asarray(values[key])
+        if array.ndim != 1:
+            raise InputError(f"table of observations {src}: {key!r} must be a list of names, got shape {array.shape}")
+        return tuple(str(v) for v in array.tolist())
+
+    def stack(key: str) -> PoseStack:
+        try:
+            return poses_from_rows(np.asarray(values[key], dtype=float), "matrix", unit=unit, source=f"{src} {key}")
+        except (TypeError, ValueError) as exc:
+            if isinstance(exc, InputError):
+                raise
+            raise InputError(f"table of observations {src}: {key!r} must be 4x4 matrices ({exc})") from None
+
+    poses = dataclasses.replace(stack("camera_poses"), source=str(path))
+    m = len(poses)
+    return ObservationTable(names("station"), names("camera"), names("target"), poses,
+                            tuple(f"row {k + 1}" for k in range(m)), str(path))
+
+
+def _finished(table: ObservationTable, camera: str | None, src: str) -> ObservationTable:
+    """Counts agree, names are non-empty, the camera given or in every row, no repeated row."""
+    m = len(table.poses)
+    cameras = table.camera
+    if camera is not None:
+        wrong = [(w, c) for w, c in zip(table.where, cameras) if c != camera]
+        if cameras and wrong:
+            raise InputError(f"table of observations {src}: {wrong[0][0]} names camera {wrong[0][1]!r}, but the file "
+                             f"holds the poses of camera {camera!r}; drop its camera column or fix the row")
+        cameras = (camera,) * m
+    elif not cameras:
+        raise InputError(f"table of observations {src}: missing column 'camera' (or 'sensor'); give it, or name the "
+                         "file's camera (`observations: [{camera: NAME, file: ...}]`)")
+    for key, values in (("station", table.station), ("camera", cameras), ("target", table.target)):
+        if len(values) != m:
+            raise InputError(f"table of observations {src}: {len(values)} {key} names for {m} poses")
+        empty = [w for w, v in zip(table.where, values) if not str(v).strip()]
+        if empty:
+            raise InputError(f"table of observations {src}: {empty[0]} has no {key} name")
+    seen: dict[tuple[str, str, str], str] = {}
+    for w, key in zip(table.where, zip(table.station, cameras, table.target)):
+        if key in seen:
+            raise InputError(f"table of observations {src}: {w} repeats {seen[key]} (station {key[0]!r}, camera "
+                             f"{key[1]!r}, target {key[2]!r}); one observation is one pose: drop one of them")
+        seen[key] = w
+    return dataclasses.replace(table, camera=cameras)

@@ -1,0 +1,141 @@
+"""``handeye.calibrate(cell)`` for a cell of several cameras and targets: its tables of
+observations (`Cell.observations`: one long table, or one file per camera) and its robot pose
+file become the problem's data through the problem (`Problem.from_observations`), and are solved.
+
+1. read the robot's poses (one per station) and each table (`handeye.io.observation_tables`),
+   invert a table's poses when it holds T_target_cam (``poses: camera-in-board``), convert them
+   to the robot's length unit;
+2. give each row its station's robot pose: the robot file's row whose name (its name/index
+   column) is the row's station, or, for a robot file without names, its 0-based row; a station
+   the robot file lacks is an error naming the row;
+3. the problem makes its data from the observations (`Observations`), with the names of its
+   stacked unknowns' poses (the cameras' and targets' names); solve with the cell's solver, or
+   the default; the residuals per observation and per pair of poses (`Problem.residual_table`).
+
+The plausibility checks of one camera's stations do not apply (the solve's own self-check does).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from handeye.framework.api import solve
+from handeye.framework.errors import InputError
+from handeye.framework.problem import Observations
+from handeye.framework.registry import get_registry
+from handeye.geometry.se3 import inverse
+from handeye.io.observation_tables import ObservationTable, read_observation_table
+from handeye.io.pose_readers import PoseStack
+from handeye.workflow.cell import Cell, ObservationStream
+from handeye.workflow.reading import in_cell_words, read_stream
+from handeye.workflow.result import CalibrationResult
+from handeye.workflow.solving import default_solver, time_limit
+from handeye.workflow.stations import Stations
+
+
+def read_tables(cell: Cell, unit: str) -> list[ObservationTable]:
+    """Each of the cell's tables of observations, poses as T_cam_target in `unit`."""
+    tables = []
+    for k, stream in enumerate(cell.observations):
+        which = f"observations[{k}]" if len(cell.observations) > 1 else "observations"
+        try:
+            table = read_observation_table(stream.file, stream.format, unit=stream.unit, camera=stream.camera,
+                                           orthonormalize=cell.orthonormalize,
+                                           columns=None if stream.columns is None else list(stream.columns))
+        except InputError as exc:
+            raise InputError(f"`{which}`: {in_cell_words(str(exc), which)}") from None
+        poses = table.poses
+        if stream.poses == "camera-in-board":
+            inverted = inverse(poses.poses)
+            inverted.setflags(write=False)
+            poses = dataclasses.replace(poses, poses=inverted)
+        tables.append(dataclasses.replace(table, poses=poses.in_unit(unit)))
+    return tables
+
+
+def station_rows(robot: PoseStack, stations: tuple[str, ...], where: tuple[str, ...], table: str,
+                 robot_file: str) -> np.ndarray:
+    """The robot file's row of each station id (module docstring, step 2)."""
+    if robot.names is not None:
+        index = {name: k for k, name in enumerate(robot.names)}
+        missing = [(w, s) for w, s in zip(where, stations) if s not in index]
+        if missing:
+            w, s = missing[0]
+            shown = ", ".join(robot.names[:3]) + (", ..." if len(robot.names) > 3 else "")
+            raise InputError(f"station {s!r} ({table} {w}) is not in the robot file {robot_file!r} (its stations: "
+                             f"{shown}); record its robot pose or drop its rows")
+        return np.array([index[s] for s in stations], dtype=np.int64)
+    rows = []
+    for w, s in zip(where, stations):
+        if not s.strip().isdigit() or int(s) >= len(robot):
+            raise InputError(f"station {s!r} ({table} {w}) is not a row of the robot file {robot_file!r} (no name "
+                             f"column: stations are its rows 0..{len(robot) - 1}); give the robot file a name column "
+                             "or number the stations by row")
+        rows.append(int(s))
+    return np.array(rows, dtype=np.int64)
+
+
+def calibrate_observations(cell: Cell) -> CalibrationResult:
+    """Calibrate a cell of tables of observations (module docstring)."""
+    robot_file = read_stream(cell.robot, "robot", cell.orthonormalize)
+    unit = robot_file.unit
+    tables = read_tables(cell, unit)
+    rows = np.concatenate([station_rows(robot_file, t.station, t.where, repr(t.source), str(cell.robot.file))
+                           for t in tables])
+    _check_repeats(tables)
+    robot = robot_file.poses[rows]
+    camera_poses = np.concatenate([t.poses.poses for t in tables])
+    observations = Observations(station=tuple(s for t in tables for s in t.station),
+                                camera=tuple(c for t in tables for c in t.camera),
+                                target=tuple(g for t in tables for g in t.target),
+                                robot=robot, camera_poses=camera_poses)
+    problem = get_registry().problem(cell.problem)
+    made = problem.from_observations(observations, cell.setup)
+    fields = dict(made.fields)
+    options = cell.solver_options()
+    clash = sorted(set(options) & set(fields))
+    if clash:
+        raise InputError(f"`options` {clash} clash with the data field(s) of problem {cell.problem!r}")
+    solver = cell.solver or default_solver(cell.problem)
+    solution = solve(cell.problem, solver=solver, backend=cell.backend,
+                     time_limit=time_limit(cell.time_limit, cell.problem, solver), **fields, **options)
+    data = problem.validate(**fields)
+    residuals = problem.residuals(data, solution.unknowns)
+    pair_table = tuple(problem.residual_table(data, solution.unknowns))
+
+    used = np.unique(rows)
+    first = tables[0].poses
+    camera = dataclasses.replace(first, poses=_frozen(camera_poses), names=observations.station,
+                                 source=", ".join(t.source for t in tables))
+    message = (f"{len(observations)} observations of {len(set(observations.camera))} cameras and "
+               f"{len(set(observations.target))} targets at {len(used)} of the robot file's {len(robot_file)} stations")
+    matching = {"method": "station", "matched": len(observations), "stations": int(len(used)), "message": message}
+    stations = Stations(robot_file, camera, dataclasses.replace(robot_file, poses=_frozen(robot_file.poses[used]),
+                                                                names=None if robot_file.names is None else tuple(
+                                                                    robot_file.names[k] for k in used), stamps=None),
+                        used, np.arange(len(observations)), matching, (), ())
+    return CalibrationResult(cell=cell, solution=solution, solver=solver, unit=unit, stations=stations, camera=camera,
+                             camera_read=camera, residuals=residuals, checks=None, pairing=None, facts={},
+                             warnings=tuple(solution.warnings), names=dict(made.names), pair_table=pair_table)
+
+
+def _check_repeats(tables: list[ObservationTable]) -> None:
+    """A (station, camera, target) given by two files is an error naming both."""
+    seen: dict[tuple[str, str, str], str] = {}
+    for t in tables:
+        for w, key in zip(t.where, zip(t.station, t.camera, t.target)):
+            if key in seen:
+                raise InputError(f"{t.source!r} {w} repeats {seen[key]} (station {key[0]!r}, camera {key[1]!r}, "
+                                 f"target {key[2]!r}); one observation is one pose: drop one of them")
+            seen[key] = f"{t.source!r} {w}"
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.array(a)
+    a.setflags(write=False)
+    return a
+
+
+__all__ = ["ObservationStream", "calibrate_observations", "read_tables", "station_rows"]
