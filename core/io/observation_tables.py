@@ -17,7 +17,7 @@ A repeated (station, camera, target) is an error naming both rows: one observati
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -179,10 +179,16 @@ def _finished(table: ObservationTable, camera: str | None, src: str) -> Observat
         empty = [w for w, v in zip(table.where, values) if not str(v).strip()]
         if empty:
             raise InputError(f"table of observations {src}: {empty[0]} has no {key} name")
-    seen: dict[tuple[str, str, str], str] = {}
-    for w, key in zip(table.where, zip(table.station, cameras, table.target)):
-        if key in seen:
-            raise InputError(f"table of observations {src}: {w} repeats {seen[key]} (station {key[0]!r}, camera "
-                             f"{key[1]!r}, target {key[2]!r}); one observation is one pose: drop one of them")
-        seen[key] = w
+    check_unrepeated(zip(table.where, zip(table.station, cameras, table.target)), f"table of observations {src}: ")
     return dataclasses.replace(table, camera=cameras)
+
+
+def check_unrepeated(rows: Iterable[tuple[str, tuple[str, str, str]]], prefix: str = "") -> None:
+    """Raise InputError naming both rows when a (station, camera, target) comes twice. rows:
+    (where the row is, for the message; its key); prefix: what the message starts with."""
+    seen: dict[tuple[str, str, str], str] = {}
+    for where, key in rows:
+        if key in seen:
+            raise InputError(f"{prefix}{where} repeats {seen[key]} (station {key[0]!r}, camera {key[1]!r}, target "
+                             f"{key[2]!r}); one observation is one pose: drop one of them")
+        seen[key] = where

@@ -84,15 +84,7 @@ def cell_from_dict(cls: type, data: Mapping[str, Any], *, base: str | os.PathLik
         section = data.get(name)
         if section is None:
             continue
-        keys = _keys(kind)
-        if not isinstance(section, Mapping):
-            raise InputError(f"{where}: {name!r} must be a mapping of {', '.join(map(repr, keys))}; got "
-                             f"{shown(section)}")
-        odd = [k for k in section if k not in keys]
-        if odd:
-            raise InputError(f"{where}: unknown key '{name}.{odd[0]}'; the keys of {name!r} are "
-                             f"{', '.join(map(repr, keys))}")
-        section = dict(section)
+        section = _settings(section, kind, where, name, repr(name))
         if base is not None:
             for key in PATH_KEYS.get(name, ()):
                 section[key] = _joined(section.get(key), base)
@@ -106,24 +98,30 @@ def cell_from_dict(cls: type, data: Mapping[str, Any], *, base: str | os.PathLik
     return cls(**values)
 
 
+def _settings(section: Any, kind: type, where: str, name: str, what: str) -> dict[str, Any]:
+    """A section of a cell file (`name`, e.g. ``robot`` or ``observations[1]``) as a dict of the
+    fields of `kind`; InputError when it is not a mapping, or has a key `kind` lacks (the keys
+    of `what` listed)."""
+    keys = ", ".join(map(repr, _keys(kind)))
+    if not isinstance(section, Mapping):
+        raise InputError(f"{where}: '{name}' must be a mapping of {keys}; got {shown(section)}")
+    odd = [key for key in section if key not in _keys(kind)]
+    if odd:
+        raise InputError(f"{where}: unknown key '{name}.{odd[0]}'; the keys of {what} are {keys}")
+    return dict(section)
+
+
 def _observations(value: Any, base: str | os.PathLike | None, where: str) -> tuple[ObservationStream, ...]:
     """The `observations` of a cell file: one mapping (a table naming each row's camera) or a list
     of them (e.g. one file per camera, each with its `camera`), paths joined to `base`."""
     items = [value] if isinstance(value, Mapping) else value
-    keys = _keys(ObservationStream)
     if not isinstance(items, list) or not items:
-        raise InputError(f"{where}: 'observations' must be a mapping of {', '.join(map(repr, keys))} or a list of "
-                         f"them (one per file); got {shown(value)}")
+        raise InputError(f"{where}: 'observations' must be a mapping of "
+                         f"{', '.join(map(repr, _keys(ObservationStream)))} or a list of them (one per file); got "
+                         f"{shown(value)}")
     out = []
     for k, item in enumerate(items):
-        if not isinstance(item, Mapping):
-            raise InputError(f"{where}: 'observations[{k}]' must be a mapping of {', '.join(map(repr, keys))}; got "
-                             f"{shown(item)}")
-        odd = [key for key in item if key not in keys]
-        if odd:
-            raise InputError(f"{where}: unknown key 'observations[{k}].{odd[0]}'; the keys of an observations file "
-                             f"are {', '.join(map(repr, keys))}")
-        item = dict(item)
+        item = _settings(item, ObservationStream, where, f"observations[{k}]", "an observations file")
         if base is not None:
             item["file"] = _joined(item.get("file"), base)
         out.append(ObservationStream(**item))

@@ -26,7 +26,11 @@ from handeye.framework.errors import InputError
 from handeye.framework.problem import Observations
 from handeye.framework.registry import get_registry
 from handeye.geometry.se3 import inverse
-from handeye.io.observation_tables import ObservationTable, read_observation_table
+from handeye.io.observation_tables import (
+    ObservationTable,
+    check_unrepeated,
+    read_observation_table,
+)
 from handeye.io.pose_readers import PoseStack
 from handeye.workflow.cell import Cell, ObservationStream
 from handeye.workflow.reading import in_cell_words, read_stream
@@ -84,7 +88,8 @@ def calibrate_observations(cell: Cell) -> CalibrationResult:
     tables = read_tables(cell, unit)
     rows = np.concatenate([station_rows(robot_file, t.station, t.where, repr(t.source), str(cell.robot.file))
                            for t in tables])
-    _check_repeats(tables)
+    check_unrepeated((f"{t.source!r} {w}", key) for t in tables  # also across the files
+                     for w, key in zip(t.where, zip(t.station, t.camera, t.target)))
     robot = robot_file.poses[rows]
     camera_poses = np.concatenate([t.poses.poses for t in tables])
     observations = Observations(station=tuple(s for t in tables for s in t.station),
@@ -119,17 +124,6 @@ def calibrate_observations(cell: Cell) -> CalibrationResult:
     return CalibrationResult(cell=cell, solution=solution, solver=solver, unit=unit, stations=stations, camera=camera,
                              camera_read=camera, residuals=residuals, checks=None, pairing=None, facts={},
                              warnings=tuple(solution.warnings), names=dict(made.names), pair_table=pair_table)
-
-
-def _check_repeats(tables: list[ObservationTable]) -> None:
-    """A (station, camera, target) given by two files is an error naming both."""
-    seen: dict[tuple[str, str, str], str] = {}
-    for t in tables:
-        for w, key in zip(t.where, zip(t.station, t.camera, t.target)):
-            if key in seen:
-                raise InputError(f"{t.source!r} {w} repeats {seen[key]} (station {key[0]!r}, camera {key[1]!r}, "
-                                 f"target {key[2]!r}); one observation is one pose: drop one of them")
-            seen[key] = f"{t.source!r} {w}"
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:

@@ -159,10 +159,6 @@ def component_translations(A: np.ndarray, B: np.ndarray, RX: np.ndarray, RY: np.
     return t[:nX], t[nX:], float(lam[0] / lam[-1])
 
 
-def _names(kind: str, names: tuple[str, ...], indices: tuple[int, ...]) -> str:
-    return ", ".join(f"{kind} {names[k]!r}" for k in indices)
-
-
 def run(data: AXYBMultiData, options: Any, backend: str) -> SolverOutput:
     """``axyb-multi``: each connected component from its null vector and its translation least
     squares (module docstring)."""
@@ -173,10 +169,9 @@ def run(data: AXYBMultiData, options: Any, backend: str) -> SolverOutput:
     components, blocks_figures, warnings = [], {}, []
     for c in data.components:
         xs, ys = np.asarray(c.x), np.asarray(c.y)
-        A, B = data.A[c.observations], data.B[c.observations]
-        x = np.searchsorted(xs, data.x_index[c.observations])
-        y = np.searchsorted(ys, data.y_index[c.observations])
-        what = f"{_names('X', data.x_names, c.x)} and {_names('Y', data.y_names, c.y)}"
+        alone = data.subset(c.observations)  # its X's and Y's numbered from 0, in the order of c.x, c.y
+        A, B, x, y = alone.A, alone.B, alone.x_index, alone.y_index
+        what = data.component_names(c)
         R, M, figures = component_rotations(A[:, :3, :3], B[:, :3, :3], x, y, len(xs), len(ys), what)
         RX[xs], RY[ys] = R[:len(xs)], R[len(xs):]
         tX[xs], tY[ys], rcond = component_translations(A, B, RX[xs], RY[ys], x, y, what)

@@ -43,7 +43,7 @@ for this spec; `run` raises InputError if called directly with them).
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -124,17 +124,9 @@ def component_cost(data: AXYBMultiData, observations: np.ndarray, xs: tuple[int,
                    scale: float) -> RotationCost:
     """The cost of one component's observations over its X's `xs` and Y's `ys` (indices of the
     data's stacks), translations divided by `scale` and minimised out: y^T M y + rest."""
-    A, B = np.array(data.A[observations]), np.array(data.B[observations])
-    A[:, :3, 3] /= scale
-    B[:, :3, 3] /= scale
-    x = np.searchsorted(xs, data.x_index[observations])
-    y = np.searchsorted(ys, data.y_index[observations])
-    N, g, ww = normal_equations(A, B, x, y, len(xs), len(ys))
+    alone = data.subset(observations).scaled(scale)  # its X's and Y's numbered from 0, in the order of xs, ys
+    N, g, ww = normal_equations(alone.A, alone.B, alone.x_index, alone.y_index, len(xs), len(ys))
     return RotationCost.from_normal_equations(N, g, ww, rotations=len(xs) + len(ys))
-
-
-def _names(kind: str, names: tuple[str, ...], indices: tuple[int, ...]) -> str:
-    return ", ".join(f"{kind} {names[k]!r}" for k in indices)
 
 
 def run(data: AXYBMultiData, options: Options, backend: str) -> SolverOutput:
@@ -146,10 +138,7 @@ def run(data: AXYBMultiData, options: Options, backend: str) -> SolverOutput:
     RX, RY = np.empty((data.nX, 3, 3)), np.empty((data.nY, 3, 3))
     tX, tY = np.empty((data.nX, 3)), np.empty((data.nY, 3))
     components = []
-
-    def what(c: Any) -> str:
-        return f"{_names('X', data.x_names, c.x)} and {_names('Y', data.y_names, c.y)}"
-
+    what = data.component_names
     for c in data.components:
         nX, k = len(c.x), len(c.x) + len(c.y)
         try:

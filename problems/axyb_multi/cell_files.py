@@ -39,8 +39,10 @@ def from_observations(observations: Observations, setup: str) -> ObservationData
     clash = sorted(set(cameras) & set(targets))
     if clash:
         raise InputError(f"{clash[0]!r} names both a camera and a target; give cameras and targets distinct names")
-    cam_index = np.array([cameras.index(c) for c in observations.camera], dtype=np.int64)
-    target_index = np.array([targets.index(t) for t in observations.target], dtype=np.int64)
+    cam_number = {c: k for k, c in enumerate(cameras)}
+    target_number = {t: k for k, t in enumerate(targets)}
+    cam_index = np.array([cam_number[c] for c in observations.camera], dtype=np.int64)
+    target_index = np.array([target_number[t] for t in observations.target], dtype=np.int64)
     A = np.asarray(observations.robot, dtype=float)
     T_cam_target = np.asarray(observations.camera_poses, dtype=float)
     if setup == "eye-to-hand":  # X: markers on the flange, Y: fixed cameras, B = T_cam_marker

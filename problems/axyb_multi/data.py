@@ -145,6 +145,11 @@ class AXYBMultiData:
 
         return AXYBMultiModel(self)
 
+    def component_names(self, c: Component) -> str:
+        """A component's unknowns for messages: "X 'marker0', X 'marker1' and Y 'cam0'"."""
+        listed = lambda kind, names, ids: ", ".join(f"{kind} {names[k]!r}" for k in ids)  # noqa: E731
+        return f"{listed('X', self.x_names, c.x)} and {listed('Y', self.y_names, c.y)}"
+
     def item_label(self, i: int) -> str:
         """Observation i in the user's words, for messages: "marker3 with cam5 at station 4"
         (stations numbered from 0 in the order they first appear, `station_index`)."""
