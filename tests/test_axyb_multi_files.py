@@ -163,6 +163,7 @@ def test_cli_prints_exports_and_reports_every_name(exact_cell, capsys):
         ids = {(t["frame_id"], t["child_frame_id"]) for t in r["ros"]["transforms"]}
         assert ("base", "cam0") in ids and ("flange", "marker3") in ids
         assert len(r["observations"]["per_pair"]) == 12
+        assert r["observations"]["cameras"] == ["cam0", "cam1", "cam2"]  # the cameras, not the markers too
     assert "--frame-id base --child-frame-id cam2" in out
     text = report.read_text()
     assert "Residuals per pair" in text and "| marker0 | cam0 |" in text

@@ -280,8 +280,7 @@ class CalibrationResult:
                                     "matrix": unknowns[p.label]["matrix"], "xyz_quat": unknowns[p.label]["xyz_quat"]}
                            for p in named},
             "stations": int(stations.matching["stations"]),
-            "observations": {"count": len(self.camera_read), "cameras": sorted(set(self.names.get("Y", ())) |
-                                                                               set(self.names.get("X", ()))),
+            "observations": {"count": len(self.camera_read), "cameras": self._camera_names(),
                              "per_pair": [dict(row) for row in self.pair_table or ()]},
             "inputs": {"robot": {"file": cell.robot.file, "format": stations.robot_file.format,
                                  "unit": stations.robot_file.unit, "poses": len(stations.robot_file)},
@@ -290,6 +289,13 @@ class CalibrationResult:
                                     "command": ros_line(p.T, self.unit, p.parent, p.child)} for p in named],
                     "translation_unit": "m"},
         }
+
+    def _camera_names(self) -> list[str]:
+        """The names of the poses that are cameras: those of the unknown whose frame's child is
+        the camera (`Problem.frames`: the Y's of fixed cameras, the X's of wrist cameras)."""
+        frames = frames_of(self.cell.problem, self.cell.setup)
+        return [name for unknown, names in (self.names or {}).items()
+                if unknown in frames and frames[unknown].child == "camera" for name in names]
 
     @property
     def _inverted(self) -> bool:
