@@ -365,6 +365,14 @@ def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, d
             f"consistent {what} exists, which a robust fit needs (at least half of the {what} without gross "
             "errors); least squares on every pair is returned: check the pairing and the detections, and record "
             "more stations")
+    concentrated = _concentrated(data, flagged)
+    if concentrated:
+        name, k_g, n_g = concentrated
+        return poses, status, diag, [], (
+            f"{k_g} of the {n_g} {what} of {name} are far off the others at a robust fit, far more than elsewhere in "
+            f"the data: that is not a few gross {what} but something wrong with {name} itself (its length unit, its "
+            f"name or index in the data, or the way its poses were recorded); least squares on every {what[:-1]} is "
+            f"returned: check the {what} of {name}")
     W = settings.W
     sub_settings = settings
     if W is not None and W.L is not None and W.L.ndim == 3:
@@ -415,8 +423,36 @@ def _better_robust_fit(data: Any, model: Any, fit: tuple[np.ndarray, ...], robus
     return other if cost[1] < cost[0] else fit
 
 
+#: a group of items (`item_groups`) whose flagged items are this improbable as random gross errors
+#: is struck by something systematic (`_concentrated`): 1e-6, so that random gross items, 40% of
+#: them included, are left out as before
+CONCENTRATION_P = 1e-6
 #: at most this many items named in a warning (then "and N more"; diagnostics["outliers"] has all)
 LISTED = 8
+
+
+def _concentrated(data: Any, flagged: np.ndarray) -> tuple[str, int, int] | None:
+    """(name, flagged, observations) of the first group of the data's items (`item_groups`,
+    e.g. axyb-multi's observations of one camera or one marker) whose flagged items are too many
+    to be chance: a count whose binomial tail probability at the share flagged elsewhere (at
+    least one item's worth) is below CONCENTRATION_P. Gross errors strike
+    items at random; a wrong unit, a wrong label or a swapped setup strikes every item of one
+    camera or marker, and leaving those out would answer for it from the few that are left, or
+    from another marker's poses. None: no such group, or the data have no groups."""
+    from scipy.stats import binom
+
+    groups = getattr(data, "item_groups", None)
+    if not groups:
+        return None
+    k, m = int(flagged.sum()), len(flagged)
+    for name, idx in groups.items():
+        k_g, n_g = int(flagged[idx].sum()), len(idx)
+        if k_g == 0 or n_g == m:
+            continue
+        p_rest = max((k - k_g) / (m - n_g), 1.0 / m)
+        if binom.sf(k_g - 1, n_g, p_rest) < CONCENTRATION_P:
+            return name, k_g, n_g
+    return None
 
 
 def _listing(idx: np.ndarray, data: Any = None) -> str:

@@ -240,3 +240,27 @@ def test_simulator_is_seeded_and_checks_its_options():
                              ({"cameras": 0}, "integer >= 1"), ({"setup": "both"}, "not one of")):
         with pytest.raises(InputError, match=message):
             simulate_cell(10, **options)
+
+
+def test_errors_that_strike_one_camera_or_marker_are_not_left_out_as_gross():
+    """A camera whose poses are in metres among millimetres, or two markers given one name,
+    makes most of that camera's or marker's observations outliers: auto must not answer from
+    what is left of them (a wrong pose with status optimal), but say which one is wrong; random
+    gross observations (10% here) are still left out."""
+    sim = simulate_cell(20, seed=1, noise=NOISE)
+    d = sim.data
+    B = d["B"].copy()
+    B[d["y_index"] == 2, :3, 3] /= 1000.0
+    metres = handeye.solve("axyb-multi", **{**d, "B": B})
+    assert metres.status is not handeye.Status.OPTIMAL
+    assert any("something wrong with cam2 itself" in w for w in metres.warnings), metres.warnings
+    x = d["x_index"].copy()
+    x[x == 3] = 4
+    x[x > 3] -= 1
+    merged = handeye.solve("axyb-multi", **{**d, "x_index": x, "x_names": [n for n in d["x_names"] if n != "marker3"]})
+    assert merged.status is not handeye.Status.OPTIMAL
+    assert any("something wrong with marker4 itself" in w for w in merged.warnings), merged.warnings
+    gross = simulate_cell(20, seed=1, noise=NOISE, gross=0.1)
+    sol = handeye.solve("axyb-multi", **gross.data)
+    assert sol.status is handeye.Status.OPTIMAL and relative_error(sol, gross.truth) < 0.01
+    assert sorted(o["index"] for o in sol.diagnostics["outliers"]) == sorted(gross.gross.tolist())

@@ -145,6 +145,14 @@ class AXYBMultiData:
 
         return AXYBMultiModel(self)
 
+    @functools.cached_property
+    def item_groups(self) -> dict[str, np.ndarray]:
+        """The observations of each X and each Y by its name: the groups in which `auto`'s
+        outlier step looks for errors that strike one camera or marker as a whole (a wrong
+        unit or label), not observations at random."""
+        return {**{name: self.observations_of(x=j) for j, name in enumerate(self.x_names)},
+                **{name: self.observations_of(y=k) for k, name in enumerate(self.y_names)}}
+
     def component_names(self, c: Component) -> str:
         """A component's unknowns for messages: "X 'marker0', X 'marker1' and Y 'cam0'"."""
         listed = lambda kind, names, ids: ", ".join(f"{kind} {names[k]!r}" for k in ids)  # noqa: E731
