@@ -126,7 +126,11 @@ def scale_may_be_estimated(data: Any, options: Any) -> bool:
     leave the camera's scale unknown (``camera_scale`` among its `Problem.optional_fields`: A X =
     Y B, A X = X B), the scale not already unknown, not planar (unsupported there), no start and
     no covariance stated (the scale is fitted under per-group weights)."""
+    # a cell of several cameras (data with `camera_scale_groups`): which of them are monocular is
+    # the user's to say (camera_scale=[names]); one scale fitted for all would be wrong for a mix
+    # of metric and monocular cameras, so auto leaves it to the self-check's check 5 to report
     return ("camera_scale" in _refine.problem_for(data).optional_fields
+            and not hasattr(data, "camera_scale_groups")
             and not getattr(data, "camera_scale_unknown", False)
             and not _refine.is_planar(data) and options.init is None and options.covariance is None)
 

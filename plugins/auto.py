@@ -56,7 +56,7 @@ import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.checks.self_check import MAJORITY
-from handeye.estimation import nlls
+from handeye.estimation import nlls, noise_sources
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
 from handeye.estimation.whitening import Whitening, estimate_sigmas
 from handeye.framework.errors import (
@@ -77,20 +77,21 @@ from handeye.plugins._auto_steps import DRIFT_AUTOCORRELATION, DRIFT_MIN_PAIRS  
 CERTIFICATE_KEYS = ("certified", "eigenvalue_ratio", "relative_gap", "duality_gap", "lower_bound", "cost", "thresholds")
 #: values of option `outliers`
 OUTLIER_CHOICES = ("reject", "keep")
-#: the noise-source model (8 variances) is fitted by default from this many pairs on (120
-#: residuals, 15 per variance); below it the two per-group variances. Measured on the KinHEC
-#: small tier (docs/solvers/auto.md): at 3-12 pairs it was 1.1x less accurate than the
-#: per-group model in X translation (geometric mean), at 17-20 pairs 0.84x, from 60 pairs 0.74x;
-#: it costs 6.7 ms at 16 pairs (the per-group model: 3.3 ms).
+#: the noise-source model is fitted by default where the pairs kept give this many residuals
+#: per variance (axyb's 8 variances: SOURCES_MIN_PAIRS = 20 pairs, 120 residuals); below it the
+#: two per-group variances. Measured on the KinHEC small tier (docs/solvers/auto.md): at 3-12
+#: pairs it was 1.1x less accurate than the per-group model in X translation (geometric mean),
+#: at 17-20 pairs 0.84x, from 60 pairs 0.74x; it costs 6.7 ms at 16 pairs (the per-group
+#: model: 3.3 ms).
+RESIDUALS_PER_VARIANCE = 15
 SOURCES_MIN_PAIRS = 20
 #: by default the noise sources replace the per-group model only where they explain the
-#: residuals better by this many nats of log-likelihood: the 1% point of chi^2 with 6 degrees of
-#: freedom (8 variances against 2), halved. Where the per-group model is the true one (the
-#: simulator's noise) a fit on 8 variances costs 2-5% of accuracy (bench/accuracy.py, m = 50), and
-#: there the gain stayed below it in 200 of 200 data sets at m = 50 (99th percentile 7.3 nats); on
-#: the KinHEC small tier it was below it on 43 of 452 sequences of 20 pairs or more (median gain
-#: 24-97 nats per track).
-SOURCES_MIN_GAIN = 8.4
+#: residuals better than chance would (`handeye.noise_sources.min_gain`: for axyb's 8 variances
+#: against 2 the 1% point of chi^2 with 6 degrees of freedom, halved: 8.4 nats). Where the
+#: per-group model is the true one (the simulator's noise) a fit on 8 variances costs 2-5% of
+#: accuracy (bench/accuracy.py, m = 50), and there the gain stayed below 8.4 in 200 of 200 data
+#: sets at m = 50 (99th percentile 7.3 nats); on the KinHEC small tier it was below it on 43 of
+#: 452 sequences of 20 pairs or more (median gain 24-97 nats per track).
 #: values of option `noise` (None: "sources" where it applies, see `_noise_step`)
 NOISE_CHOICES = (None, "groups", "sources")
 
@@ -259,8 +260,8 @@ def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: 
                 ) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """Pipeline step 5: the noise-source model (`handeye.noise_sources`) fitted from the answer
     `poses` on the pairs kept (those not in the outlier step's `report`), where the option asks
-    for it (None: from SOURCES_MIN_PAIRS pairs kept on, and kept only where it gains
-    SOURCES_MIN_GAIN nats over the per-group model) and `_sources_skipped` finds no reason
+    for it (None: from SOURCES_MIN_PAIRS pairs kept on and RESIDUALS_PER_VARIANCE residuals per
+    variance, and kept only where it gains `noise_sources.min_gain` nats over the per-group model) and `_sources_skipped` finds no reason
     against it. Returns the new (poses, status, refine's diagnostics), their warnings after the
     earlier ones; else the inputs, with the reason in the diagnostics (and, where the user asked
     for the sources, a warning)."""
@@ -283,7 +284,10 @@ def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: 
         if options.noise == "sources":
             note["warnings"] = diag.get("warnings", []) + [f"auto: noise='sources' was not applied: {reason}"]
         return poses, status, {**diag, **note}
-    if options.noise is None and new_diag["loglik_gain"] < SOURCES_MIN_GAIN:  # no better than one level per group
+    count = len(new_diag["noise_sources"])
+    if options.noise is None and 6 * kept.m < RESIDUALS_PER_VARIANCE * count:
+        return poses, status, {**diag, "noise_sources_skipped": f"{kept.m} observations are too few for {count} variances"}
+    if options.noise is None and new_diag["loglik_gain"] < noise_sources.min_gain(count):  # no better than one level per group
         return poses, status, {**diag, "noise_sources_gain": new_diag["loglik_gain"]}
     carried = {k: diag[k] for k in ("outliers_left_out", "init") if k in diag}
     warnings = diag.get("warnings", []) + new_diag.get("warnings", [])
@@ -314,12 +318,43 @@ def _kept(data: Any, inliers: np.ndarray) -> Any:
     return dataclasses.replace(data, **{f: getattr(data, f)[inliers] for f in stacks})
 
 
-def _beyond(e: np.ndarray, W: Whitening | None, scale: float) -> np.ndarray:
+#: how much noisier (or quieter) than the rest, in standard deviation, one group of items (a
+#: camera, a marker: `item_groups`) may be and still be judged against its own noise by the
+#: outlier test (`_group_variances`); beyond it the group is judged against the others' and its
+#: far-off items, too many to be chance, are named as something wrong with it (`_concentrated`).
+#: Measured (bench/axyb_multi.py --uneven, cameras 0.25-4x the typical noise): judged against
+#: the others' noise, a camera 2x noisier than most had 21 of its 243 observations flagged and
+#: was named as broken; a length unit wrong by 1000x or two markers under one name are far
+#: beyond 10x.
+GROUP_NOISE_RANGE = 10.0
+
+
+def _beyond(e: np.ndarray, W: Whitening | None, scale: float, data: Any = None) -> np.ndarray:
     """Which of the residuals e: (m, 6) are beyond OUTLIER_CHI2 under W (None: median-based
-    scales of e)."""
+    scales of e, and with `data` whose items come in groups, each item's group's own noise:
+    `_group_variances`; only at the robust fit, where a broken group cannot hide in the others'
+    residuals as it does at least squares)."""
+    estimated = W is None
     W = W if W is not None else estimate_sigmas(e, scale, robust=True)
     ew = W.residual(e)
-    return np.einsum("ni,ni->n", ew, ew) > OUTLIER_CHI2
+    q = np.einsum("ni,ni->n", ew, ew)
+    groups = getattr(data, "item_groups", None) if estimated else None
+    return q > OUTLIER_CHI2 * (_group_variances(q, groups) if groups else 1.0)
+
+
+def _group_variances(q: np.ndarray, groups: dict[str, np.ndarray]) -> np.ndarray:
+    """Each item's noise variance relative to the data's, from its groups (`item_groups`: e.g.
+    the observations of one camera, of one marker): a group's is the median of its items'
+    whitened squared norms q over the median of all, clipped to GROUP_NOISE_RANGE (squared)
+    either way; an item's the largest of its groups'. A camera twice as noisy as the rest then
+    has its gross observations found against its own noise, not every fourth one flagged."""
+    limit = GROUP_NOISE_RANGE**2
+    typical = max(float(np.median(q)), 1e-300)
+    out = np.zeros(len(q))
+    for idx in groups.values():
+        ratio = float(np.clip(np.median(q[idx]) / typical, 1.0 / limit, limit)) if len(idx) else 1.0
+        out[idx] = np.maximum(out[idx], ratio)
+    return np.where(out > 0, out, 1.0)
 
 
 def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
@@ -354,7 +389,7 @@ def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, d
     except DegenerateDataError:
         return poses, status, diag, [], None
     fit = _better_robust_fit(data, model, fit, robust)
-    flagged = _beyond(model.residuals(fit), settings.W, model.scale)
+    flagged = _beyond(model.residuals(fit), settings.W, model.scale, data)
     k, m = int(flagged.sum()), data.m
     if k == 0:
         return poses, status, diag, [], None
@@ -477,7 +512,8 @@ def _diagnostics(pipeline: list[str], start: str, init_status: Status, init_diag
         "starts": starts,
         "refine": {k: v for k, v in diag.items() if k != "warnings"},
     }
-    for key in ("camera_scale", "camera_scale_std"):  # the camera's scale, when unknown (handeye.camera_scale)
+    # the camera's scale, or the cameras' scales, when unknown (handeye.camera_scale, handeye.camera_scales)
+    for key in ("camera_scale", "camera_scale_std", "camera_scales", "camera_scales_std"):
         if key in diag:
             diagnostics[key] = diag[key]
     warnings = warnings + diag.get("warnings", [])

@@ -187,8 +187,9 @@ def test_small_component_falls_back_to_the_sdp(monkeypatch):
 
 
 def test_large_component_without_certificate_is_uncertified_not_optimal(monkeypatch):
-    """24 rotations: the SDP is out of reach (multi.SDP_MAX_ROTATIONS), so a failed local
-    certificate leaves the local answer `uncertified`, saying why, and no SDP is attempted."""
+    """24 rotations: the dense SDP is out of reach (multi.SDP_MAX_ROTATIONS) and not attempted;
+    the sparse solver of the same relaxation (plugins/so3_sdp/sparse.py, tested in
+    tests/test_so3_sdp_sparse.py) is. When its certificate fails too the answer is `uncertified`."""
     sim = simulate_cell(12, seed=6, noise=CAMERA_NOISE)
     data = validated_cell(sim.data)
 
@@ -197,20 +198,24 @@ def test_large_component_without_certificate_is_uncertified_not_optimal(monkeypa
 
     monkeypatch.setattr(so3_sdp.single, "local_certificate", failed_local_certificate)
     monkeypatch.setattr(so3_sdp.single, "_solve_clarabel", no_sdp)
+    monkeypatch.setattr(so3_sdp.sparse, "certificate",
+                        lambda M, y, nu: failed_local_certificate(M, y))
     out = multi.run(data, so3_sdp.Options(), "clarabel")
     (c,) = out.diagnostics["components"]
     assert out.status is Status.UNCERTIFIED and not out.diagnostics["certified"]
-    assert c["status"] == "uncertified" and c["certificate_path"] == "local" and "24 rotations" in c["sdp_skipped"]
+    assert c["status"] == "uncertified" and c["certificate_path"] in ("local", "sdp-sparse")
     assert c["relative_gap"] > 1e3 * GAP_THRESHOLD and c["lower_bound"] < c["cost"]
     with pytest.raises(handeye.InputError, match="local_first=False asks for the SDP"):
         multi.run(data, so3_sdp.Options(local_first=False), "clarabel")
 
 
-def test_camera_scale_unknown_is_refused():
+def test_camera_scale_unknown_needs_the_cameras():
+    """Unknown scales are per camera (tests/test_axyb_multi_scale.py): data that say a scale is
+    unknown without naming the cameras are refused."""
     data = validated_cell(cell(7, nX=2, nY=2)[0])
-    with pytest.raises(handeye.InputError, match="camera_scale='unknown' is not supported"):
-        multi.run(dataclasses.replace(data, camera_scale_unknown=True), so3_sdp.Options(), "clarabel")
-    assert not so3_sdp.SPEC_MULTI.camera_scale_mode  # the host refuses such data before the run
+    with pytest.raises(handeye.InputError, match=r"give camera_scale=\[their names\]"):
+        dataclasses.replace(data, camera_scale_unknown=True)
+    assert so3_sdp.SPEC_MULTI.camera_scale_mode
 
 
 def test_registered_for_axyb_multi_only_when_that_problem_is():

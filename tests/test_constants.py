@@ -31,7 +31,9 @@ def test_mad_to_sigma_is_one_over_the_normal_75_percent_point():
 def test_noise_sources_gain_is_half_the_1_percent_point_of_chi2_with_6_dof():
     """Auto's likelihood-ratio test of 8 variances against 2 at 1%: a gain in nats is half the
     chi^2 statistic."""
-    assert auto.SOURCES_MIN_GAIN == pytest.approx(stats.chi2.ppf(0.99, 6) / 2, abs=0.01)
+    from handeye.estimation.noise_sources import min_gain
+
+    assert min_gain(8) == pytest.approx(stats.chi2.ppf(0.99, 6) / 2, abs=1e-9) == pytest.approx(8.4, abs=0.01)
 
 
 def test_outlier_threshold_is_eight_robust_sigmas_and_shared():

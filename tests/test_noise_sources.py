@@ -9,9 +9,11 @@ import pytest
 import handeye
 from handeye import InputError, Status
 from handeye.estimation.noise import NoiseModel
-from handeye.estimation.noise_sources import SOURCES
+from handeye.estimation.noise_sources import min_gain
+from handeye.problems.axyb.noise import SOURCES
+
+SOURCES_MIN_GAIN = min_gain(len(SOURCES))
 from handeye.geometry.se3 import make_pose, so3_exp
-from handeye.plugins.auto import SOURCES_MIN_GAIN
 from handeye.problems.axyb import PROBLEM
 
 

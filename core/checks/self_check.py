@@ -32,7 +32,9 @@ solver's (third parties' too), against the data it was computed from:
    the robot's (`handeye.camera_scale`), from the best fit (`_camera_scale`): beyond a factor
    SCALE_FAIL either way a failure (a unit mix-up, or a monocular camera: give
    camera_scale="unknown"), beyond SCALE_WARN a warning; both only SCALE_SIGMAS standard
-   deviations from 1.
+   deviations from 1. A cell of several cameras (``axyb-multi``) first per camera
+   (`_camera_scales`: each X's and each Y's observations), naming the cameras to give in
+   camera_scale=[names].
 6. **Camera scale fitted** (the data's camera_scale unknown, or fitted by ``auto``): noise in the
    camera's translations biases the fitted scale toward zero (errors in variables), by up to
    kappa (`handeye.camera_scale.noise_bias`), which its stated uncertainty leaves out
@@ -65,7 +67,7 @@ from typing import Any
 import numpy as np
 
 from handeye.checks.validation import AGREEMENT_ANGLE
-from handeye.estimation import camera_scale, nlls
+from handeye.estimation import camera_scale, camera_scales, nlls
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, MAD_TO_SIGMA, OUTLIER_CHI2
 from handeye.estimation.whitening import CHI3_MEDIAN, Whitening, estimate_sigmas
 from handeye.framework.errors import DegenerateDataError
@@ -294,7 +296,11 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
         failures.append("the data do not determine the unknowns near this answer (the least-squares fit from it "
                         "is singular)")
         return None
-    if not flagged.any():
+    # a cell's cameras one by one first (a monocular camera's observations may all be far off, so
+    # whether or not some are); one scale for every camera where that names none
+    before = len(failures) + len(warnings)
+    _camera_scales(model, res, cov, failures, warnings, figures)
+    if not flagged.any() and len(failures) + len(warnings) == before:
         _camera_scale(model, res, cov, failures, warnings, figures)
     _camera_scale_noise(model, res, factor, failures, warnings, figures)
     names = model.unknowns
@@ -319,7 +325,9 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
                "this solver used them")
     if d > DISTANCE_FAIL:
         failures.append(f"the answer is {d:.3g} standard deviations from the best fit of these data ({gap_text}){why}")
-    elif d > DISTANCE_WARN:
+    elif d > DISTANCE_WARN and diagnostics.get("fitted_to", "poses") == "poses":
+        # an answer fitted to other observations (the board's corners) is judged by them, not by
+        # the poses' model; only a gross disagreement fails it
         warnings.append(f"self-check: the answer is {d:.3g} standard deviations from the best fit of these data "
                         f"({gap_text}), so the data support it far less than that fit{why}; solver 'auto' returns "
                         "the best fit")
@@ -456,12 +464,47 @@ def _camera_scale(model: Any, res: Any, cov: np.ndarray, failures: list[str], wa
     figures["camera_scale"] = {"scale": s, "std": std, "sigmas": z, "translation_fit_gain": gain}
     text = (f"the camera's translations fit the robot's best when multiplied by {s:.4g} (+-{std:.2g}, "
             f"{abs(z):.3g} standard deviations from 1; the translation residuals {gain:.3g} times smaller)")
+    hint = getattr(model, "scale_hint", "camera_scale='unknown'")  # how the data say so (a cell: the cameras' names)
     if abs(math.log(s)) > math.log(SCALE_FAIL) and abs(z) > SCALE_SIGMAS and gain > SCALE_GAIN_FAIL:
         failures.append(f"{text}: are both in one length unit (m against mm)? For a camera whose translations are "
-                        "known only up to scale (monocular SLAM), give camera_scale='unknown'")
+                        f"known only up to scale (monocular SLAM), give {hint}")
     elif abs(s - 1.0) > SCALE_WARN and abs(z) > SCALE_SIGMAS and gain > SCALE_GAIN_WARN:
         warnings.append(f"self-check: {text}: check the board's size and the camera's focal length (a PnP pose's "
-                        "distance scales with both); camera_scale='unknown' fits the factor")
+                        f"distance scales with both); {hint} fits the factor")
+
+
+def _camera_scales(model: Any, res: Any, cov: np.ndarray, failures: list[str], warnings: list[str],
+                   figures: dict[str, Any]) -> None:
+    """Check 5 per camera of a cell (a model with ``scale_groups``: the observations of each X
+    and each Y, whose cameras the data do not single out), before check 5 for all cameras at once:
+    one monocular camera among metric ones misfits by a factor that a scale for all would average
+    away. The fit with groups' scales free that explains the most
+    (`handeye.camera_scales.groups_off_scale`), its scales judged as check 5 judges one camera."""
+    groups = getattr(model, "scale_groups", None)
+    if not groups or res.W.L is not None:
+        return
+    best = camera_scales.groups_off_scale(model, res, cov, groups, scale_suspect, MAX_ITER, FIT_TOL)
+    if best is None:
+        return
+    names, gain, f = best
+    scales = {name: (f["camera_scales"][name], f["camera_scales_std"][name]) for name in names}
+    figures["camera_scales"] = {"translation_fit_gain": gain, **{
+        name: {"scale": s, "std": std, "sigmas": (s - 1.0) / std} for name, (s, std) in scales.items()}}
+    far = [n for n, (s, std) in scales.items() if s > SCALE_SIGMAS * std and abs(s - 1.0) > SCALE_SIGMAS * std]
+    fail = [n for n in far if abs(math.log(scales[n][0])) > math.log(SCALE_FAIL)]
+    warn = [n for n in far if abs(scales[n][0] - 1.0) > SCALE_WARN]
+    named = fail if fail and gain > SCALE_GAIN_FAIL else warn if warn and gain > SCALE_GAIN_WARN else []
+    if not named:
+        return
+    text = (f"the translations of the observations of {', '.join(repr(n) for n in named)} fit the robot's best when "
+            f"multiplied by {', '.join(f'{scales[n][0]:.4g} (+-{scales[n][1]:.2g})' for n in named)} (the translation "
+            f"residuals {gain:.3g} times smaller)")
+    if named is fail:
+        failures.append(f"{text}: is each camera in the cell's length unit? For cameras known only up to scale "
+                        f"(monocular SLAM), give camera_scale={named!r}")
+    else:
+        warnings.append(f"self-check: {text}: check those cameras' board sizes and focal lengths (a PnP pose's "
+                        f"distance scales with both); camera_scale={named!r} fits their factors")
 
 
 def _camera_scale_noise(model: Any, res: Any, factor: float, failures: list[str], warnings: list[str],
@@ -479,6 +522,11 @@ def _camera_scale_noise(model: Any, res: Any, factor: float, failures: list[str]
         return
     s, std, bias, sigmas = f["camera_scale"], f["camera_scale_std"], f["bias"], f["bias_sigmas"]
     figures["camera_scale_noise"] = {"scale": s, "std": std, "bias": bias, "bias_sigmas": sigmas}
+    whose, fitted = "the camera's scale", f"the camera's scale {s:.4g} (+-{std:.2g})"
+    if "camera" in f:  # several cameras (`handeye.camera_scales`): the worst named, all in the figures
+        whose = f"the scale of camera {f['camera']!r}"
+        fitted = f"the scale {s:.4g} (+-{std:.2g}) of camera {f['camera']!r}"
+        figures["camera_scale_noise"].update(camera=f["camera"], cameras=f["cameras"])
     if not sigmas > NOISE_BIAS_SIGMAS:
         return
     rms = float(np.sqrt(np.mean(np.sum(res.e[:, 3:] ** 2, axis=1))))
@@ -489,11 +537,11 @@ def _camera_scale_noise(model: Any, res: Any, factor: float, failures: list[str]
               "translations are metric, solve with the scale known")
     if bias > NOISE_BIAS_FAIL:
         share = "all" if bias >= 1.0 else f"{bias:.0%}"
-        failures.append(f"the data do not determine the camera's scale: {spread}; noise as large as the residuals "
+        failures.append(f"the data do not determine {whose}: {spread}; noise as large as the residuals "
                         f"could account for {share} of that spread, so the fitted {s:.4g} (+-{std:.2g}) may be far "
                         f"too small: {advice}")
     elif bias > SCALE_WARN:
-        warnings.append(f"self-check: the camera's scale {s:.4g} (+-{std:.2g}) may be up to {bias:.1%} too small, "
+        warnings.append(f"self-check: {fitted} may be up to {bias:.1%} too small, "
                         f"{sigmas:.3g} standard deviations that its stated uncertainty (and X's and Y's) leaves out: "
                         f"{spread}; {advice}")
 

@@ -232,8 +232,9 @@ def cell_of(args: argparse.Namespace) -> Cell:
     or the flags alone (paths relative to the working folder)."""
     flags = flag_settings(args, parse_key_values(args.option) if args.option else None)
     if args.config is None:
-        if "robot" not in flags or "setup" not in flags:
-            missing = " and ".join(f for f, k in (("--robot FILE", "robot"), ("--setup", "setup")) if k not in flags)
+        if ("robot" not in flags and "observations" not in flags) or "setup" not in flags:
+            missing = " and ".join(f for f, k in (("--robot FILE", "robot"), ("--setup", "setup"))
+                                   if k not in flags and not (k == "robot" and "observations" in flags))
             raise InputError(f"{missing} {'are' if ' and ' in missing else 'is'} required (or --config CELL.yaml, a "
                              "cell file that gives them)")
         return Cell.from_dict(flags)
@@ -244,7 +245,8 @@ def cell_of(args: argparse.Namespace) -> Cell:
 def run(args: argparse.Namespace) -> int:
     cell = cell_of(args)
     if cell.observations is not None:  # several cameras and targets: the tables of observations
-        inputs = [cell.robot.file, *(s.file for s in cell.observations)]
+        inputs = [cell.robot.file, *(p for s in cell.observations for p in (s.file, s.images, s.intrinsics)),
+                  *(b for b in (cell.targets or {}).values() if isinstance(b, str))]
     else:
         inputs = [cell.robot.file, cell.images.folder if cell.images else cell.camera.file,
                   cell.images.intrinsics if cell.images else None, cell.images.board if cell.images else None]

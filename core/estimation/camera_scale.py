@@ -65,8 +65,13 @@ def rotation_only(data: Any) -> Any:
 
 
 def model_for(data: Any, model: PoseModel) -> PoseModel:
-    """`model` of `data`, with the camera's scale profiled out when the data say it is unknown."""
-    return ScaledCameraModel(model) if getattr(data, "camera_scale_unknown", False) else model
+    """`model` of `data`, with the camera's scale profiled out when the data say it is unknown;
+    one scale per camera when the data make that model themselves (``scaled_cameras_model``, as a
+    cell of several cameras does: `handeye.camera_scales.ScaledCamerasModel`)."""
+    if not getattr(data, "camera_scale_unknown", False):
+        return model
+    several = getattr(data, "scaled_cameras_model", None)
+    return several(model) if several is not None else ScaledCameraModel(model)
 
 
 class ScaledCameraModel(PoseModel):
@@ -128,12 +133,18 @@ def translations_and_scale(model: PoseModel, rotations: Poses) -> tuple[Poses, f
     if rank < M.shape[1]:
         raise DegenerateDataError("the translations and the camera's scale are undetermined by these poses: "
                                   "record poses that rotate about at least two different axes, with the camera moving")
+    return with_translations(poses, x), 1.0 + float(x[-1])
+
+
+def with_translations(poses: Poses, x: np.ndarray) -> Poses:
+    """The poses with the translations the linear step found: t_j = R_j x[3j:3j+3] (the step is
+    on right perturbations, so in each pose's own frame)."""
     out = []
     for j, T in enumerate(poses):
         T = T.copy()
         T[:3, 3] = T[:3, :3] @ x[3 * j:3 * j + 3]
         out.append(T)
-    return tuple(out), 1.0 + float(x[-1])
+    return tuple(out)
 
 
 def _without_translation(T: np.ndarray) -> np.ndarray:
@@ -143,11 +154,14 @@ def _without_translation(T: np.ndarray) -> np.ndarray:
 
 
 def scale_figures(model: ScaledCameraModel, poses: Poses, sigma_rot: float, sigma_trans: float,
-                  variance_factor: float = 1.0) -> dict[str, float]:
+                  variance_factor: float = 1.0) -> dict[str, Any]:
     """The camera's scale s at the poses and its standard deviation under per-group noise
     (sigma_rot, sigma_trans, times the variance factor of an estimated noise): the inverse of the
     Schur complement of s in the information matrix of (poses, s), g_w^T (I - P) g_w with g_w the
-    whitened d e / d s and P the projector onto the span of the whitened Jacobian of the poses."""
+    whitened d e / d s and P the projector onto the span of the whitened Jacobian of the poses.
+    Several cameras (`ScaledCamerasModel`): "camera_scales" and "camera_scales_std", per camera."""
+    if hasattr(model, "camera_names"):
+        return model.scale_figures(poses, sigma_rot, sigma_trans, variance_factor)
     e1, s, g = model._profile(poses)
     J = model.model.with_camera_scale(s).jacobian(poses, e1 + (s - 1.0) * g)
     w = np.repeat([1.0 / sigma_rot, 1.0 / sigma_trans], 3)
@@ -171,7 +185,10 @@ def noise_bias(model: ScaledCameraModel, poses: Poses, sigma_rot: float, sigma_t
     with the robot's side, so s shrinks by the factor 1 - n sigma_B^2 / |(I - P) g|^2. The
     translation residuals bound sigma_B: sigma_t^2 = sigma_A^2 + s^2 sigma_B^2 >= s^2 sigma_B^2,
     and std^2 = sigma_t^2 / |(I - P) g|^2, hence kappa. n = 3 (pairs - unknowns): the translation
-    residuals less the unknowns' translations."""
+    residuals less the unknowns' translations. Several cameras (`ScaledCamerasModel`): the same
+    per camera ("cameras"), the camera of the largest "bias_sigmas" at the top ("camera")."""
+    if hasattr(model, "camera_names"):
+        return model.noise_bias(poses, sigma_rot, sigma_trans, variance_factor)
     figures = scale_figures(model, poses, sigma_rot, sigma_trans, variance_factor)
     s, std = figures["camera_scale"], figures["camera_scale_std"]
     n = 3.0 * (model.m - len(model.unknowns))

@@ -99,8 +99,8 @@ class PoseModel(abc.ABC):
     profile_min_pairs: int
     sums_min_pairs: float = math.inf
     fixed: tuple[tuple[int, np.ndarray], ...] = ()
-    #: the residuals are those of A_i X = Y B_i on (X, Y), whose noise sources
-    #: `handeye.noise_sources` models pose by pose
+    #: the model states where its residuals' noise comes from (`noise_factors`), for
+    #: `handeye.noise_sources`
     noise_sources: bool = False
 
     @abc.abstractmethod
@@ -110,6 +110,11 @@ class PoseModel(abc.ABC):
     @abc.abstractmethod
     def jacobian(self, poses: Poses, e: np.ndarray) -> np.ndarray:
         """J: (m, 6, 6k) = d e_i / d (xi_1, ..., xi_k) at the poses, e from `residuals`."""
+
+    def noise_factors(self, data: Any, poses: Poses) -> Any:
+        """Where `noise_sources` is True: the noise sources of the residuals at the poses, a
+        `handeye.noise_sources.Sources`."""
+        raise NotImplementedError
 
     def normal_equations(self, poses: Poses, e: np.ndarray, wr: float, wt: float,
                          d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -1,38 +1,22 @@
-"""Where the noise of A_i X = Y B_i lives, estimated by maximum likelihood with the unknowns.
+"""Where the noise of pose residuals lives, estimated by maximum likelihood with the unknowns.
 
 The least squares of `handeye.nlls` with estimated weights assumes one noise level per residual
-group (rotation, translation), the same for every pair. Real noise enters through the measured
-poses, each in its own frame: a camera's rotation error in the target frame moves the translation
-residual by the camera-target distance (a lever of 0.3-1 m); a camera's translation error is
-largest along its optical axis (a pose from PnP is 3-10x less sure of its depth than of its
-sideways position); a robot's rotation error in the base frame moves the translation by the
-camera's distance from the base. The residual's covariance then differs from pair to pair and
-couples its rotation and translation. Each source k (an error w ~ N(0, s_k^2 I) of one pose, in
-one frame, along one axis or all three) maps to pair i's residual e_i = [r_i; t_i] of `AXYBModel`
-through a 6 x r_k matrix G_ik (its first-order change when that pose is perturbed so), and
+group (rotation, translation), the same for every observation. Real noise enters through the
+measured poses, each in its own frame, and differs from camera to camera: a rotation error of a
+camera's pose moves the translation residual by a lever arm, a pose from PnP is less sure of its
+depth, one camera of a cell is noisier than the next. The residual's covariance then differs
+from observation to observation and couples its rotation and translation. Each source k (an
+error w ~ N(0, s_k^2 I) of one pose, in one frame, along one axis or all three) maps to
+observation i's residual e_i = [r_i; t_i] through a 6 x r_k matrix G_ik (its first-order change
+when that pose is perturbed so), and
 
     Cov(e_i) = Sigma_i(theta) = sum_k theta_k G_ik G_ik^T,   theta = s^2 >= 0.
 
-The sources (`SOURCES`), named by the side of A or B the error multiplies: its reference frame
-(left: P <- exp(w) P) or its own frame (right: P <- P exp(w)). In axyb's terms (docs/conventions.md)
-A = T_base_flange in both setups (own frame: the flange; reference: the base); B = T_target_cam
-eye-in-hand (own frame: the camera; reference: the target) and T_cam_target eye-to-hand (own
-frame: the target; reference: the camera, whose z is the optical axis):
-
-- rotation of B, reference frame (B <- exp(w) B):   G = [-R_Y; R_Y [t_B]x] (a lever of |t_B|)
-- rotation of B, own frame (B <- B exp(w)):         G = [-R_Y R_B; 0]
-- rotation of A, own frame (A <- A exp(w)):         G = [R_A; -R_A [t_X]x]
-- rotation of A, reference frame (A <- exp(w) A):   G = [I; -[R_A t_X + t_A]x]
-- translation of B along its own x, y and z (one source each): G = [0; R_Y R_B e_j]. Together
-  they hold any isotropic translation error (either pose, any frame: the robot's too), and
-  eye-in-hand the extra depth error of a camera along its optical axis z.
-- translation of B along its reference frame's z: G = [0; R_Y e_3]: the optical axis eye-to-hand.
-
-Chosen by measurement (KinHEC small tier, and the simulator's isotropic noise, where the
-per-group model is the true one): per-axis translation sources in both of the camera pose's
-frames (6) or a robot translation along its flange axes made the answers no better on KinHEC
-and up to 9% worse on the simulator at 16 pairs; these 8 sources cost 1-3% there (geometric
-mean of X's translation error, 30 data sets at 16, 30 and 60 pairs).
+The model says which sources act on its residuals (`PoseModel.noise_factors`, a `Sources`): A_i X
+= Y B_i's eight (`handeye.problems.axyb.noise`), the multi-camera cell's per camera and per
+target (`handeye.problems.axyb_multi.noise`). Only the sources that reach an observation are
+stored for it (a few columns each, with the source of every column), so that many sources cost
+no more per observation than a few.
 
 `fit` takes two steps (feasible generalised least squares): the per-group least squares, the
 variances by maximum likelihood at its residuals (`variances`: Fisher scoring from a moment
@@ -47,28 +31,28 @@ PnP, 2%; worse on the other five) at 1.5x the time.
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from scipy.optimize import nnls
+from scipy.stats import chi2
 
 from handeye.estimation import nlls
 from handeye.estimation.whitening import Whitening
-from handeye.geometry.so3_fast import skew
+from handeye.framework.errors import DegenerateDataError
 
-#: the noise sources, in the order of the variances
-SOURCES = ("rotation of B, reference frame", "rotation of B, own frame", "rotation of A, own frame",
-           "rotation of A, reference frame", "translation of B, own x", "translation of B, own y",
-           "translation of B, own z", "translation of B, reference z")
 #: the variances' iterations stop when the log-likelihood gains less than this (nats) or after
 #: VARIANCE_ITER
 LOGLIK_TOL = 0.01
 VARIANCE_ITER = 20
-#: the variances are estimated on at most this many pairs, evenly spaced in the data's order:
-#: 8 variances from 12,000 residuals are known to ~1-2%, which moves no weight that matters, and
-#: every pair still enters the fit of X and Y (measured: auto at m = 1e5 took 4.1 s with every
-#: pair in the variances' iterations, against 0.55 s for the per-group model alone)
+#: the variances are estimated on at most this many observations, evenly spaced in the data's
+#: order: 8 variances from 12,000 residuals are known to ~1-2%, which moves no weight that
+#: matters, and every observation still enters the fit of the unknowns (measured: axyb's auto at
+#: m = 1e5 took 4.1 s with every pair in the variances' iterations, against 0.55 s for the
+#: per-group model alone)
 VARIANCE_PAIRS = 2000
 #: relative floor of Sigma_i's diagonal (of the mean trace of its rotation block, and of its
 #: translation block): keeps it positive definite where every source that reaches a direction
@@ -78,30 +62,64 @@ COVARIANCE_FLOOR = 1e-12
 #: scoring step's variances positive, so that a source can come back. Relative to its own
 #: group, not to all variances, so that the answer does not depend on the length unit.
 VARIANCE_FLOOR = 1e-10
+#: why the sources cannot be estimated from residuals whose squares overflow
+OVERFLOW = ("the residuals or the poses are too large to estimate where the noise comes from (their squares "
+            "overflow): check the data's length unit and for corrupted poses")
+#: the sources replace the per-group model where they explain the residuals better than chance
+#: would at this level: the likelihood-ratio test of their variances against the two groups'
+#: (`min_gain`)
+TEST_LEVEL = 0.01
 
 
-def factors(A: np.ndarray, B: np.ndarray, X: np.ndarray, Y: np.ndarray) -> list[np.ndarray]:
-    """G_k: (m, 6, r_k) for each source of `SOURCES` (module docstring), in that order."""
-    RA, tA, RB, tB = A[:, :3, :3], A[:, :3, 3], B[:, :3, :3], B[:, :3, 3]
-    tX, RY = X[:3, 3], Y[:3, :3]
-    m = len(A)
+@dataclasses.dataclass(frozen=True)
+class Sources:
+    """The noise sources that act on a model's residuals, at given unknowns.
 
-    def rotation(top: np.ndarray, bottom: np.ndarray | None = None) -> np.ndarray:
-        G = np.zeros((m, 6, 3))
-        G[:, :3] = top
-        if bottom is not None:
-            G[:, 3:] = bottom
-        return G
+    H: (m, 6, R), the factors G_ik of the sources that reach observation i, side by side (R
+    columns, the same count for every observation); column_source: (m, R), the source of each
+    column (columns of one source are adjacent); names: (K,) the sources' names, in the order of
+    the variances; translation: (K,) True for a source that moves translations only (its floor
+    is the translation group's)."""
 
-    def axis(frame: np.ndarray, j: int) -> np.ndarray:
-        G = np.zeros((m, 6, 1))
-        G[:, 3:, 0] = frame[..., j]
-        return G
+    H: np.ndarray
+    column_source: np.ndarray
+    names: tuple[str, ...]
+    translation: np.ndarray
 
-    camera_axes = RY @ RB
-    return [rotation(-RY, RY @ skew(tB)), rotation(-camera_axes), rotation(RA, -RA @ skew(tX)),
-            rotation(np.eye(3), -skew(RA @ tX + tA)),
-            axis(camera_axes, 0), axis(camera_axes, 1), axis(camera_axes, 2), axis(np.broadcast_to(RY, (m, 3, 3)), 2)]
+    @classmethod
+    def of(cls, G: Sequence[np.ndarray], names: Sequence[str], translation: Sequence[bool]) -> Sources:
+        """Sources that reach every observation: G_k: (m, 6, r_k), one per name."""
+        H = np.concatenate(G, axis=2)
+        columns = np.repeat(np.arange(len(G)), [g.shape[2] for g in G])
+        return cls(H, np.broadcast_to(columns, H.shape[::2]), tuple(names), np.asarray(translation, dtype=bool))
+
+    @property
+    def count(self) -> int:
+        return len(self.names)
+
+    def rows(self, which: np.ndarray) -> Sources:
+        """The same sources on the observations `which` only."""
+        return dataclasses.replace(self, H=self.H[which], column_source=self.column_source[which])
+
+    def sigma(self, theta: np.ndarray) -> np.ndarray:
+        """Sigma_i(theta): (m, 6, 6), floored (`_floored`)."""
+        return _floored((self.H * theta[self.column_source][:, None, :]) @ np.swapaxes(self.H, 1, 2))
+
+    def per_source(self, values: np.ndarray) -> np.ndarray:
+        """(K,): sums of values: (m, R) over each source's columns and every observation."""
+        return np.bincount(self.column_source.ravel(), weights=values.ravel(), minlength=self.count)
+
+    def per_source_pair(self, values: np.ndarray) -> np.ndarray:
+        """(K, K): sums of values: (m, R, R) over the columns of each pair of sources."""
+        cs, K = self.column_source, self.count
+        index = cs[:, :, None] * K + cs[:, None, :]
+        return np.bincount(index.ravel(), weights=values.ravel(), minlength=K * K).reshape(K, K)
+
+
+def min_gain(count: int) -> float:
+    """The log-likelihood gain (nats) that `count` sources need over the two groups' variances:
+    half the (1 - TEST_LEVEL) point of chi^2 with count - 2 degrees of freedom (8.4 nats for 8)."""
+    return 0.5 * float(chi2.ppf(1.0 - TEST_LEVEL, max(count - 2, 1)))
 
 
 def _floored(S: np.ndarray) -> np.ndarray:
@@ -109,23 +127,6 @@ def _floored(S: np.ndarray) -> np.ndarray:
     for block in (np.arange(3), np.arange(3, 6)):  # rotation, translation
         S[:, block, block] += COVARIANCE_FLOOR * max(float(np.mean(S[:, block, block])), 1e-300)
     return S
-
-
-class _Stack:
-    """The sources' factors side by side, H = [G_1 ... G_K]: (m, 6, R), and Sigma_i(theta)."""
-
-    def __init__(self, G: list[np.ndarray]) -> None:
-        self.H = np.concatenate(G, axis=2)
-        sizes = [g.shape[2] for g in G]
-        self.column_source = np.repeat(np.arange(len(G)), sizes)
-        self.starts = np.cumsum([0] + sizes[:-1])
-
-    def sigma(self, theta: np.ndarray) -> np.ndarray:
-        return _floored((self.H * theta[self.column_source]) @ np.swapaxes(self.H, 1, 2))
-
-    def per_source(self, values: np.ndarray, axis: int) -> np.ndarray:
-        """Sums of `values` over each source's columns along `axis`."""
-        return np.add.reduceat(values, self.starts, axis=axis)
 
 
 def _inverse_and_log_likelihood(S: np.ndarray, e: np.ndarray) -> tuple[np.ndarray, float]:
@@ -136,7 +137,17 @@ def _inverse_and_log_likelihood(S: np.ndarray, e: np.ndarray) -> tuple[np.ndarra
     return Si, -0.5 * float(np.sum(logdet) + np.einsum("mi,mij,mj->", e, Si, e))
 
 
-def variances(G: list[np.ndarray], e: np.ndarray, theta: np.ndarray, floor: np.ndarray,
+def _nonnegative(DtD: np.ndarray, Dtb: np.ndarray) -> np.ndarray:
+    """argmin |D x - b| over x >= 0 from the normal equations D^T D, D^T b: |D x - b|^2 = |L^T x
+    - L^-1 D^T b|^2 + const with D^T D = L L^T (columns scaled to unit norm, and a ridge of 1e-12
+    where sources cannot be told apart), a K x K problem instead of D's many rows."""
+    d = np.sqrt(np.maximum(np.diag(DtD), 1e-300))
+    N = DtD / np.outer(d, d) + 1e-12 * np.eye(len(d))
+    L = np.linalg.cholesky(N)
+    return nnls(L.T, np.linalg.solve(L, Dtb / d))[0] / d
+
+
+def variances(sources: Sources, e: np.ndarray, theta: np.ndarray, floor: np.ndarray,
               iterations: int = VARIANCE_ITER) -> tuple[np.ndarray, np.ndarray]:
     """The maximum-likelihood variances theta >= 0 of Sigma_i = sum_k theta_k G_ik G_ik^T for the
     residuals e: (m, 6), from `theta`, each kept at `floor` or above; returns (theta, Sigma).
@@ -146,24 +157,27 @@ def variances(G: list[np.ndarray], e: np.ndarray, theta: np.ndarray, floor: np.n
     current theta); the step solves it with theta >= 0 (non-negative least squares). Where that
     would lower the likelihood the EM update theta_k <- theta_k q_k / trace(G_k^T Sigma^-1 G_k)
     (summed over i) is taken instead, which never does."""
-    stack = _Stack(G)
-    S = stack.sigma(theta)
+    H = sources.H
+    S = sources.sigma(theta)
     Si, loglik = _inverse_and_log_likelihood(S, e)
     for _ in range(iterations):
-        SiH = Si @ stack.H
-        M = np.swapaxes(stack.H, 1, 2) @ SiH                  # H^T Sigma^-1 H: (m, R, R)
+        SiH = Si @ H
+        M = np.swapaxes(H, 1, 2) @ SiH                        # H^T Sigma^-1 H: (m, R, R)
         v = np.einsum("mir,mi->mr", SiH, e)                   # H^T u
-        F = stack.per_source(stack.per_source(np.einsum("mab,mab->ab", M, M), 0), 1)
-        q = stack.per_source(np.sum(v * v, axis=0), 0)
+        F = sources.per_source_pair(M * M)
+        q = sources.per_source(v * v)
+        if not (np.all(np.isfinite(F)) and np.all(np.isfinite(q))):  # overflow: keep the last variances
+            break
         d = np.sqrt(np.maximum(np.diag(F), 1e-300))
         new = nnls(F / np.outer(d, d), q / d)[0] / d
         if np.any(new > 0):
             new = np.maximum(new, floor)
-            S_new = stack.sigma(new)
+            S_new = sources.sigma(new)
             Si_new, loglik_new = _inverse_and_log_likelihood(S_new, e)
         if not np.any(new > 0) or loglik_new < loglik:
-            new = np.maximum(theta * q / np.maximum(stack.per_source(np.einsum("mrr->r", M), 0), 1e-300), floor)
-            S_new = stack.sigma(new)
+            trace = sources.per_source(np.einsum("mrr->mr", M))
+            new = np.maximum(theta * q / np.maximum(trace, 1e-300), floor)
+            S_new = sources.sigma(new)
             Si_new, loglik_new = _inverse_and_log_likelihood(S_new, e)
         gain = loglik_new - loglik
         theta, S, Si, loglik = new, S_new, Si_new, loglik_new
@@ -172,42 +186,51 @@ def variances(G: list[np.ndarray], e: np.ndarray, theta: np.ndarray, floor: np.n
     return theta, S
 
 
-def moment_start(G: list[np.ndarray], e: np.ndarray, rotation_var: float, translation_var: float) -> np.ndarray:
+def moment_start(sources: Sources, e: np.ndarray, rotation_var: float, translation_var: float) -> np.ndarray:
     """The variances that best match the residuals' outer products, e_i e_i^T ~ Sigma_i(theta), by
     non-negative least squares over the entries (each scaled by its groups' mean squares): a
     moment estimate, linear in theta, that starts the likelihood's iterations close to their end
     (measured on the KinHEC PnP track: 4-6 iterations instead of 8-13 from an even split)."""
     rows, cols = np.triu_indices(6)
     scale = np.sqrt(np.where(np.arange(6) < 3, rotation_var, translation_var))
-    norm = scale[rows] * scale[cols]
-    design = np.stack([np.einsum("mir,mjr->mij", g, g)[:, rows, cols] / norm for g in G], axis=-1)  # (m, 21, K)
-    target = (e[:, rows] * e[:, cols]) / norm
-    return nnls(design.reshape(-1, len(G)), target.ravel())[0]
+    norm = (scale[rows] * scale[cols])[:, None]
+    H = sources.H
+    P = H[:, rows, :] * H[:, cols, :] / norm                  # each column's share of the entries: (m, 21, R)
+    target = (e[:, rows] * e[:, cols]) / norm[:, 0]
+    DtD = sources.per_source_pair(np.swapaxes(P, 1, 2) @ P)  # the design's normal equations, per source
+    Dtb = sources.per_source(np.einsum("mer,me->mr", P, target))
+    if not (np.all(np.isfinite(DtD)) and np.all(np.isfinite(Dtb))):
+        raise DegenerateDataError(OVERFLOW)
+    return _nonnegative(DtD, Dtb)
 
 
 def fit(model: Any, data: Any, poses: tuple[np.ndarray, ...], settings: nlls.Settings
         ) -> tuple[tuple[np.ndarray, ...], Any, dict[str, Any]]:
-    """The unknowns (X, Y) of A_i X = Y B_i weighted by the noise sources, in two steps (feasible
-    generalised least squares; module docstring): the per-group fit from `poses` with
-    `settings` (estimated weights, least squares), the sources' variances by maximum likelihood
-    at its residuals, then the unknowns converged with every pair whitened by its Sigma_i.
-    Returns (poses, status, diagnostics of the last fit with ``noise_sources``: each source's
-    standard deviation, rad or data units, and ``loglik_gain``: the log-likelihood at the end over
-    the per-group model's at its fit, nats)."""
+    """The unknowns weighted by the model's noise sources (`PoseModel.noise_factors`), in two
+    steps (feasible generalised least squares; module docstring): the per-group fit from `poses`
+    with `settings` (estimated weights, least squares), the sources' variances by maximum
+    likelihood at its residuals, then the unknowns converged with every observation whitened by
+    its Sigma_i. Returns (poses, status, diagnostics of the last fit with ``noise_sources``: each
+    source's standard deviation, rad or data units, and ``loglik_gain``: the log-likelihood at
+    the end over the per-group model's at its fit, nats)."""
     poses = nlls.levenberg_marquardt(model, poses, settings.W, settings.loss, settings.loss_scale, settings.max_iter,
                                      settings.tol, settings.estimate).poses  # the per-group fit (auto's answer already)
     e = model.residuals(poses)
     m = len(e)
-    G = factors(data.A, data.B, poses[0], poses[1])
+    sources = model.noise_factors(data, poses)
+    if not (np.all(np.isfinite(e * e)) and np.all(np.isfinite(sources.H))):
+        raise DegenerateDataError(OVERFLOW)
     rotation_var = max(float(np.sum(e[:, :3] ** 2)) / (3 * m), 1e-300)
     translation_var = max(float(np.sum(e[:, 3:] ** 2)) / (3 * m), 1e-300 * model.scale**2)
-    floor = VARIANCE_FLOOR * np.array([rotation_var] * 4 + [translation_var] * (len(G) - 4))
+    floor = VARIANCE_FLOOR * np.where(sources.translation, translation_var, rotation_var)
     some = np.unique(np.linspace(0, m - 1, min(m, VARIANCE_PAIRS)).astype(int))
-    G_some = [g[some] for g in G]
-    start = np.maximum(moment_start(G_some, e[some], rotation_var, translation_var), floor)
-    theta, S = variances(G_some, e[some], start, floor)
+    sampled = sources.rows(some)
+    start = np.maximum(moment_start(sampled, e[some], rotation_var, translation_var), floor)
+    theta, S = variances(sampled, e[some], start, floor)
+    if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(S))):
+        raise DegenerateDataError(OVERFLOW)
     if len(some) < m:
-        S = _Stack(G).sigma(theta)
+        S = sources.sigma(theta)
     W = Whitening(L=np.linalg.cholesky(S))
     stated = nlls.Settings(W=W, weights="covariance", loss=settings.loss, loss_scale=settings.loss_scale,
                            max_iter=settings.max_iter, tol=settings.tol)
@@ -217,5 +240,5 @@ def fit(model: Any, data: Any, poses: tuple[np.ndarray, ...], settings: nlls.Set
     groups_loglik = -1.5 * m * (math.log(rotation_var) + math.log(translation_var) + 2.0)
     diag = {**diag, "weights": "estimated", "noise_model": "sources", "loglik_gain": loglik - groups_loglik,
             "noise_sources": {name: math.sqrt(float(t)) if t > 2.0 * f else 0.0  # at its floor: gone
-                              for name, t, f in zip(SOURCES, theta, floor)}}
+                              for name, t, f in zip(sources.names, theta, floor)}}
     return poses, status, diag

@@ -12,6 +12,12 @@ Forms (docs/formats.md, "Tables of observations"):
   ``target`` (text), ``camera_poses`` (m, 4, 4) and ``units``.
 
 A repeated (station, camera, target) is an error naming both rows: one observation is one pose.
+
+A table may also carry the robot's pose of each row's station, instead of a robot pose file:
+text columns ``robot_<field>`` in the robot's pose format (``robot_x, robot_y, robot_z, robot_qx,
+...`` for ``xyz-quat-xyzw``), or ``robot_poses`` (m, 4, 4) in a JSON / NPZ table (its ``units``).
+The rows of one station must then agree on its pose (`robot_of_stations`: one station is one robot
+pose; a conflict is an error naming both rows).
 """
 
 from __future__ import annotations
@@ -42,13 +48,19 @@ ID_COLUMNS = {"station": ("station", "station_id", "stationid"),
 #: the extensions of a table
 EXTENSIONS = (*TEXT_EXTENSIONS, ".json", ".npz")
 #: the keys of a JSON / NPZ table
-ARRAY_KEYS = ("station", "camera", "target", "camera_poses", "units")
+ARRAY_KEYS = ("station", "camera", "target", "camera_poses", "robot_poses", "units")
+#: the prefix of a text table's robot pose columns
+ROBOT_PREFIX = "robot_"
+#: two rows' robot poses of one station agree when their rotations differ by less than this
+#: (radians) and their translations by less than this times (1 + |t|): written from the same numbers
+SAME_POSE_TOL = 1e-6
 
 
 @dataclasses.dataclass(frozen=True)
 class ObservationTable:
     """One file's observations: station, camera, target (m,) names; poses: the camera's pose of
-    the target per row (`PoseStack`, T_cam_target as the file holds it, its unit); where: each row's place in the file (``line 4``, ``row 3``), for messages; source: the file."""
+    the target per row (`PoseStack`, T_cam_target as the file holds it, its unit); where: each row's place in the file (``line 4``, ``row 3``), for messages; source: the file; robot: the robot's pose
+    per row (T_base_flange, its unit) when the table carries it, else None."""
 
     station: tuple[str, ...]
     camera: tuple[str, ...]
@@ -56,6 +68,7 @@ class ObservationTable:
     poses: PoseStack
     where: tuple[str, ...]
     source: str
+    robot: PoseStack | None = None
 
     def __len__(self) -> int:
         return len(self.station)
@@ -63,12 +76,15 @@ class ObservationTable:
 
 def read_observation_table(path: str | Path, format: str | None, *, unit: str | None = None,
                            camera: str | None = None, orthonormalize: bool = False,
-                           columns: Sequence[str] | None = None) -> ObservationTable:
+                           columns: Sequence[str] | None = None, robot_format: str | None = None,
+                           robot_unit: str | None = None) -> ObservationTable:
     """The observations of file `path` (module docstring). format: the pose format of a text
     table's pose columns (JSON / NPZ hold 4x4 matrices); unit: its length unit (default: the
     file's ``units``); camera: the camera of every row when the file holds one camera's poses
     (then a camera column, if any, must name it); columns: what each column holds, in file order
-    (``station``, ``camera``, ``target``, the format's fields, ``-``), default: by header."""
+    (``station``, ``camera``, ``target``, the format's fields, ``robot_`` + the robot format's
+    fields, ``-``), default: by header; robot_format / robot_unit: the pose format and unit of a
+    text table's robot columns (module docstring)."""
     path = Path(path)
     src = repr(str(path))
     ext = path.suffix.lower()
@@ -83,6 +99,8 @@ def read_observation_table(path: str | Path, format: str | None, *, unit: str | 
             raise InputError(f"table of observations {src}: give its pose format (e.g. opencv-rvec for solvePnP's "
                              "tvec and rvec columns; docs/formats.md)")
         table = _text_table(path, src, format, unit, orthonormalize, columns)
+        table = dataclasses.replace(table, robot=_robot_columns(path, src, columns, robot_format, robot_unit,
+                                                                orthonormalize))
     else:
         table = _array_table(path, src, ext, unit)
     return _finished(table, camera, src)
@@ -109,11 +127,60 @@ def _text_table(path: Path, src: str, format: str, unit: str | None, orthonormal
             raise InputError(f"table of observations {src}: missing column {key!r} (header: {', '.join(header)}); "
                              f"name it {' or '.join(repr(n) for n in ID_COLUMNS[key][:3])}")
     ids = {i for i in at.values() if i is not None}
-    layout = ["name" if i == at["station"] else "-" if i in ids else h for i, h in enumerate(header)]
+    layout = ["name" if i == at["station"] else "-" if i in ids or _is_robot(h) else h for i, h in enumerate(header)]
     poses = read_poses(path, format, unit=unit, layout=layout, orthonormalize=orthonormalize)
     text = lambda i: tuple(row[i] for row in raw.rows)  # noqa: E731
     return ObservationTable(text(at["station"]), () if at["camera"] is None else text(at["camera"]),
                             text(at["target"]), poses, tuple(raw.where), str(path))
+
+
+def _is_robot(header: str) -> bool:
+    return normalise_header(header).startswith(ROBOT_PREFIX)
+
+
+def _robot_columns(path: Path, src: str, columns: Sequence[str] | None, format: str | None, unit: str | None,
+                   orthonormalize: bool) -> PoseStack | None:
+    """The robot poses of a text table's ``robot_*`` columns (None when it has none)."""
+    header = tuple(columns) if columns is not None else _read_text(path, src, None).header
+    if not any(_is_robot(h) for h in header):
+        return None
+    if format is None:
+        raise InputError(f"table of observations {src} has robot pose columns ({', '.join(h for h in header if _is_robot(h))})"
+                         "; give their pose format as `robot.format`")
+    layout = [normalise_header(h)[len(ROBOT_PREFIX):] if _is_robot(h) else "-" for h in header]
+    try:
+        return read_poses(path, format, unit=unit, layout=layout, orthonormalize=orthonormalize)
+    except InputError as exc:
+        raise InputError(f"the robot pose columns of {exc}") from None
+
+
+def robot_of_stations(tables: Sequence[ObservationTable], unit: str | None = None) -> PoseStack:
+    """One robot pose per station from tables that carry them (module docstring), stations in the
+    order they first appear, named by their ids; in `unit` (default: the first table's robot unit).
+    InputError naming the table without robot poses, or both rows of a station whose poses differ."""
+    missing = [t.source for t in tables if t.robot is None]
+    if missing:
+        raise InputError(f"table of observations {missing[0]!r} has no robot pose columns (robot_x, robot_y, ...; "
+                         "JSON/NPZ: robot_poses) and the cell names no robot pose file; give `robot.file` or the "
+                         "robot's pose in every row")
+    unit = unit or tables[0].robot.unit
+    first: dict[str, tuple[np.ndarray, str]] = {}
+    for t in tables:
+        for station, where, T in zip(t.station, t.where, t.robot.in_unit(unit).poses):
+            if station not in first:
+                first[station] = (T, f"{t.source!r} {where}")
+                continue
+            T0, where0 = first[station]
+            cos = np.clip((np.trace(T0[:3, :3].T @ T[:3, :3]) - 1) / 2, -1.0, 1.0)
+            angle, shift = float(np.arccos(cos)), float(np.linalg.norm(T[:3, 3] - T0[:3, 3]))
+            if angle > SAME_POSE_TOL or shift > SAME_POSE_TOL * (1 + float(np.linalg.norm(T0[:3, 3]))):
+                raise InputError(f"station {station!r}: the robot pose of {t.source!r} {where} differs from {where0}'s "
+                                 f"by {np.degrees(angle):.3g} deg and {shift:.3g} {unit}; one station is one robot "
+                                 "pose: fix the rows or give them other station ids")
+    poses = np.array([T for T, _ in first.values()])
+    poses.setflags(write=False)
+    fmt = tables[0].robot.format
+    return PoseStack(poses, unit, fmt, tuple(first), None, None, ", ".join(dict.fromkeys(t.source for t in tables)))
 
 
 def _array_table(path: Path, src: str, ext: str, unit: str | None) -> ObservationTable:
@@ -156,8 +223,11 @@ def _array_table(path: Path, src: str, ext: str, unit: str | None) -> Observatio
 
     poses = dataclasses.replace(stack("camera_poses"), source=str(path))
     m = len(poses)
+    robot = stack("robot_poses") if "robot_poses" in values else None
+    if robot is not None and len(robot) != m:
+        raise InputError(f"table of observations {src}: {len(robot)} robot poses for {m} camera poses")
     return ObservationTable(names("station"), names("camera"), names("target"), poses,
-                            tuple(f"row {k + 1}" for k in range(m)), str(path))
+                            tuple(f"row {k + 1}" for k in range(m)), str(path), robot)
 
 
 def _finished(table: ObservationTable, camera: str | None, src: str) -> ObservationTable:

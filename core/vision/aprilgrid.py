@@ -2,7 +2,8 @@
 Kalibr's 2-bit black tag border, their corners refined by ``cornerSubPix`` on the X-junctions that
 the grid's corner squares make, and numbered 4 * tag_id + k with k = 0..3 the tag's bottom-left,
 bottom-right, top-right and top-left corner on the print (Kalibr's order; tag 0 bottom-left, ids
-row-major upward). Tags whose id is not on the board are ignored (another grid, stray tags)."""
+row-major upward; a grid whose `first_id` is N carries tags N, N + 1, ...). Tags whose id is not
+on the board are ignored (another grid, stray tags)."""
 
 from __future__ import annotations
 
@@ -34,11 +35,12 @@ def find_aprilgrid(gray: np.ndarray, board: Board) -> Detection:
         raise BoardNotFound(f"no AprilTag (tag36h11 with a 2-bit border) in the image ({board.describe()}); check "
                             "focus, lighting and that the board is Kalibr's AprilGrid")
     ids = ids.ravel()
-    keep = (ids >= 0) & (ids < board.cols * board.rows)
+    first, last = board.marker_ids.start, board.marker_ids.stop - 1
+    keep = (ids >= first) & (ids <= last)
     if not np.any(keep):
         raise BoardNotFound(f"AprilTags found (ids {sorted(set(ids.tolist()))[:6]}) but none with an id of this "
-                            f"{board.cols}x{board.rows} grid (0..{board.cols * board.rows - 1}); check the grid size")
-    tags = ids[keep]
+                            f"{board.cols}x{board.rows} grid ({first}..{last}); check the grid size and first id")
+    tags = ids[keep] - first
     if len(np.unique(tags)) != len(tags):
         raise BoardNotFound("the same AprilTag id is seen twice; hide other AprilGrids or tags from the camera")
     quads = np.asarray([corners[i] for i in np.flatnonzero(keep)], dtype=np.float32).reshape(-1, 4, 2)

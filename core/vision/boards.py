@@ -19,6 +19,11 @@ A `Board` describes a printed target well enough to detect it (`handeye.vision.d
 
 `parse_board` reads the one-line spec (``chessboard:9x6:25mm``) or a YAML/JSON file with the same
 fields. Lengths stay in the board's unit; `in_unit` converts.
+
+Several boards of a cell may be seen in one image (`handeye.vision.board_set`): ChArUco boards and
+AprilGrids then carry disjoint marker ids, set by `first_id` (OpenCV's ``CharucoBoard(..., ids)``:
+the board's markers are ids first_id, first_id + 1, ...; an AprilGrid's tags likewise), written
+``:first=N`` at the end of a spec.
 """
 
 from __future__ import annotations
@@ -39,11 +44,11 @@ UNITS = {"mm": 1e-3, "m": 1.0}
 #: the spec syntax per kind, with an example, quoted in every parse error
 SYNTAX = {
     "chessboard": "chessboard:COLSxROWS:SQUARE (inner corners), e.g. chessboard:9x6:25mm",
-    "charuco": "charuco:COLSxROWS:SQUARE:MARKER:DICT[:legacy] (squares), e.g. "
+    "charuco": "charuco:COLSxROWS:SQUARE:MARKER:DICT[:legacy][:first=N] (squares), e.g. "
                "charuco:5x7:36.195mm:18.256mm:DICT_6X6_250",
     "circles": "circles:COLSxROWS:SPACING[:DIAMETER] (asymmetric grid), e.g. circles:4x11:20mm",
     "circlegrid": "circlegrid:COLSxROWS:SPACING[:DIAMETER] (big origin dot), e.g. circlegrid:10x10:25.4mm",
-    "aprilgrid": "aprilgrid:COLSxROWS:TAGSIZE:SPACING_RATIO (tags), e.g. aprilgrid:6x6:88mm:0.3",
+    "aprilgrid": "aprilgrid:COLSxROWS:TAGSIZE:SPACING_RATIO[:first=N] (tags), e.g. aprilgrid:6x6:88mm:0.3",
 }
 SYNTAX_LINE = "; ".join(SYNTAX.values()) + "; or a YAML/JSON file with these fields (docs/boards.md)"
 
@@ -67,7 +72,9 @@ class Board:
     Kind-specific fields: `marker` (ChArUco marker side), `dictionary` (ArUco dictionary name of a
     ChArUco board; DICT_APRILTAG_36H11 for an aprilgrid), `legacy` (ChArUco boards drawn by OpenCV
     < 4.6 with an even number of rows: OpenCV's legacy pattern), `tag_spacing` (aprilgrid gap / tag
-    side), `diameter` (circle diameter of circles / circlegrid boards, for rendering and blob sizes).
+    side), `diameter` (circle diameter of circles / circlegrid boards, for rendering and blob sizes),
+    `first_id` (ChArUco, aprilgrid: the id of the board's first marker / tag, the others following
+    in order; 0 by default, other values let several boards share an image).
     """
 
     kind: str
@@ -80,6 +87,7 @@ class Board:
     legacy: bool = False
     tag_spacing: float | None = None
     diameter: float | None = None
+    first_id: int = 0
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -113,6 +121,7 @@ class Board:
                 raise InputError(f"board field {name!r} does not apply to a {self.kind}; syntax: {syntax}")
         if self.kind != "charuco" and self.kind != "aprilgrid" and self.dictionary is not None:
             raise InputError(f"board field 'dictionary' does not apply to a {self.kind}; syntax: {syntax}")
+        _check_first_id(self, syntax)
 
     # -- geometry ------------------------------------------------------------------------------
     @property
@@ -121,6 +130,15 @@ class Board:
         chessboard with cols + rows even (colours symmetric under a half turn; square boards are
         also 90 deg symmetric). Every other kind fixes its frame from the pattern itself."""
         return self.kind == "chessboard" and (self.cols + self.rows) % 2 == 0
+
+    @property
+    def marker_ids(self) -> range:
+        """The marker (ChArUco) or tag (aprilgrid) ids the board carries; empty for the other kinds."""
+        if self.kind == "charuco":
+            return range(self.first_id, self.first_id + self.cols * self.rows // 2)
+        if self.kind == "aprilgrid":
+            return range(self.first_id, self.first_id + self.cols * self.rows)
+        return range(0)
 
     @property
     def point_count(self) -> int:
@@ -184,24 +202,31 @@ class Board:
         if self.kind == "charuco":
             legacy = ", legacy pattern" if self.legacy else ""
             return (f"ChArUco {self.cols}x{self.rows} squares, {s} {u} squares, {self.marker:g} {u} markers, "
-                    f"{self.dictionary}{legacy}")
+                    f"{self.dictionary}{legacy}{self._ids_text()}")
         if self.kind == "circles":
             return (f"asymmetric circle grid {self.cols}x{self.rows} circles, {s} {u} spacing, "
                     f"{self.diameter:g} {u} circles")
         if self.kind == "circlegrid":
             return (f"circle grid {self.cols}x{self.rows} with a big origin dot, {s} {u} spacing, "
                     f"{self.diameter:g} {u} dots")
-        return f"AprilGrid {self.cols}x{self.rows} tag36h11 tags, {s} {u} tags, spacing ratio {self.tag_spacing:g}"
+        return (f"AprilGrid {self.cols}x{self.rows} tag36h11 tags, {s} {u} tags, spacing ratio {self.tag_spacing:g}"
+                f"{self._ids_text()}")
+
+    def _ids_text(self) -> str:
+        ids = self.marker_ids
+        return f", ids {ids.start}..{ids.stop - 1}" if self.first_id else ""
 
     def spec(self) -> str:
         """The one-line spec `parse_board` reads back into this board."""
         size = f"{self.cols}x{self.rows}:{self.spacing:g}{self.unit}"
+        first = f":first={self.first_id}" if self.first_id else ""
         if self.kind == "charuco":
-            return f"charuco:{size}:{self.marker:g}{self.unit}:{self.dictionary}" + (":legacy" if self.legacy else "")
+            return (f"charuco:{size}:{self.marker:g}{self.unit}:{self.dictionary}" + (":legacy" if self.legacy else "")
+                    + first)
         if self.kind in ("circles", "circlegrid"):
             return f"{self.kind}:{size}:{self.diameter:g}{self.unit}"
         if self.kind == "aprilgrid":
-            return f"aprilgrid:{size}:{self.tag_spacing:g}"
+            return f"aprilgrid:{size}:{self.tag_spacing:g}{first}"
         return f"chessboard:{size}"
 
 
@@ -242,6 +267,33 @@ def _check_circles(board: Board, syntax: str) -> None:
     if board.diameter >= limit:
         raise InputError(f"circle diameter {board.diameter:g} {board.unit} is too large for spacing "
                          f"{board.spacing:g} {board.unit} (circles would touch); syntax: {syntax}")
+
+
+def _check_first_id(board: Board, syntax: str) -> None:
+    """`first_id`: a whole number >= 0, only for ChArUco and aprilgrid boards, whose ids stay in
+    their dictionary."""
+    value = board.first_id
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise InputError(f"board field 'first_id' must be a whole number >= 0, got {value!r}; syntax: {syntax}")
+    object.__setattr__(board, "first_id", int(value))
+    if value and board.kind not in ("charuco", "aprilgrid"):
+        raise InputError(f"board field 'first_id' does not apply to a {board.kind} (it has no marker ids); "
+                         f"syntax: {syntax}")
+    if board.kind in ("charuco", "aprilgrid"):
+        size = _dictionary_size(board.dictionary)
+        if board.marker_ids.stop > size:
+            raise InputError(f"the {board.kind} board's ids {board.marker_ids.start}..{board.marker_ids.stop - 1} run "
+                             f"past the {size} markers of {board.dictionary}; lower first={value}")
+
+
+def _dictionary_size(name: str) -> int:
+    """How many markers an ArUco dictionary holds (its name's count, or OpenCV's own)."""
+    match = re.search(r"_(\d+)$", name)
+    if match and name.startswith("DICT_") and "X" in name.split("_")[1]:
+        return int(match.group(1))
+    import cv2
+
+    return int(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)).bytesList.shape[0])
 
 
 _KIND_CHECKS = {"charuco": _check_charuco, "aprilgrid": _check_aprilgrid, "circles": _check_circles,
@@ -287,6 +339,13 @@ def parse_board(spec: str) -> Board:
     if kind not in KINDS:
         raise InputError(f"unknown board kind {kind!r} in {text!r}; use {SYNTAX_LINE}")
     syntax = SYNTAX[kind]
+    first_id = 0
+    if fields and fields[-1].lower().startswith("first="):
+        value = fields.pop()[len("first="):].strip()
+        if not value.isdigit():
+            raise InputError(f"'first=' in {text!r} must be followed by a whole number (the board's first marker "
+                             f"id), got {value!r}; syntax: {syntax}")
+        first_id = int(value)
     wanted = {"chessboard": (2, 2), "charuco": (4, 5), "circles": (2, 3), "circlegrid": (2, 3), "aprilgrid": (3, 3)}
     low, high = wanted[kind]
     if not low <= len(fields) <= high:
@@ -315,7 +374,7 @@ def parse_board(spec: str) -> Board:
         except ValueError:
             raise InputError(f"aprilgrid spacing ratio {fields[2]!r} is not a number (gap / tag size, e.g. "
                              f"0.3); syntax: {syntax}") from None
-    return Board(kind, cols, rows, spacing, unit, **extra)
+    return Board(kind, cols, rows, spacing, unit, first_id=first_id, **extra)
 
 
 def _length(field: str, spec: str, syntax: str) -> tuple[float, str]:

@@ -146,9 +146,12 @@ def _refine_corners(gray: np.ndarray, corners: np.ndarray, board: Board) -> np.n
 
 # -- charuco -----------------------------------------------------------------------------------
 def charuco_board(board: Board) -> cv2.aruco.CharucoBoard:
-    """OpenCV's CharucoBoard for `board` (lengths in board.unit; the legacy pattern if asked)."""
+    """OpenCV's CharucoBoard for `board` (lengths in board.unit; its marker ids from
+    `Board.first_id`; the legacy pattern if asked)."""
     dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, board.dictionary))
-    cv_board = cv2.aruco.CharucoBoard((board.cols, board.rows), float(board.spacing), float(board.marker), dictionary)
+    ids = np.arange(board.marker_ids.start, board.marker_ids.stop, dtype=np.int32)
+    cv_board = cv2.aruco.CharucoBoard((board.cols, board.rows), float(board.spacing), float(board.marker), dictionary,
+                                      ids)
     cv_board.setLegacyPattern(bool(board.legacy))
     return cv_board
 
@@ -160,8 +163,10 @@ def _charuco(gray: np.ndarray, board: Board) -> Detection:
     detector_parameters.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
     detector = cv2.aruco.CharucoDetector(cv_board, charuco_parameters, detector_parameters)
     corners, ids, _, marker_ids = detector.detectBoard(gray)
+    if marker_ids is not None:  # markers of other boards in the image do not count
+        marker_ids = [m for m in np.ravel(marker_ids) if m in board.marker_ids]
     if marker_ids is None or len(marker_ids) == 0:
-        raise BoardNotFound(f"no {board.dictionary} ArUco marker in the image, so no ChArUco board "
+        raise BoardNotFound(f"no {board.dictionary} ArUco marker of the board in the image, so no ChArUco board "
                             f"({board.describe()}); check the dictionary, focus and lighting")
     if ids is None or len(ids) == 0:
         raise BoardNotFound(f"{len(marker_ids)} ArUco markers but no ChArUco corner found ({board.describe()}); "

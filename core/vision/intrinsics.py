@@ -74,6 +74,17 @@ class CameraCalibration:
 # ----------------------------------------------------------------------------- loading
 
 
+def load_camera_of(path: str | Path | None, field: str) -> Camera | None:
+    """`load_camera` of a cell file's intrinsics entry `field` (None: not given), its errors
+    prefixed with the field's name."""
+    if path is None:
+        return None
+    try:
+        return load_camera(path)
+    except InputError as exc:
+        raise InputError(f"`{field}`: {exc}") from None
+
+
 def load_camera(path: str | Path) -> Camera:
     """The intrinsics in `path` (formats in the module docstring) as a `Camera`."""
     path = Path(path)

@@ -7,6 +7,9 @@ looked up in a high-resolution texture of the printed board (`board_texture`) wi
 image is supersampled (`SUPERSAMPLING` x `SUPERSAMPLING` rays per pixel, averaged) so edges are
 area-sampled rather than aliased, then optionally blurred and noised.
 
+`render_boards(scene, camera)` draws several boards (board, T_cam_target) in one image, nearer ones
+over farther ones: the targets of a cell of several cameras and targets.
+
 The truth is exact by construction: the board's points project to
 ``cv2.projectPoints(board.object_points(), rvec, tvec, K, dist)`` (pixel centres at integer
 coordinates, OpenCV's convention). Textures and the per-camera ray grid are cached: rendering many
@@ -16,6 +19,7 @@ poses of one board with one camera costs one remap each.
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
@@ -45,32 +49,29 @@ def render(board: Board, camera: Camera, T_cam_target: np.ndarray, *, blur: floa
     translations in board.unit): white margin around the printed pattern, `background` grey elsewhere,
     then a Gaussian blur of `blur` pixels (sigma) and Gaussian noise of `noise` grey levels (sigma),
     clipped to 0..255. `rng` draws the noise (default: a fresh, unseeded generator)."""
+    return render_boards([(board, T_cam_target)], camera, blur=blur, noise=noise, rng=rng, background=background)
+
+
+def render_boards(scene: Sequence[tuple[Board, np.ndarray]], camera: Camera, *, blur: float = 0.0,
+                  noise: float = 0.0, rng: np.random.Generator | None = None, background: int = 128) -> np.ndarray:
+    """As `render`, with several boards in one image (a cell's targets seen together): `scene` holds
+    (board, T_cam_target) pairs; each board (with its white margin) is drawn over the ones farther
+    from the camera, so a nearer board hides what lies behind it."""
     if camera.size is None:
         raise InputError("render needs the camera's image size; give Camera(K, dist, size=(width, height))")
-    T = np.asarray(T_cam_target, dtype=float)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InputError(f"T_cam_target must be a finite 4x4 pose, got shape {T.shape}")
     if blur < 0 or noise < 0 or not 0 <= background <= 255:
         raise InputError(f"render: blur and noise must be >= 0 and background in 0..255, got {blur}, {noise}, "
                          f"{background}")
-    camera_height = float(-(T[:3, :3].T @ T[:3, 3])[2])  # camera centre's z in the board frame
-    if abs(camera_height) < 1e-9 * float(np.linalg.norm(T[:3, 3]) + board.spacing):
-        raise InputError("the camera centre lies in the board's plane at this pose, so it sees the board edge-on")
-    if _sees_back(board, T):
-        raise InputError(f"the camera sees the back of the {board.kind} at this pose; its printed face is on the "
-                         f"board's {'+' if _face_up(board) else '-'}z side (docs/boards.md)")
     width, height = camera.size
     rays = _camera_rays(camera.K.tobytes(), camera.dist.tobytes(), width, height)
-    ppu = _texture_resolution(board, camera, T)
-    texture, H_texture_board = _prefiltered_texture(board, ppu)
-    # normalised ray (x, y, 1) -> board plane: inverse of [r1 r2 t], then board -> texture
-    H = H_texture_board @ np.linalg.inv(np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]]))
-    fine = np.empty(rays.shape[:2], np.float32)
-    for top in range(0, rays.shape[0], _CHUNK_ROWS):  # in bands of rows: bounded temporaries
-        band = rays[top:top + _CHUNK_ROWS].astype(np.float64)
-        map_x, map_y = _texture_coordinates(band[..., 0], band[..., 1], H, T)
-        fine[top:top + _CHUNK_ROWS] = cv2.remap(texture, map_x, map_y, cv2.INTER_LINEAR,
-                                                borderMode=cv2.BORDER_CONSTANT, borderValue=float(background))
+    fine = np.full(rays.shape[:2], float(background), np.float32)
+    poses = [np.asarray(T, dtype=float) for _, T in scene]
+    for T in poses:
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise InputError(f"T_cam_target must be a finite 4x4 pose, got shape {T.shape}")
+    order = sorted(range(len(poses)), key=lambda k: -float(poses[k][2, 3]))  # farthest first
+    for n, k in enumerate(order):  # the first layer over the plain background exactly as one board alone
+        _draw_layer(fine, rays, scene[k][0], camera, poses[k], float(background) if n == 0 else None)
     image = cv2.resize(fine, (width, height), interpolation=cv2.INTER_AREA)
     if blur > 0:
         image = cv2.GaussianBlur(image, (0, 0), sigmaX=float(blur), sigmaY=float(blur))
@@ -78,6 +79,36 @@ def render(board: Board, camera: Camera, T_cam_target: np.ndarray, *, blur: floa
         rng = np.random.default_rng() if rng is None else rng
         image = image + rng.normal(0.0, float(noise), image.shape).astype(np.float32)
     return np.clip(np.rint(image), 0, 255).astype(np.uint8)
+
+
+def _draw_layer(fine: np.ndarray, rays: np.ndarray, board: Board, camera: Camera, T: np.ndarray,
+                background: float | None) -> None:
+    """Draw `board` at pose T into the supersampled image `fine` (in place). Over a plain
+    `background` grey: the texture sampled with that grey beyond its edge. Over other boards
+    (background None): the texture's share of each ray's bilinear sample (its coverage, 0..1 in
+    the last texel beyond the edge) over what is there."""
+    camera_height = float(-(T[:3, :3].T @ T[:3, 3])[2])  # camera centre's z in the board frame
+    if abs(camera_height) < 1e-9 * float(np.linalg.norm(T[:3, 3]) + board.spacing):
+        raise InputError("the camera centre lies in the board's plane at this pose, so it sees the board edge-on")
+    if _sees_back(board, T):
+        raise InputError(f"the camera sees the back of the {board.kind} at this pose; its printed face is on the "
+                         f"board's {'+' if _face_up(board) else '-'}z side (docs/boards.md)")
+    ppu = _texture_resolution(board, camera, T)
+    texture, H_texture_board = _prefiltered_texture(board, ppu)
+    # normalised ray (x, y, 1) -> board plane: inverse of [r1 r2 t], then board -> texture
+    H = H_texture_board @ np.linalg.inv(np.column_stack([T[:3, 0], T[:3, 1], T[:3, 3]]))
+    rows, cols = texture.shape
+    for top in range(0, rays.shape[0], _CHUNK_ROWS):  # in bands of rows: bounded temporaries
+        band = rays[top:top + _CHUNK_ROWS].astype(np.float64)
+        map_x, map_y = _texture_coordinates(band[..., 0], band[..., 1], H, T)
+        if background is not None:
+            fine[top:top + _CHUNK_ROWS] = cv2.remap(texture, map_x, map_y, cv2.INTER_LINEAR,
+                                                    borderMode=cv2.BORDER_CONSTANT, borderValue=background)
+            continue
+        drawn = cv2.remap(texture, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+        cover = (np.clip(np.minimum(map_x + 1, cols - map_x), 0, 1) * np.clip(np.minimum(map_y + 1, rows - map_y), 0, 1))
+        band = fine[top:top + _CHUNK_ROWS]
+        band[...] = drawn + (1.0 - cover) * band
 
 
 def _texture_coordinates(x: np.ndarray, y: np.ndarray, H: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -281,7 +312,7 @@ def _draw_aprilgrid(texture: np.ndarray, board: Board, H: np.ndarray, ppu: float
         x0, y0 = quad[0, :2]
         for cx, cy in ((x0 - gap, y0 - gap), (x0 + s, y0 - gap), (x0 + s, y0 + s), (x0 - gap, y0 + s)):
             _fill_rect(texture, H, cx, cy, cx + gap, cy + gap)
-        marker = np.rot90(cv2.aruco.generateImageMarker(dictionary, tag, side, borderBits=2), 2)
+        marker = np.rot90(cv2.aruco.generateImageMarker(dictionary, board.first_id + tag, side, borderBits=2), 2)
         u, v = _texel(H, x0, y0 + s)  # the tag's top-left on the print
         c, r = int(np.rint(u + 0.5)), int(np.rint(v + 0.5))
         texture[r:r + side, c:c + side] = marker

@@ -4,7 +4,8 @@ A `Cell` says where the robot's flange poses are (`PoseStream`: a pose file, a f
 pose file per station, or a ROS bag; format, length unit, column layout, bag topic), where the
 camera's side is (`CameraStream`, the board's pose per station, or `Images`, board images with
 the board and optionally the intrinsics; or, for a cell of several cameras and targets, its
-tables of observations, `ObservationStream`), the setup, how robot and camera poses pair into
+tables of observations or its cameras' image folders, `ObservationStream`, with the boards the
+images show by name, ``targets``), the setup, how robot and camera poses pair into
 stations (`Matching`), what is solved and by whom (problem, solver, backend, options, the facts
 ``tz_X`` / ``tz_Y`` / ``camera_scale``), whether the plausibility checks run, the ROS frame ids,
 and where the command line writes its results (`Outputs`). ``handeye.calibrate(cell)`` runs it;
@@ -83,6 +84,23 @@ def _observation_streams(value: Any) -> tuple[ObservationStream, ...] | None:
     return tuple(items)
 
 
+def _targets(value: Any) -> dict[str, Any] | None:
+    """`targets` as a dict of target name -> board spec, board file or `handeye.vision.boards.Board`."""
+    if value is None:
+        return None
+    if not isinstance(value, Mapping) or not value:
+        raise InputError("`targets` must map each target's name to its board (a spec such as "
+                         f"charuco:5x7:30mm:22mm:DICT_4X4_50, or a board file), got {shown(value)}")
+    for name, board in value.items():
+        if not isinstance(name, str) or not name.strip():
+            raise InputError(f"`targets` must be named by non-empty texts, got {shown(name)}")
+        if isinstance(board, os.PathLike):
+            continue
+        if not (isinstance(board, str) and board.strip()) and type(board).__name__ != "Board":
+            raise InputError(f"`targets.{name}` must be a board spec or board file (docs/boards.md), got {shown(board)}")
+    return {name: os.fspath(b) if isinstance(b, os.PathLike) else b for name, b in value.items()}
+
+
 def _stations_problem(problem: str | None) -> str:
     """`problem` (None: the default problem), checked to be a registered problem that a cell's
     stations make data for (`Problem.station_reader`)."""
@@ -121,8 +139,11 @@ class Cell:
     observations: a cell of several cameras and targets instead of `camera` / `images`: its tables
         of observations (`ObservationStream`: one table naming each row's camera, or one file
         per camera), solved by a problem made from them (`Problem.from_observations`; default:
-        the one registered, ``axyb-multi``); `matching`, `pairing`, the facts and `frame_ids`
-        do not apply (`handeye.workflow.observation_cell`).
+        the one registered, ``axyb-multi``); `matching` applies to the cameras' images only,
+        `pairing`, the facts and `frame_ids` do not apply (`handeye.workflow.observation_cell`).
+    targets: with observations from images (`ObservationStream.images`), the boards the cameras
+        look for, by name: a board spec or board file each (docs/boards.md); several boards in one
+        image must be told apart by their marker ids (``:first=N``).
     """
 
     robot: PoseStream
@@ -144,6 +165,7 @@ class Cell:
     time_limit: float | None = None
     outputs: Outputs = dataclasses.field(default_factory=Outputs)
     observations: tuple[ObservationStream, ...] | None = None
+    targets: Mapping[str, Any] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.options, Mapping) or not all(isinstance(k, str) and k for k in self.options):
@@ -156,14 +178,20 @@ class Cell:
             if value is not None and not isinstance(value, kind):
                 raise InputError(f"`{name}` must be a handeye.workflow.cell.{kind.__name__}, got "
                                  f"{type(value).__name__} (a mapping: build the cell with Cell.from_dict)")
+        if self.robot is None and self.observations is not None:  # the tables may carry the robot's poses
+            object.__setattr__(self, "robot", PoseStream())
         if self.robot is None:
             raise InputError("`robot.file: FILE` is required: the robot's flange poses (a pose file, a folder of "
                              "one pose file per station, or a ROS bag)")
         check_choice(self.setup, SETUPS, "setup")
         object.__setattr__(self, "observations", _observation_streams(self.observations))
+        object.__setattr__(self, "targets", _targets(self.targets))
         if self.observations is not None:
             self._check_observations()
             return
+        if self.targets is not None:
+            raise InputError("`targets` name the boards of a cell of several cameras (`observations` with `images`); "
+                             "one camera's images take `images.board`: drop `targets`")
         object.__setattr__(self, "problem", _stations_problem(self.problem))
         self.robot.check("robot")
         if self.robot.file is None:
@@ -198,8 +226,11 @@ class Cell:
         the stations, neither `camera` nor `images`, no settings of one camera's stations."""
         object.__setattr__(self, "problem", _observations_problem(self.problem))
         self.robot.check("robot")
-        if self.robot.file is None:
-            raise InputError("`robot.file: FILE` is required: the robot's flange poses, one per station")
+        if self.robot.file is None and any(s.images is not None for s in self.observations):
+            raise InputError("`robot.file: FILE` is required with a camera's `images`: the robot's flange poses, one "
+                             "per station, which the images are paired with")
+        if self.robot.file is None and self.robot.topic is not None:
+            raise InputError("`robot.topic` applies to a ROS bag as `robot.file`; drop it")
         stray = [name for name in ("camera", "images") if getattr(self, name) is not None
                  and (name == "images" or getattr(self, name).given())]
         if stray:
@@ -215,9 +246,7 @@ class Cell:
         repeated = sorted({c for c in named if c is not None and named.count(c) > 1})
         if repeated:
             raise InputError(f"camera {repeated[0]!r} is named by two `observations` files; give each camera once")
-        if self.matching.given():
-            raise InputError("`matching` applies to one camera's stations; the tables of observations name each "
-                             "row's station (matched to the robot file's names, else its 0-based rows): drop it")
+        self._check_image_observations()
         if self.pairing is not None:
             raise InputError("`pairing` applies to problems of motions; drop it")
         if self.frame_ids is not None:
@@ -232,6 +261,30 @@ class Cell:
         check_flag(self.orthonormalize, "orthonormalize")
         check_flag(self.checks, "checks")
         check_number(self.time_limit, "time_limit", low=0.0, what="number of seconds (0: no limit)")
+
+    def _check_image_observations(self) -> None:
+        """The cameras' images (`observations` entries with `images`): the targets they look for
+        are named in `targets`; `matching` pairs their images with the stations (row / index,
+        name or time) and does not apply without images."""
+        imaged = [(k, s) for k, s in enumerate(self.observations) if s.images is not None]
+        if not imaged:
+            if self.matching.given():
+                raise InputError("`matching` applies to one camera's stations or to cameras' `images`; the tables of "
+                                 "observations name each row's station (matched to the robot file's names, else its "
+                                 "0-based rows): drop it")
+            if self.targets is not None:
+                raise InputError("`targets` name the boards the cameras' `images` show; the tables of observations "
+                                 "name each row's target: drop `targets`")
+            return
+        if self.targets is None:
+            raise InputError(f"`observations[{imaged[0][0]}].images` need `targets`: the boards in the images, by name "
+                             "(e.g. `targets: {board0: charuco:5x7:30mm:22mm:DICT_4X4_50}`; docs/calibrate.md)")
+        for k, stream in imaged:
+            unknown = [t for t in stream.targets or () if t not in self.targets]
+            if unknown:
+                raise InputError(f"`observations[{k}].targets` names {unknown[0]!r}, which is not in `targets` (they "
+                                 f"are {', '.join(map(repr, self.targets))})")
+        self.matching.check(images=True)
 
     def _check_camera_side(self) -> None:
         """Exactly one of a camera pose file and board images, each complete."""

@@ -43,12 +43,12 @@ MAX_CELL_FILE_BYTES = 1_000_000
 SECTIONS: dict[str, type] = {"robot": PoseStream, "camera": CameraStream, "images": Images, "matching": Matching,
                              "outputs": Outputs}
 #: the keys of each section that are paths (relative to the cell file's folder)
-PATH_KEYS = {"robot": ("file",), "camera": ("file",), "images": ("folder", "intrinsics"), "observations": ("file",),
+PATH_KEYS = {"robot": ("file",), "camera": ("file",), "images": ("folder", "intrinsics"), "observations": ("file", "images", "intrinsics"),
              "outputs": ("json", "yaml", "report")}
 #: a board spec ending so is a board file (a path)
 BOARD_FILE_SUFFIXES = (".yaml", ".yml", ".json")
 #: top-level keys in the order a cell file lists them
-ORDER = ("setup", "problem", "robot", "camera", "images", "observations", "matching", "pairing", "solver", "backend", "options",
+ORDER = ("setup", "problem", "robot", "camera", "images", "observations", "targets", "matching", "pairing", "solver", "backend", "options",
          "tz_X", "tz_Y", "camera_scale", "orthonormalize", "checks", "frame_ids", "time_limit", "outputs")
 HEADER = ("# handeye cell file: what this cell records and how to calibrate it (docs/calibrate.md,\n"
           "# \"Cell files and Python\").\n"
@@ -93,6 +93,9 @@ def cell_from_dict(cls: type, data: Mapping[str, Any], *, base: str | os.PathLik
         values[name] = kind(**section)
     if data.get("observations") is not None:
         values["observations"] = _observations(data["observations"], base, where)
+    if isinstance(data.get("targets"), Mapping) and base is not None:  # board files beside the cell file
+        values["targets"] = {name: _joined(board, base) if _is_board_file(board) else board
+                             for name, board in data["targets"].items()}
     values.setdefault("robot", None)
     values.setdefault("setup", None)
     return cls(**values)
@@ -123,7 +126,8 @@ def _observations(value: Any, base: str | os.PathLike | None, where: str) -> tup
     for k, item in enumerate(items):
         item = _settings(item, ObservationStream, where, f"observations[{k}]", "an observations file")
         if base is not None:
-            item["file"] = _joined(item.get("file"), base)
+            for key in PATH_KEYS["observations"]:
+                item[key] = _joined(item.get(key), base)
         out.append(ObservationStream(**item))
     return tuple(out)
 
@@ -198,11 +202,15 @@ def cell_to_dict(cell: Any, relative_to: str | os.PathLike | None = None) -> dic
                 for f in dataclasses.fields(cell) if f.name not in ("robot", "setup")}
     for name in ORDER:
         value = getattr(cell, name)
-        if name == "matching" and cell.observations is not None:  # the tables name each row's station
-            continue
+        if name == "matching" and cell.observations is not None and not any(s.images for s in cell.observations):
+            continue  # the tables name each row's station
         if name == "observations":
             if value is not None:
                 out[name] = [_section(stream, name, relative_to) for stream in value]
+        elif name == "targets":
+            if value is not None:
+                out[name] = {target: _portable(board, relative_to) if _is_board_file(board) else
+                             board if isinstance(board, str) else board.spec() for target, board in value.items()}
         elif name in SECTIONS:
             if value is not None:
                 section = _section(value, name, relative_to)

@@ -166,25 +166,74 @@ class CameraStream(PoseStream):
 
 @dataclasses.dataclass(frozen=True)
 class ObservationStream(CameraStream):
-    """A table of observations of a cell with several cameras and targets (`handeye.io.
-    observation_tables`): a row per (station, camera, target) with the camera's pose of the
-    target, in pose format `format` (a `CameraStream`: unit, columns, poses as for one camera).
+    """A source of observations of a cell with several cameras and targets: a table (`handeye.io.
+    observation_tables`), a row per (station, camera, target) with the camera's pose of the
+    target, in pose format `format` (a `CameraStream`: unit, columns, poses as for one camera); or
+    one camera's board images (`images`), every board found in an image one observation.
 
     camera: the camera whose poses the file holds, when it holds one camera's (one file per
-    camera); None: the table names each row's camera in a ``camera`` column.
+    camera); None: the table names each row's camera in a ``camera`` column. Required with images.
+    images: instead of `file`, the camera's folder of images, one per station (paired with the
+    robot's poses by the cell's `matching`, as one camera's images are). intrinsics: the camera's
+    intrinsics file (default: calibrated from the boards found). targets: the names of the cell's
+    targets (`Cell.targets`) this camera looks for (default: all of them).
     """
 
     camera: str | None = None
+    images: str | os.PathLike | None = None
+    intrinsics: str | os.PathLike | None = None
+    targets: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in ("images", "intrinsics"):
+            if isinstance(getattr(self, name), os.PathLike):
+                object.__setattr__(self, name, os.fspath(getattr(self, name)))
+        if isinstance(self.targets, str):
+            object.__setattr__(self, "targets", tuple(t.strip() for t in self.targets.split(",")))
+        elif isinstance(self.targets, (list, tuple)):
+            object.__setattr__(self, "targets", tuple(self.targets))
+
+    @property
+    def source(self) -> str | None:
+        """The table file, or the image folder."""
+        return self.file if self.images is None else self.images
 
     def check(self, name: str) -> None:
         """As `CameraStream.check`, the file required (a format only for text tables), and the
-        camera's name."""
+        camera's name; with `images`, no setting of a pose file and the camera named."""
+        if self.images is not None:
+            self._check_images(name)
+            return
         super().check(name)
         if self.file is None:
-            raise InputError(f"`{name}.file: FILE` is required: the table of observations")
+            raise InputError(f"`{name}.file: FILE` is required: the table of observations (or `{name}.images: DIR`, "
+                             "the camera's images)")
         check_text(self.camera, f"{name}.camera")
         if self.topic is not None:
             raise InputError(f"`{name}.topic` applies to ROS bags; a table of observations is a file: drop it")
+        for key in ("intrinsics", "targets"):
+            if getattr(self, key) is not None:
+                raise InputError(f"`{name}.{key}` applies to `{name}.images`, a camera's images; a table gives the "
+                                 "poses: drop it")
+
+    def _check_images(self, name: str) -> None:
+        """A camera's images: named camera, no pose-file settings, targets a non-empty list of names."""
+        check_path(self.images, f"{name}.images")
+        check_path(self.intrinsics, f"{name}.intrinsics")
+        stray = [g for g in ("file", "format", "unit", "columns", "topic") if getattr(self, g) is not None]
+        if self.poses != "board-in-camera":
+            stray.append("poses")
+        if stray:
+            raise InputError(f"`{name}.{stray[0]}` applies to a table of observations; `{name}.images` gives the "
+                             "poses from the images (board poses by PnP, in the robot's unit): drop it")
+        if self.camera is None:
+            raise InputError(f"`{name}.camera: NAME` is required with `{name}.images`: the name of the camera that "
+                             "took the images")
+        check_text(self.camera, f"{name}.camera")
+        if self.targets is not None and (not self.targets or not all(isinstance(t, str) and t.strip()
+                                                                     for t in self.targets)):
+            raise InputError(f"`{name}.targets` must list names of the cell's `targets`, got {shown(self.targets)}")
 
 
 @dataclasses.dataclass(frozen=True)

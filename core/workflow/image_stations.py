@@ -33,19 +33,14 @@ def image_stations(cell: Cell, log: Log | None = None) -> Stations:
     the images are done (``"images"``)."""
     from handeye.vision.boards import parse_board
     from handeye.vision.image_set import images_and_poses
-    from handeye.vision.intrinsics import load_camera
+    from handeye.vision.intrinsics import load_camera_of
 
     spec = cell.images
     try:
         board = parse_board(spec.board)
     except InputError as exc:
         raise InputError(f"`images.board`: {exc}") from None
-    camera = None
-    if spec.intrinsics is not None:
-        try:
-            camera = load_camera(spec.intrinsics)
-        except InputError as exc:
-            raise InputError(f"`images.intrinsics`: {exc}") from None
+    camera = load_camera_of(spec.intrinsics, "images.intrinsics")
     robot = read_stream(cell.robot, "robot", cell.orthonormalize)
     try:
         images = images_and_poses(spec.folder, board, camera, setup=cell.setup, robot=robot,

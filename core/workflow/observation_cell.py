@@ -12,6 +12,10 @@ file become the problem's data through the problem (`Problem.from_observations`)
    stacked unknowns' poses (the cameras' and targets' names); solve with the cell's solver, or
    the default; the residuals per observation and per pair of poses (`Problem.residual_table`).
 
+A camera's images (an ``observations`` entry with ``images``) become a table of their own first
+(`handeye.workflow.observation_images`: every board found in an image one row; what was left
+out in `Stations.dropped`).
+
 The plausibility checks of one camera's stations do not apply (the solve's own self-check does).
 """
 
@@ -30,24 +34,30 @@ from handeye.io.observation_tables import (
     ObservationTable,
     check_unrepeated,
     read_observation_table,
+    robot_of_stations,
 )
 from handeye.io.pose_readers import PoseStack
 from handeye.workflow.cell import Cell, ObservationStream
+from handeye.workflow.observation_images import image_tables
 from handeye.workflow.reading import in_cell_words, read_stream
 from handeye.workflow.result import CalibrationResult
 from handeye.workflow.solving import default_solver, time_limit
-from handeye.workflow.stations import Stations
+from handeye.workflow.stations import Log, Stations
 
 
-def read_tables(cell: Cell, unit: str) -> list[ObservationTable]:
-    """Each of the cell's tables of observations, poses as T_cam_target in `unit`."""
+def read_tables(cell: Cell, unit: str | None) -> list[ObservationTable]:
+    """Each of the cell's tables of observations, poses as T_cam_target in `unit` (None: the
+    table's own), with the robot's poses when the table carries them (``robot_*`` columns)."""
     tables = []
     for k, stream in enumerate(cell.observations):
+        if stream.images is not None:  # a camera's images: handeye.workflow.observation_images
+            continue
         which = f"observations[{k}]" if len(cell.observations) > 1 else "observations"
         try:
             table = read_observation_table(stream.file, stream.format, unit=stream.unit, camera=stream.camera,
                                            orthonormalize=cell.orthonormalize,
-                                           columns=None if stream.columns is None else list(stream.columns))
+                                           columns=None if stream.columns is None else list(stream.columns),
+                                           robot_format=cell.robot.format, robot_unit=cell.robot.unit)
         except InputError as exc:
             raise InputError(f"`{which}`: {in_cell_words(str(exc), which)}") from None
         poses = table.poses
@@ -55,7 +65,7 @@ def read_tables(cell: Cell, unit: str) -> list[ObservationTable]:
             inverted = inverse(poses.poses)
             inverted.setflags(write=False)
             poses = dataclasses.replace(poses, poses=inverted)
-        tables.append(dataclasses.replace(table, poses=poses.in_unit(unit)))
+        tables.append(dataclasses.replace(table, poses=poses if unit is None else poses.in_unit(unit)))
     return tables
 
 
@@ -81,12 +91,30 @@ def station_rows(robot: PoseStack, stations: tuple[str, ...], where: tuple[str, 
     return np.array(rows, dtype=np.int64)
 
 
-def calibrate_observations(cell: Cell) -> CalibrationResult:
-    """Calibrate a cell of tables of observations (module docstring)."""
-    robot_file = read_stream(cell.robot, "robot", cell.orthonormalize)
-    unit = robot_file.unit
-    tables = read_tables(cell, unit)
-    rows = np.concatenate([station_rows(robot_file, t.station, t.where, repr(t.source), str(cell.robot.file))
+def calibrate_observations(cell: Cell, log: Log | None = None) -> CalibrationResult:
+    """Calibrate a cell of tables of observations (module docstring); `log` gets the cameras'
+    images' summary (``"images"``) as soon as they are done."""
+    if cell.robot.file is None:  # the tables carry the robot's pose of each row's station
+        tables = read_tables(cell, None)
+        robot_file = robot_of_stations(tables, cell.robot.unit)
+        unit = robot_file.unit
+        tables = [dataclasses.replace(t, poses=t.poses.in_unit(unit)) for t in tables]
+    else:
+        robot_file = read_stream(cell.robot, "robot", cell.orthonormalize)
+        unit = robot_file.unit
+        tables = read_tables(cell, unit)
+        both = [t.source for t in tables if t.robot is not None]
+        if both:
+            raise InputError(f"table of observations {both[0]!r} carries robot poses and the cell names the robot pose "
+                             f"file {str(cell.robot.file)!r}; give the robot's poses once (drop `robot.file` or the "
+                             "table's robot columns)")
+    imaged = image_tables(cell, robot_file) if any(s.images is not None for s in cell.observations) else None
+    if imaged is not None:
+        tables += list(imaged.tables)
+        if log is not None:
+            log("images", "\n".join(imaged.summary))
+    robot_source = str(cell.robot.file) if cell.robot.file is not None else robot_file.source
+    rows = np.concatenate([station_rows(robot_file, t.station, t.where, repr(t.source), robot_source)
                            for t in tables])
     check_unrepeated((f"{t.source!r} {w}", key) for t in tables  # also across the files
                      for w, key in zip(t.where, zip(t.station, t.camera, t.target)))
@@ -117,13 +145,19 @@ def calibrate_observations(cell: Cell) -> CalibrationResult:
     message = (f"{len(observations)} observations of {len(set(observations.camera))} cameras and "
                f"{len(set(observations.target))} targets at {len(used)} of the robot file's {len(robot_file)} stations")
     matching = {"method": "station", "matched": len(observations), "stations": int(len(used)), "message": message}
+    if imaged is not None:  # what the cameras' images left out, as the single camera's images list it
+        matching["dropped"] = [dataclasses.asdict(d) for d in imaged.dropped]
     stations = Stations(robot_file, camera, dataclasses.replace(robot_file, poses=_frozen(robot_file.poses[used]),
                                                                 names=None if robot_file.names is None else tuple(
                                                                     robot_file.names[k] for k in used), stamps=None),
-                        used, np.arange(len(observations)), matching, (), ())
+                        used, np.arange(len(observations)), matching, () if imaged is None else imaged.dropped,
+                        () if imaged is None else imaged.warnings)
     return CalibrationResult(cell=cell, solution=solution, solver=solver, unit=unit, stations=stations, camera=camera,
                              camera_read=camera, residuals=residuals, checks=None, pairing=None, facts={},
-                             warnings=tuple(solution.warnings), names=dict(made.names), pair_table=pair_table)
+                             warnings=(*stations.warnings, *solution.warnings), names=dict(made.names),
+                             pair_table=pair_table, observation_labels=tuple(zip(observations.station,
+                                                                                 observations.camera,
+                                                                                 observations.target)))
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:

@@ -103,7 +103,8 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
             frames: Mapping[str, tuple[str, str]], checks: Mapping[str, Any] | None, warnings: Sequence[str],
             inputs: Mapping[str, str], robot_poses: np.ndarray | None = None, stations: int | None = None,
             pairing: str | None = None, command: str = "", images: Mapping[str, Any] | None = None,
-            pair_table: Sequence[Mapping[str, Any]] | None = None) -> dict[str, Any]:
+            pair_table: Sequence[Mapping[str, Any]] | None = None,
+            labels: Sequence[Sequence[str]] | None = None) -> dict[str, Any]:
     """The report's data, JSON-ready.
 
     solution: the `Solution` as reported (status possibly set to unreliable by the checks);
@@ -116,7 +117,8 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
     command: the command line as given; images: an image run's entry
     (`handeye.report_images.image_entries`), or None; pair_table: the residuals per pair of
     poses of a cell of several cameras and targets (`Problem.residual_table`: the table and the
-    graph of the report), or None.
+    graph of the report), or None; labels: such a cell's (station, camera, target) of each
+    observation, which label the per-observation rows instead of their index, or None.
     """
     from handeye import __version__
     from handeye.framework.registry import get_registry
@@ -175,6 +177,7 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
         "robot_poses": None if robot_poses is None else np.asarray(robot_poses, dtype=float).tolist(),
         "images": None if images is None else dict(images),
         "pair_table": None if not pair_table else [dict(row) for row in pair_table],
+        "labels": None if labels is None else [list(map(str, label)) for label in labels],
     })
 
 

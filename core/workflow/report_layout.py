@@ -124,13 +124,23 @@ def _residuals(r: Mapping[str, Any]) -> list[Block]:
         Figure("residuals", f"residuals per {item}"),
     ]
     outliers = set(r.get("outliers") or [])
+    labels = r.get("labels")
     if r.get("outliers") is not None:
+        named = [("station {} ({}, {})".format(*labels[k]) if labels and k < len(labels) else str(k))
+                 for k in sorted(outliers)]
         out.append(Text(f"Outliers (auto: {r.get('outlier_test') or ''}): "
-                        f"{', '.join(map(str, sorted(outliers))) or 'none'}; marked in red."))
+                        f"{', '.join(named) or 'none'}; marked in red."))
+    marked = [k in outliers for k in range(len(rot))]
+    if labels and len(labels) == len(rot):  # several cameras and targets: each row by what it observes
+        rows = [[*labels[k], f"{rot[k]:.4g}", f"{trans[k]:.4g}", "outlier" if k in outliers else ""]
+                for k in range(len(rot))]
+        out.append(table(["station", "camera", "target", "rotation [deg]", f"translation [{unit}]", ""], rows,
+                         left=3, marked=marked))
+        return out
     rows = [[str(k), pair_label(r, k), f"{rot[k]:.4g}", f"{trans[k]:.4g}", "outlier" if k in outliers else ""]
             for k in range(len(rot))]
     out.append(table([item, "file rows" if r.get("joined") else "file row", "rotation [deg]",
-                      f"translation [{unit}]", ""], rows, left=2, marked=[k in outliers for k in range(len(rot))]))
+                      f"translation [{unit}]", ""], rows, left=2, marked=marked))
     return out
 
 

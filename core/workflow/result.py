@@ -104,6 +104,8 @@ class CalibrationResult:
     names: Mapping[str, tuple[str, ...]] | None = None
     #: such a cell's residuals per pair of poses (`Problem.residual_table`), else None
     pair_table: tuple[dict[str, Any], ...] | None = None
+    #: such a cell's (station, camera, target) of each observation, in the residuals' order, else None
+    observation_labels: tuple[tuple[str, str, str], ...] | None = None
 
     # ------------------------------------------------------------------------- the answer
 
@@ -269,7 +271,7 @@ class CalibrationResult:
         pose, transforms by name, ROS lines per pose, the observations and residuals per pair."""
         named = self.named_poses()
         cell, stations = self.cell, self.stations
-        camera = {"files": [s.file for s in cell.observations], "format": self.camera_read.format,
+        camera = {"files": [s.source for s in cell.observations], "format": self.camera_read.format,
                   "unit": self.camera_read.unit, "poses": len(self.camera_read),
                   "holds": "T_target_cam" if any(s.poses == "camera-in-board" for s in cell.observations)
                   else "T_cam_target"}
@@ -282,7 +284,8 @@ class CalibrationResult:
             "stations": int(stations.matching["stations"]),
             "observations": {"count": len(self.camera_read), "cameras": self._camera_names(),
                              "per_pair": [dict(row) for row in self.pair_table or ()]},
-            "inputs": {"robot": {"file": cell.robot.file, "format": stations.robot_file.format,
+            "inputs": {"robot": {"file": cell.robot.file or stations.robot_file.source,
+                                 "format": stations.robot_file.format,
                                  "unit": stations.robot_file.unit, "poses": len(stations.robot_file)},
                        "camera": camera, "orthonormalize": bool(cell.orthonormalize)},
             "ros": {"transforms": [{"unknown": p.label, "frame_id": p.parent, "child_frame_id": p.child,
@@ -330,9 +333,10 @@ class CalibrationResult:
                 problem=cell.problem, setup=cell.setup, unit=self.unit, solution=self.solution,
                 residuals=self.residuals, frames=frame_names(cell.problem, cell.setup), checks=None,
                 warnings=[words(w) for w in self.warnings],
-                inputs={"robot file": f"{cell.robot.file} ({robot_file.format}, {robot_file.unit})",
-                        "observations": camera_input},
-                robot_poses=robot.poses, stations=len(robot), command=command, pair_table=self.pair_table))
+                inputs={"robot file": f"{cell.robot.file or robot_file.source} ({robot_file.format}, "
+                                      f"{robot_file.unit})", "observations": camera_input},
+                robot_poses=robot.poses, stations=len(robot), command=command, pair_table=self.pair_table,
+                labels=self.observation_labels))
         images = self.stations.images
         if images is not None:
             camera_input = f"{cell.images.folder} (images, board {cell.images.board})"

@@ -37,6 +37,12 @@ guard, never a guess): a second null direction of N (lambda_2 <= UNDETERMINED_RT
 eigenvalue), or a singular translation system, raises DegenerateDataError naming the component's
 unknowns; a null direction that stands out from the next by less than WEAK_GAP gives a warning.
 
+Cameras known only up to their own scales (``camera_scale=[names]``, `handeye.camera_scales`):
+the rotation step is the same (it never sees a translation); the translations and every
+camera's scale then come from one linear least squares given the rotations
+(`camera_scales.translations_and_scales`: a camera whose scale it does not fix is refused by
+name), with ``camera_scales`` and ``camera_scales_std`` in the diagnostics.
+
 Diagnostics: ``components`` (per component its X's and Y's, observations, ``rotation_gap``
 lambda_2 / lambda_1 (inf on exact data), ``sign_flipped``, ``translation_rcond``),
 ``rotation_blocks`` (each block before projection, keyed ``X[j]`` / ``Y[k]``, for the self-check).
@@ -164,6 +170,8 @@ def run(data: AXYBMultiData, options: Any, backend: str) -> SolverOutput:
     squares (module docstring)."""
     from handeye.checks.self_check import rotation_block_figures
 
+    if data.camera_scale_unknown:
+        return _unknown_scales(data, options, backend)
     RX, RY = np.empty((data.nX, 3, 3)), np.empty((data.nY, 3, 3))
     tX, tY = np.empty((data.nX, 3)), np.empty((data.nY, 3))
     components, blocks_figures, warnings = [], {}, []
@@ -191,6 +199,23 @@ def run(data: AXYBMultiData, options: Any, backend: str) -> SolverOutput:
     )
 
 
+def _unknown_scales(data: AXYBMultiData, options: Any, backend: str) -> SolverOutput:
+    """Cameras known only up to their own scales (`handeye.camera_scales`): the rotations from
+    the rotation rows, which do not see the scales (the data with every translation zero), then
+    the translations and the cameras' scales by one linear least squares given them."""
+    from handeye.estimation import camera_scale, camera_scales
+
+    rotations = run(camera_scale.rotation_only(data), options, backend)
+    groups, names = data.camera_scale_groups
+    poses, _, figures = camera_scales.translations_and_scales(
+        data.pose_model, (*rotations.unknowns["X"], *rotations.unknowns["Y"]), groups, names)
+    warnings = list(rotations.diagnostics.get("warnings", [])) + camera_scales.weak_warning(figures)
+    return SolverOutput(unknowns={"X": np.stack(poses[:data.nX]), "Y": np.stack(poses[data.nX:])},
+                        status=rotations.status,
+                        diagnostics={**rotations.diagnostics, "camera_scales": figures["camera_scales"],
+                                     "camera_scales_std": figures["camera_scales_std"], "warnings": warnings})
+
+
 SPEC = SolverSpec(
     name="kron-lstsq",
     problems=(PROBLEM,),
@@ -201,4 +226,5 @@ SPEC = SolverSpec(
              "5(3), 2013; docs/solvers/kron-lstsq.md",
     unit_invariant=True,  # rotations from rotations only, translations linear (module docstring)
     exact=True,
+    camera_scale_mode=True,
 )

@@ -25,8 +25,10 @@ squares, signs, Gauss-Newton on SO(3)^k) certified by `local_certificate`, one s
 eigenproblem of size 9k + 1; only when that certificate fails, the Shor relaxation as an SDP,
 and that only up to SDP_MAX_ROTATIONS rotations: its time grows as k^6 and its memory as k^4
 (~45 min and ~30 GB by extrapolation for 8 cameras and 16 markers; docs/solvers/so3-sdp.md,
-"Several cameras and targets"), so a larger component whose local certificate fails keeps its
-local minimum, ``uncertified``, with ``sdp_skipped`` saying why. A component is
+"Several cameras and targets"), so a larger component whose local certificate fails gets the
+same relaxation from the sparse interior-point solver of `handeye.plugins.so3_sdp.sparse`
+(Schur complement of size 20k + 1; ~1 s for 24 rotations), certified as the dense SDP's, or
+keeps the cheaper answer ``uncertified``. A component is
 ``optimal`` only when certified, the whole answer only when every component is; otherwise
 ``uncertified`` with the figures.
 
@@ -36,8 +38,12 @@ certificate's figures: ``certificate_path`` local / sdp, cost, lower bound, rela
 ``cost``, ``lower_bound``, ``duality_gap`` (sums over the components), ``relative_gap``,
 ``eigenvalue_ratio`` (their largest) and ``thresholds``; ``translation_scale``.
 
-Camera scale unknown: not supported (``camera_scale_mode=False``: the host refuses such data
-for this spec; `run` raises InputError if called directly with them).
+Cameras known only up to their own scales (``camera_scale=[names]``, `handeye.camera_scales`):
+the rotations from the data with every translation zero (certified as above: the rotation rows
+do not see the scales), then the translations and every camera's scale by one linear least
+squares; ``camera_scales`` and ``camera_scales_std`` (from that fit's residual, the rotations
+held) in the diagnostics, a warning for a camera whose scale it barely determines, and a
+DegenerateDataError naming a camera whose scale it does not determine.
 """
 
 from __future__ import annotations
@@ -48,11 +54,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handeye import DegenerateDataError, InputError, SolverOutput, Status
+from handeye.estimation import camera_scale, camera_scales
 from handeye.estimation.rotation_cost import RotationCost
 from handeye.geometry.se3 import gram, make_pose
 from handeye.plugins.kron_lstsq.multi import group_sums, rotation_normal_matrix
 from handeye.plugins.so3_sdp.single import SPEC as SPEC_SINGLE
 from handeye.plugins.so3_sdp.single import Options, solve_relaxation
+from handeye.plugins.so3_sdp.sparse import fallback as sparse_fallback
 
 if TYPE_CHECKING:
     from handeye.problems.axyb_multi.data import AXYBMultiData
@@ -64,7 +72,7 @@ PROBLEM = "axyb-multi"
 #: memory grows as k^4 and time as k^6 (backend clarabel on random costs, 2 busy cores: k = 4
 #: 0.2 s, 6 1.8 s, 8 4.4 s, 10 13.6 s, 12 43 s and 1.9 GB; k = 24, 8 cameras and 16 markers: a
 #: 2.2 GB allocation failed under a 12 GB limit, ~30 GB and ~45 min by those rates). Beyond it
-#: the local answer is returned `uncertified` when its certificate fails (``sdp_skipped``)
+#: a failed local certificate goes to the sparse solver of the same relaxation (`sparse.fallback`)
 SDP_MAX_ROTATIONS = 4
 
 
@@ -132,8 +140,7 @@ def component_cost(data: AXYBMultiData, observations: np.ndarray, xs: tuple[int,
 def run(data: AXYBMultiData, options: Options, backend: str) -> SolverOutput:
     """``axyb-multi``: each connected component's QCQP, certified (module docstring)."""
     if data.camera_scale_unknown:
-        raise InputError("so3-sdp for axyb-multi takes the camera's translations as metric: camera_scale='unknown' "
-                         "is not supported for this problem; give the camera poses in the robot's length unit")
+        return _unknown_scales(data, options, backend)
     scale = data.translation_scale if options.normalize else 1.0
     RX, RY = np.empty((data.nX, 3, 3)), np.empty((data.nY, 3, 3))
     tX, tY = np.empty((data.nX, 3)), np.empty((data.nY, 3))
@@ -153,6 +160,8 @@ def run(data: AXYBMultiData, options: Options, backend: str) -> SolverOutput:
                 raise InputError(f"so3-sdp for axyb-multi: local_first=False asks for the SDP, but a component of "
                                  f"{what(c)} has {skipped}; use local_first=True (the default)")
         Rs, ts, status, figures = solve_relaxation(cost, options, backend, sdp_skipped=skipped)
+        if skipped is not None and not figures["certified"]:  # the same relaxation by the sparse solver
+            Rs, ts, status, figures = sparse_fallback(cost, options, Rs, figures)  # (sparse.py)
         RX[list(c.x)], RY[list(c.y)] = Rs[:nX], Rs[nX:]
         tX[list(c.x)], tY[list(c.y)] = ts[:nX], ts[nX:]
         components.append({"X": [data.x_names[j] for j in c.x], "Y": [data.y_names[j] for j in c.y],
@@ -170,14 +179,32 @@ def run(data: AXYBMultiData, options: Options, backend: str) -> SolverOutput:
     )
 
 
+def _unknown_scales(data: AXYBMultiData, options: Options, backend: str) -> SolverOutput:
+    """Cameras known only up to their own scales (`handeye.camera_scales`): the rotations
+    certified on the rotation rows alone (every translation zero), then the translations and
+    the cameras' scales by one linear least squares given them."""
+    rotations = run(camera_scale.rotation_only(data), options, backend)
+    groups, names = data.camera_scale_groups
+    poses, _, figures = camera_scales.translations_and_scales(
+        data.pose_model, (*rotations.unknowns["X"], *rotations.unknowns["Y"]), groups, names)
+    return SolverOutput(unknowns={"X": np.stack(poses[:data.nX]), "Y": np.stack(poses[data.nX:])},
+                        status=rotations.status,
+                        diagnostics={**rotations.diagnostics, **{k: figures[k] for k in ("camera_scales",
+                                                                                         "camera_scales_std")},
+                                     "warnings": [*rotations.diagnostics.get("warnings", []),
+                                                  *camera_scales.weak_warning(figures)],
+                                     "formulation": "rotations from the rotation rows alone (the cameras' scales "
+                                                    "unknown), then translations and scales by linear least squares"})
+
+
 SPEC = dataclasses.replace(
     SPEC_SINGLE,
     problems=(PROBLEM,),
     run=run,
     summary="the stacked Kronecker cost of a cell of several cameras and targets under exact SO(3) constraints, per "
-            "connected component: local minimum with optimality certificate (the tight SDP relaxation when that fails, "
-            f"for components of up to {SDP_MAX_ROTATIONS} rotations)",
+            "connected component: local minimum with optimality certificate (the tight SDP relaxation when that fails: "
+            f"dense up to {SDP_MAX_ROTATIONS} rotations, a sparse interior point above)",
     citation="Pan et al., IEEE T-ASE 2022, eq. 8, stacked over cameras and targets as Shah, J. Mech. Robot. 5(3), "
              "2013; relaxation and certificate as in Briales & Gonzalez-Jimenez, CVPR 2017, and Rosen et al., IJRR 2019",
-    camera_scale_mode=False,
+    camera_scale_mode=True,
 )

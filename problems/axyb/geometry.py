@@ -22,6 +22,7 @@ pairs on, the normal equations for per-group sigmas are summed in closed form
 from __future__ import annotations
 
 import copy
+from typing import Any
 
 import numpy as np
 
@@ -29,6 +30,7 @@ from handeye.estimation import camera_scale
 from handeye.estimation.kronecker import PosePairs
 from handeye.estimation.nlls import PoseModel, Poses
 from handeye.geometry import so3_fast
+from handeye.problems.axyb import noise
 
 #: from this many pairs on, the normal equations are summed in closed form (`normal_equations`)
 #: instead of from the (m, 6, 12) Jacobian: measured 0.38 vs 0.08 ms at m = 16, 0.84 vs 0.52 ms
@@ -98,6 +100,10 @@ class AXYBModel(PoseModel):
         J[:, 3:, 6:9] = (Y[:3, :3] @ self.TBx_T).reshape(3, m, 3).transpose(1, 0, 2)
         J[:, 3:, 9:12] = minus_RY
         return J
+
+    def noise_factors(self, data: PosePairs, poses: Poses) -> Any:
+        """The noise sources of `handeye.problems.axyb.noise` at (X, Y)."""
+        return noise.sources(data.A, data.B, poses[0], poses[1])
 
     def camera_direction(self, poses: Poses) -> np.ndarray:
         """d e / d s when the camera translations are s t_B (an unknown camera scale,

@@ -51,8 +51,12 @@ class AXYBMultiData:
     y_index: np.ndarray
     x_names: tuple[str, ...]
     y_names: tuple[str, ...]
-    #: the camera's translations are known only up to scale (`handeye.camera_scale`)
+    #: some cameras' translations are known only up to scale, each camera's own
+    #: (`handeye.camera_scales`): those of the X's `scaled_x` and the Y's `scaled_y` (indices),
+    #: the data's ``camera_scale`` list of names (docs/camera-scale.md, "Several cameras")
     camera_scale_unknown: bool = False
+    scaled_x: tuple[int, ...] = ()
+    scaled_y: tuple[int, ...] = ()
     #: the stacks the indices belong to (set by `__post_init__`; not compared, not shown), so that
     #: ``dataclasses.replace(data, A=data.A[keep], B=data.B[keep])`` (how a solver leaves pairs
     #: out, e.g. ``auto``'s outlier step) keeps the indices aligned: see `__post_init__`
@@ -77,6 +81,31 @@ class AXYBMultiData:
             object.__setattr__(self, "x_index", _frozen(self.x_index[keep]))
             object.__setattr__(self, "y_index", _frozen(self.y_index[keep]))
         object.__setattr__(self, "_stacks", (self.A, self.B))
+        if self.camera_scale_unknown and not (self.scaled_x or self.scaled_y):
+            raise InputError("camera_scale_unknown needs the cameras whose scale is unknown: give camera_scale=[their "
+                             "names] (a fixed camera is a Y, a wrist camera an X)")
+
+    @functools.cached_property
+    def camera_scale_groups(self) -> tuple[np.ndarray, tuple[str, ...]] | None:
+        """(groups (m,), names): the camera whose unknown scale each observation's t_B carries
+        (0, 1, ... in the order of `names`: the scaled X's, then the scaled Y's; -1: a metric
+        camera's observation), or None when every camera is metric."""
+        if not self.camera_scale_unknown:
+            return None
+        groups = np.full(self.m, -1, dtype=np.int64)
+        for c, j in enumerate(self.scaled_x):
+            groups[self.x_index == j] = c
+        for c, k in enumerate(self.scaled_y, start=len(self.scaled_x)):
+            groups[self.y_index == k] = c
+        names = tuple(self.x_names[j] for j in self.scaled_x) + tuple(self.y_names[k] for k in self.scaled_y)
+        return _frozen(groups), names
+
+    def scaled_cameras_model(self, model: Any) -> Any:
+        """`model` with each unknown camera scale profiled out (`handeye.camera_scales`), for
+        `handeye.camera_scale.model_for`."""
+        from handeye.estimation.camera_scales import ScaledCamerasModel
+
+        return ScaledCamerasModel(model, *self.camera_scale_groups)
 
     @property
     def m(self) -> int:
@@ -179,10 +208,12 @@ class AXYBMultiData:
         observations = np.asarray(observations)
         xs, x_new = np.unique(self.x_index[observations], return_inverse=True)
         ys, y_new = np.unique(self.y_index[observations], return_inverse=True)
+        scaled_x = tuple(int(np.searchsorted(xs, j)) for j in self.scaled_x if j in xs)
+        scaled_y = tuple(int(np.searchsorted(ys, k)) for k in self.scaled_y if k in ys)
         return AXYBMultiData(_frozen(self.A[observations]), _frozen(self.B[observations]),
                              _frozen(x_new.astype(np.int64)), _frozen(y_new.astype(np.int64)),
                              tuple(self.x_names[k] for k in xs), tuple(self.y_names[k] for k in ys),
-                             self.camera_scale_unknown)
+                             self.camera_scale_unknown and bool(scaled_x or scaled_y), scaled_x, scaled_y)
 
     def scaled(self, s: float) -> AXYBMultiData:
         """The same data with every translation divided by s."""
@@ -201,7 +232,50 @@ def validated(problem: str, data: Mapping[str, Any], min_pairs: int) -> AXYBMult
     indexes = [_indices(name, data.get(name), m) for name in INDEXES]
     names = [_names(field, data.get(field), int(index.max()) + 1, letter)
              for field, index, letter in zip(NAME_FIELDS, indexes, "XY")]
-    return AXYBMultiData(A, B, indexes[0], indexes[1], names[0], names[1])
+    scaled_x, scaled_y = scaled_cameras(data.get("camera_scale", "known"), names[0], names[1], *indexes)
+    return AXYBMultiData(A, B, indexes[0], indexes[1], names[0], names[1], bool(scaled_x or scaled_y),
+                         scaled_x, scaled_y)
+
+
+def scaled_cameras(value: Any, x_names: tuple[str, ...], y_names: tuple[str, ...], x_index: np.ndarray,
+                   y_index: np.ndarray) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """The data fact ``camera_scale`` of a cell: "known" (the default: every camera metric) or the
+    names of the monocular cameras, each with its own unknown scale (X's: wrist cameras, Y's:
+    fixed cameras). Returns the indices of the X's and of the Y's named; InputError naming what is
+    wrong (an unknown or ambiguous name, a name given twice, an observation between two named)."""
+    if isinstance(value, str) and value == "known":
+        return (), ()
+    if isinstance(value, str):
+        if value == "unknown":
+            raise InputError("camera_scale='unknown' does not say which of the cell's X's and Y's are cameras: give "
+                             "camera_scale=[the names of the monocular cameras] (fixed cameras are Y's, wrist "
+                             "cameras X's), each gets its own scale")
+        raise InputError(f"camera_scale={value!r} must be 'known' (every camera metric, the default) or a list of the "
+                         "names of the cameras known only up to scale (monocular SLAM), e.g. ['cam0', 'cam2']")
+    if isinstance(value, np.ndarray) and value.ndim == 1 and value.dtype.kind in "UO":
+        value = value.tolist()
+    if not isinstance(value, Sequence) or not all(isinstance(v, str) for v in value):
+        raise InputError(f"camera_scale must be 'known' or a list of camera names (text), got {type(value).__name__}")
+    twice = sorted({v for v in value if list(value).count(v) > 1})
+    if twice:
+        raise InputError(f"camera_scale names {twice} more than once; name each monocular camera once")
+    scaled_x, scaled_y = [], []
+    for name in value:
+        in_x, in_y = name in x_names, name in y_names
+        if in_x and in_y:
+            raise InputError(f"camera_scale names {name!r}, which is both an X and a Y of the cell: give the X's and "
+                             "the Y's different names (x_names, y_names)")
+        if not (in_x or in_y):
+            raise InputError(f"camera_scale names {name!r}, which is no X or Y of the cell; its X's: "
+                             f"{', '.join(x_names)}; its Y's: {', '.join(y_names)}")
+        (scaled_x.append(x_names.index(name)) if in_x else scaled_y.append(y_names.index(name)))
+    both = np.flatnonzero(np.isin(x_index, scaled_x) & np.isin(y_index, scaled_y))
+    if len(both):
+        i = int(both[0])
+        raise InputError(f"camera_scale names both {x_names[x_index[i]]!r} and {y_names[y_index[i]]!r}, which "
+                         f"observation {i} ties: one of an observation's X and Y is the camera, the other its target; "
+                         "name only the camera")
+    return tuple(sorted(scaled_x)), tuple(sorted(scaled_y))
 
 
 def _indices(name: str, value: Any, m: int) -> np.ndarray:

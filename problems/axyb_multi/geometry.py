@@ -52,7 +52,10 @@ class AXYBMultiModel(PoseModel):
     [t_B]_x; x, y the indices of each observation's X and Y; the observed (X, Y) pairs and each
     observation's pair (for the closed-form sums)."""
 
-    noise_sources = False
+    noise_sources = True  # a noise level per camera and per target: `handeye.problems.axyb_multi.noise`
+
+    #: how the data say that cameras are known only up to scale (the host's check 5 names it)
+    scale_hint = "camera_scale=[the names of the monocular cameras]"
 
     def __init__(self, data: Any) -> None:
         m, nX, nY = data.m, data.nX, data.nY
@@ -148,6 +151,12 @@ class AXYBMultiModel(PoseModel):
         np.add.at(g, ys, per_pair[:, 6:])
         return g.reshape(-1)
 
+    def noise_factors(self, data: Any, poses: Poses) -> Any:
+        """The noise sources of every X and Y and the robot's (`handeye.problems.axyb_multi.noise`)."""
+        from handeye.problems.axyb_multi.noise import sources
+
+        return sources(data, poses)
+
     # ------------------------------------------------------------------ the camera's scale
 
     def camera_direction(self, poses: Poses) -> np.ndarray:
@@ -171,10 +180,23 @@ class AXYBMultiModel(PoseModel):
         np.add.at(g[:, 3:], self.nX + self.y, -u)
         return g.reshape(-1)
 
-    def with_camera_scale(self, s: float) -> AXYBMultiModel:
-        """This model with the camera translations t_B multiplied by s (the rest shared)."""
+    @property
+    def scale_groups(self) -> tuple[tuple[str, np.ndarray], ...]:
+        """The observations of each X and each Y by name (X's first): the groups in which the
+        host's check 5 looks for a camera whose translations fit only at another scale (which
+        of them are cameras the data do not say)."""
+        return (tuple((self.names[j], np.flatnonzero(self.x == j)) for j in range(self.nX))
+                + tuple((self.names[self.nX + k], np.flatnonzero(self.y == k)) for k in range(self.nY)))
+
+    def with_camera_scale(self, s: float | np.ndarray) -> AXYBMultiModel:
+        """This model with the camera translations t_B multiplied by s (the rest shared): one
+        factor, or (m,) one per observation (each camera's own, `handeye.camera_scales`)."""
         out = copy.copy(self)
-        out.tB, out.TBx = s * self.tB, s * self.TBx
+        s = np.asarray(s, dtype=float)
+        if s.ndim:
+            out.tB, out.TBx = s[:, None] * self.tB, s[:, None, None] * self.TBx
+        else:
+            out.tB, out.TBx = float(s) * self.tB, float(s) * self.TBx
         return out
 
 

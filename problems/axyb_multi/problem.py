@@ -72,7 +72,7 @@ class AXYBMulti(Problem):
     data_fields = ("A", "B")
     #: x_index and y_index are required (`validate` says so when missing); the host passes only the
     #: data fields and the optional fields given, hence their place here
-    optional_fields = ("x_index", "y_index", "x_names", "y_names")
+    optional_fields = ("x_index", "y_index", "x_names", "y_names", "camera_scale")
     #: observations in all: one pair needs three stations; what the graph needs is `validate`'s rule
     min_pairs = 3
     data_type = AXYBMultiData
@@ -191,15 +191,17 @@ class AXYBMulti(Problem):
     def simulate(self, *, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
                  X: np.ndarray | None = None, Y: np.ndarray | None = None, setup: str = "eye-to-hand",
                  cameras: int | None = None, markers: int | None = None, visible: tuple[int, int] | None = None,
-                 gross: float = 0.0, **options: Any) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+                 gross: float = 0.0, camera_scales: Mapping[str, float] | None = None,
+                 **options: Any) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """A simulated cell (`simulate_cell`): `pairs` stations of the robot, each camera seeing
-        some of the targets at each; data A, B, x_index, y_index, x_names, y_names, truth {"X":
-        (nX, 4, 4), "Y": (nY, 4, 4)}."""
+        some of the targets at each; data A, B, x_index, y_index, x_names, y_names (and
+        camera_scale with `camera_scales`), truth {"X": (nX, 4, 4), "Y": (nY, 4, 4)} (and
+        "camera_scales")."""
         if options:
             raise InputError(f"unknown simulate option(s) {sorted(options)}; known: pairs, seed, noise, X, Y, setup, "
-                             "cameras, markers, visible, gross")
+                             "cameras, markers, visible, gross, camera_scales")
         cell = simulate_cell(pairs, seed=seed, noise=noise, X=X, Y=Y, setup=setup, cameras=cameras, markers=markers,
-                             visible=visible, gross=gross)
+                             visible=visible, gross=gross, camera_scales=camera_scales)
         return cell.data, cell.truth
 
 
@@ -214,7 +216,7 @@ class SimulatedCell:
 def simulate_cell(stations: int, *, seed: int | None = None, noise: NoiseModel | None = None,
                   X: np.ndarray | None = None, Y: np.ndarray | None = None, setup: str = "eye-to-hand",
                   cameras: int | None = None, markers: int | None = None, visible: tuple[int, int] | None = None,
-                  gross: float = 0.0) -> SimulatedCell:
+                  gross: float = 0.0, camera_scales: Mapping[str, float] | None = None) -> SimulatedCell:
     """A simulated multi-camera cell.
 
     setup "eye-to-hand": `cameras` fixed cameras (the Y's, T_base_cam) 1-2 m from the workspace,
@@ -244,6 +246,11 @@ def simulate_cell(stations: int, *, seed: int | None = None, noise: NoiseModel |
     GROSS_TRANSLATION (`SimulatedCell.gross` lists them). The random stream is drawn in a fixed
     order (stations, visibility, then the noise and gross streams), so a seed gives the same
     stations and visibility at every noise level and share of gross observations.
+
+    camera_scales: {camera name: s} for monocular cameras (names as made here: ``cam0``, ...):
+    each named camera's translations t_B are its metric ones (noise and gross errors included)
+    divided by its s, so that s t_B is metric (docs/camera-scale.md); the data then carry
+    ``camera_scale`` = those names and the truth ``"camera_scales"`` = {name: s}.
     """
     if setup not in SETUPS:
         raise InputError(f"setup={setup!r} is not one of {', '.join(SETUPS)}")
@@ -299,9 +306,18 @@ def simulate_cell(stations: int, *, seed: int | None = None, noise: NoiseModel |
         B[bad, :3, 3] += shift
     x_names, y_names = ((f"marker{j}" for j in range(nX)), (f"cam{k}" for k in range(nY))) if eye_to_hand else \
         ((f"cam{j}" for j in range(nX)), (f"target{k}" for k in range(nY)))
+    x_names, y_names = list(x_names), list(y_names)
+    truth = {"X": np.array(X), "Y": np.array(Y)}
     data = {"A": A_noisy[station], "B": B, "x_index": np.array(x_index), "y_index": np.array(y_index),
-            "x_names": list(x_names), "y_names": list(y_names)}
-    return SimulatedCell(data, {"X": np.array(X), "Y": np.array(Y)}, bad, station)
+            "x_names": x_names, "y_names": y_names}
+    if camera_scales:
+        names = y_names if eye_to_hand else x_names
+        of_camera = y_index if eye_to_hand else x_index
+        for name, s in _scales(camera_scales, names).items():
+            B[of_camera == names.index(name), :3, 3] /= s
+        data["camera_scale"] = list(camera_scales)
+        truth["camera_scales"] = {name: float(s) for name, s in camera_scales.items()}
+    return SimulatedCell(data, truth, bad, station)
 
 
 # --------------------------------------------------------------------------- the simulated cell
@@ -321,6 +337,18 @@ def _visible(value: Any) -> tuple[int, int]:
     if lo > hi:
         raise InputError(f"visible must be (fewest, most) with fewest <= most, got {value!r}")
     return lo, hi
+
+
+def _scales(value: Any, cameras: list[str]) -> dict[str, float]:
+    """camera_scales checked: {name of a camera: factor > 0}."""
+    if not isinstance(value, Mapping):
+        raise InputError(f"camera_scales must map camera names to factors, e.g. {{'cam0': 0.5}}, got {value!r}")
+    for name, s in value.items():
+        if name not in cameras:
+            raise InputError(f"camera_scales names {name!r}, which is not a camera of this cell: {', '.join(cameras)}")
+        if isinstance(s, bool) or not isinstance(s, (int, float, np.floating, np.integer)) or not 0 < s < math.inf:
+            raise InputError(f"camera_scales[{name!r}] must be a factor > 0, got {s!r}")
+    return {name: float(s) for name, s in value.items()}
 
 
 def _share(value: Any) -> float:

@@ -1,0 +1,80 @@
+"""Several named boards that one camera may see in one image (the targets of a cell of several
+cameras and targets): whether they can be told apart, and each one's points in an image.
+
+Boards are told apart by their marker ids: ChArUco boards and AprilGrids of one dictionary must
+carry disjoint id ranges (`Board.first_id`; docs/boards.md). A chessboard or circle grid has no
+ids, so a camera may look for at most one of them (with any number of boards that have ids):
+two would be found at each other's place, or a larger grid's corners read as a smaller one's.
+
+`detect_boards(image, boards)` runs the detector of every board on the image and returns the
+detections found and, for the others, why each was not found (one line each: not in the image,
+too few points, ...), so the caller can report every (image, board) left out.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import numpy as np
+
+from handeye.framework.errors import InputError
+from handeye.vision.boards import APRILGRID_DICTIONARY, Board
+
+#: kinds without marker ids: found by their pattern alone
+WITHOUT_IDS = ("chessboard", "circles", "circlegrid")
+
+Detector = Callable[[np.ndarray, Board], Any]
+
+
+@dataclasses.dataclass(frozen=True)
+class BoardsFound:
+    """What one image shows of a set of named boards: `found` maps a board's name to its
+    `handeye.vision.detection.Detection`; `missing` maps each other board's name to the reason."""
+
+    found: dict[str, Any]
+    missing: dict[str, str]
+
+
+def _family(board: Board) -> str:
+    """The id space a board's markers live in (an aprilgrid's tags are tag36h11 ids)."""
+    return APRILGRID_DICTIONARY if board.kind == "aprilgrid" else str(board.dictionary)
+
+
+def check_distinct(boards: Mapping[str, Board], where: str = "targets") -> None:
+    """InputError (one line, naming `where` and both boards) unless every board of `boards` can be
+    told apart from the others in one image (module docstring)."""
+    plain = [name for name, b in boards.items() if b.kind in WITHOUT_IDS]
+    if len(plain) > 1:
+        raise InputError(f"{where}: {plain[0]!r} and {plain[1]!r} are both {boards[plain[0]].kind} / "
+                         f"{boards[plain[1]].kind} boards without marker ids, which one image cannot tell apart; "
+                         "give each camera at most one of them (its `targets` list) or use ChArUco boards or "
+                         "AprilGrids with distinct ids (first=N)")
+    with_ids = [(name, b) for name, b in boards.items() if b.kind not in WITHOUT_IDS]
+    for k, (name, board) in enumerate(with_ids):
+        for other, theirs in with_ids[k + 1:]:
+            if _family(board) != _family(theirs):
+                continue
+            ours, their_ids = board.marker_ids, theirs.marker_ids
+            if ours.start < their_ids.stop and their_ids.start < ours.stop:
+                raise InputError(f"{where}: {name!r} (ids {ours.start}..{ours.stop - 1}) and {other!r} (ids "
+                                 f"{their_ids.start}..{their_ids.stop - 1}) share {_family(board)} marker ids, so "
+                                 f"one image cannot tell them apart; print them with disjoint ids and give each "
+                                 f"its first id (e.g. first={ours.stop})")
+
+
+def detect_boards(image: np.ndarray, boards: Mapping[str, Board], detector: Detector | None = None) -> BoardsFound:
+    """Each board of `boards` (name -> Board) in `image` (8-bit grey): the detections and, for a
+    board not found, the detector's one-line reason. `detector`: ``(image, board) -> Detection``
+    raising InputError when the board is not found (default `handeye.vision.detect.detect`)."""
+    if detector is None:
+        from handeye.vision.detect import detect as detector
+    found: dict[str, Any] = {}
+    missing: dict[str, str] = {}
+    for name, board in boards.items():
+        try:
+            found[name] = detector(image, board)
+        except InputError as exc:
+            missing[name] = str(exc)
+    return BoardsFound(found, missing)

@@ -1,0 +1,181 @@
+"""One camera's folder of images, each possibly showing several named boards, turned into
+observations: a (station, target, T_cam_target) per board found, and why every other (image,
+board) was left out. The images of a cell of several cameras and targets (``axyb-multi``;
+`handeye.workflow.observation_images` makes them rows of its table of observations).
+
+`camera_observations(folder, boards, camera, robot=..., match=...)`:
+
+1. lists the images and pairs them with the robot's stations as the single-camera image path
+   does (`handeye.vision.image_set.pair_images`: ``index``, ``name`` or ``time``), before anything
+   can fail, so that an image left out never shifts the others;
+2. reads each image and looks for every board in it (`handeye.vision.board_set.detect_boards`);
+   an unreadable image or one of another size than most is dropped whole; a board not found, or
+   found with fewer points than its detector needs, is dropped for that image only, with the
+   detector's reason;
+3. without intrinsics, calibrates the camera from every board found (each a view);
+4. solves each board's pose by PnP (`handeye.vision.camera_poses.board_pose`, in the robot's
+   unit) and drops a pose whose reprojection error is far above the camera's others (`flag_outliers`:
+   a wrong detection, blur, a moved board), with a note, recalibrating intrinsics calibrated here.
+
+InputError (one line) only when nothing usable remains or the input cannot apply (no folder,
+pairing impossible, intrinsics for another image size).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from handeye.framework.errors import InputError
+from handeye.io.pose_readers import PoseStack
+from handeye.vision.board_set import Detector, check_distinct, detect_boards
+from handeye.vision.boards import UNITS, Board
+from handeye.vision.camera_poses import board_pose, flag_outliers
+from handeye.vision.image_set import (
+    Dropped,
+    _majority_size,
+    _read_any,
+    list_images,
+    pair_images,
+    pose_names,
+    to_8bit,
+)
+from handeye.vision.intrinsics import CameraCalibration, calibrate_camera
+from handeye.vision.observations import Camera
+
+
+@dataclasses.dataclass(frozen=True)
+class CameraObservations:
+    """What one camera's images gave: per observation k (a board found and kept in an image),
+    image[k] (file stem), station[k] (the robot pose's name), robot_row[k] (its row in the robot
+    stack), target[k] (the board's name), T_cam_target[k] (4x4, translations in `unit`),
+    errors[k] (RMS reprojection error at that pose, px), points[k] (points detected); dropped:
+    every image or (image, board) left out, with why; camera: the intrinsics used (calibration:
+    their calibration here, None when given); images: how many images the folder holds; note: the
+    pairing in words; warnings: what the caller must print."""
+
+    image: tuple[str, ...]
+    station: tuple[str, ...]
+    robot_row: np.ndarray
+    target: tuple[str, ...]
+    T_cam_target: np.ndarray
+    errors: np.ndarray
+    points: np.ndarray
+    dropped: tuple[Dropped, ...]
+    camera: Camera
+    calibration: CameraCalibration | None
+    unit: str
+    images: int
+    note: str
+    warnings: tuple[str, ...] = ()
+
+    def __len__(self) -> int:
+        return len(self.image)
+
+
+def camera_observations(folder: str | Path, boards: Mapping[str, Board], camera: Camera | None, *,
+                        robot: PoseStack, match: str = "index", max_dt: float | None = None,
+                        unit: str | None = None, detector: Detector | None = None) -> CameraObservations:
+    """The observations of the images in `folder` (module docstring). boards: the targets this
+    camera may see, by name; camera: its intrinsics, or None to calibrate them from the boards
+    found; robot: the stations' robot poses; match / max_dt: how images pair with them; unit: the
+    poses' length unit (default the robot's); detector: ``(image, board) -> Detection``."""
+    if not boards:
+        raise InputError("a camera's images need at least one target (board) to look for")
+    check_distinct(boards)
+    unit = unit or robot.unit
+    if unit not in UNITS:
+        raise InputError(f"unit must be 'mm' or 'm', got {unit!r}")
+    files = list_images(folder)
+    pairing = pair_images(files, robot, match, max_dt=max_dt)
+    names = pose_names(robot)
+    dropped = list(pairing.dropped)
+    used = [files[i] for i in pairing.image_rows]
+    rows = [int(r) for r in pairing.robot_rows]
+    found, sizes = [], []
+    for k, path in enumerate(used):
+        try:
+            image = to_8bit(_read_any(path), path.name)
+        except InputError as exc:
+            dropped.append(Dropped(path.stem, names[rows[k]], str(exc).removeprefix(f"{path.name}: ")))
+            found.append({})
+            sizes.append(None)
+            continue
+        sizes.append((image.shape[1], image.shape[0]))
+        result = detect_boards(image, boards, detector)
+        dropped += [Dropped(path.stem, None, f"{name} not found: {why}") for name, why in result.missing.items()]
+        found.append(result.found)
+    size = _majority_size(sizes)
+    warnings: list[str] = []
+    for k, s in enumerate(sizes):
+        if s is not None and s != size:
+            reason = f"image size {s[0]}x{s[1]} differs from the {size[0]}x{size[1]} of most images"
+            dropped.append(Dropped(used[k].stem, names[rows[k]], reason))
+            warnings.append(f"dropped image {used[k].name}: {reason} (another camera or resolution?)")
+            found[k] = {}
+    views = [(k, name) for k, f in enumerate(found) for name in f]
+    if not views:
+        raise InputError(f"no board ({', '.join(boards)}) was found in any of the {len(used)} images of "
+                         f"{str(folder)!r}; check the targets' specs and the images")
+    if camera is not None and camera.size is not None and tuple(camera.size) != size:
+        raise InputError(f"the intrinsics are for {camera.size[0]}x{camera.size[1]} images but the images of "
+                         f"{str(folder)!r} are {size[0]}x{size[1]}; give this camera's intrinsics at this resolution")
+    calibration: CameraCalibration | None = None
+    while True:  # until no pose is left out: the median, and intrinsics calibrated here, change
+        if camera is None or calibration is not None:
+            calibration = calibrate_camera([found[k][n] for k, n in views], size,
+                                           names=[f"{used[k].stem} ({n})" for k, n in views])
+        camera_used = camera if calibration is None else calibration.camera
+        poses, errors, bad = [], [], []
+        for k, name in views:
+            board, detection = boards[name], found[k][name]
+            scale = UNITS[board.unit] / UNITS[unit]
+            try:
+                pose = board_pose(detection.object_points * scale, detection.image_points, camera_used,
+                                  name=f"image {used[k].name}, {name}")
+            except InputError as exc:
+                bad.append(((k, name), str(exc).split(": ", 1)[-1]))
+                continue
+            poses.append(pose.T_cam_target)
+            errors.append(pose.rms)
+        kept = [v for v in views if v not in {b for b, _ in bad}]
+        outliers = [(kept[i], reason) for i, reason in flag_outliers(errors, [str(v) for v in kept])]
+        if not bad and not outliers:
+            break
+        for (k, name), reason in bad + outliers:
+            dropped.append(Dropped(used[k].stem, None, f"{name}: unreliable pose, {reason}"))
+        warnings += [f"dropped {name} in image {used[k].name} ({names[rows[k]]}): unreliable pose, {reason}"
+                     for (k, name), reason in outliers]
+        views = [v for v in kept if v not in {o for o, _ in outliers}]
+        if not views:
+            raise InputError(f"no usable board pose left in the images of {str(folder)!r}: {(bad + outliers)[0][1]}")
+    T = np.array(poses, dtype=float).reshape(-1, 4, 4)
+    T.setflags(write=False)
+    return CameraObservations(
+        image=tuple(used[k].stem for k, _ in views), station=tuple(names[rows[k]] for k, _ in views),
+        robot_row=np.array([rows[k] for k, _ in views], dtype=np.intp), target=tuple(n for _, n in views),
+        T_cam_target=T, errors=np.array(errors, dtype=float),
+        points=np.array([len(found[k][n]) for k, n in views], dtype=np.int64), dropped=tuple(dropped),
+        camera=camera_used, calibration=calibration, unit=unit, images=len(files), note=pairing.note,
+        warnings=tuple(warnings))
+
+
+def summary(name: str, folder: Any, obs: CameraObservations) -> list[str]:
+    """What one camera's images gave, in lines: the pairing, the boards found per image with their
+    reprojection RMS, what was dropped, and the intrinsics when calibrated here."""
+    lines = [f"camera {name}: images {folder}: {obs.note}; {len(obs)} board poses"]
+    per_image: dict[str, list[str]] = {}
+    for image, target, err in zip(obs.image, obs.target, obs.errors):
+        per_image.setdefault(image, []).append(f"{target} {err:.3f} px")
+    lines += [f"  image {image}: {', '.join(seen)}" for image, seen in per_image.items()]
+    lines += [f"  dropped {d.describe()}" for d in obs.dropped]
+    if obs.calibration is not None:
+        cal = obs.calibration
+        K = cal.camera.K
+        lines.append(f"  intrinsics calibrated from {len(cal.per_image_rms)} board views ({cal.model}): RMS "
+                     f"{cal.rms:.3f} px, fx {K[0, 0]:.2f} fy {K[1, 1]:.2f} cx {K[0, 2]:.2f} cy {K[1, 2]:.2f}")
+    return lines
