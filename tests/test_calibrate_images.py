@@ -215,13 +215,15 @@ def opencv_park_x(A, T_cam_target):
 
 def test_bundled_circle_grid_end_to_end(tmp_path, capsys):
     """The shipped industrial_calibration circle-grid images (real, eye-in-hand): all 15 found,
-    camera calibrated, and the target-in-base spread no worse than OpenCV PARK's on the same
-    board poses (measured: 6.5 mm / 0.65 deg median for both)."""
+    camera calibrated, and with the pose-based solver the target-in-base spread no worse than
+    OpenCV PARK's on the same board poses (measured: 6.5 mm / 0.65 deg median for both). The
+    default answer, the corner fit, is judged by held-out corners instead (it spreads 7.4 mm here
+    and predicts unseen images' corners 2.1 px off against PARK's 4.8: test_calibrate_library)."""
     folder = image_example_dir()
     out_file = tmp_path / "result.json"
     code, _, err = run_cli(capsys, "calibrate", "--images", folder / "images", "--board", "circlegrid:10x10:25.4mm",
                              "--robot", folder / "poses", "--robot-format", "xyz-quat-xyzw", "--robot-unit", "m",
-                             "--setup", "eye-in-hand", "--match", "name", "-o", out_file)
+                             "--setup", "eye-in-hand", "--match", "name", "--solver", "auto", "-o", out_file)
     assert code == 0, err
     result = json.loads(out_file.read_text())
     assert result["stations"] == 15 and result["images"]["dropped"] == []

@@ -139,14 +139,16 @@ def test_without_images_or_with_the_wrong_count_it_says_what_to_give():
 
 def test_robot_errors_larger_than_the_pixel_noise_are_named():
     """Robot poses with 1 mm / 0.1 deg of error (far above what 0.3 px allows): the corners fit
-    the robot-constrained model several times worse than each image alone, and the warning says
-    that the robot's errors dominate and which solver models them."""
+    the robot-constrained model several times worse than each image alone, and with the robot's
+    poses taken as exact the warning says that the robot's errors dominate and what models them."""
     truth = PROBLEM.random_unknowns(np.random.default_rng(11))
     data, _ = PROBLEM.simulate(pairs=20, seed=11, noise=NoiseModel({"A": (0.002, 1.0), "B": (1.0, 1.0)}),
                                images={"setup": "eye-in-hand"}, **truth)
-    sol = handeye.solve("axyb", solver="reprojection", **data)
+    sol = handeye.solve("axyb", solver="reprojection", robot_noise="none", **data)
     assert sol.diagnostics["robot_misfit"] > 1.5
-    assert any("robot's pose errors" in w and "solver 'auto'" in w for w in sol.warnings)
+    assert any("robot's pose errors" in w and "robot_noise='estimated' or solver 'auto'" in w for w in sol.warnings)
+    modelled = handeye.solve("axyb", solver="reprojection", **data)  # the default estimates them: nothing to warn of
+    assert not any("robot's pose errors" in w for w in modelled.warnings)
 
 
 @pytest.mark.parametrize("rms, pnp, dominate", [

@@ -10,7 +10,7 @@ rotation axis.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -36,6 +36,45 @@ class DHArm:
     alpha: tuple[float, ...]
     d: tuple[float, ...]
     offset: tuple[float, ...]
+
+    #: the columns of `table`, in the order of the fields
+    COLUMNS: ClassVar[tuple[str, ...]] = ("a", "alpha", "d", "offset")
+
+    @property
+    def joints(self) -> int:
+        return len(self.a)
+
+    @property
+    def table(self) -> Array:
+        """The DH table, one row per joint, columns `COLUMNS` (a, alpha, d, offset): (joints, 4)."""
+        return np.array([self.a, self.alpha, self.d, self.offset], dtype=float).T
+
+    def __array__(self, dtype: Any = None, copy: Any = None) -> Array:
+        """``np.array(arm)`` is its `table` (so that an arm passes wherever an array of numbers does)."""
+        return self.table if dtype is None else self.table.astype(dtype)
+
+    @classmethod
+    def from_table(cls, table: Any) -> DHArm:
+        """The arm of a (joints, 4) table with columns `COLUMNS` (a, alpha, d, offset)."""
+        T = np.asarray(table, dtype=float)
+        return cls(*(tuple(float(v) for v in T[:, k]) for k in range(4)))
+
+    def scaled(self, s: float) -> DHArm:
+        """The same arm with its lengths (a, d) divided by s (a change of length unit)."""
+        return dataclasses.replace(self, a=tuple(v / s for v in self.a), d=tuple(v / s for v in self.d))
+
+    def links(self) -> Array:
+        """The constant part of each joint's transform, C_j = Rz(offset_j) Tz(d_j) Tx(a_j) Rx(alpha_j),
+        so that `forward` is the product over the joints of Rz(q_j) C_j: (joints, 4, 4)."""
+        th, alpha = np.asarray(self.offset, dtype=float), np.asarray(self.alpha, dtype=float)
+        ct, st, ca, sa = np.cos(th), np.sin(th), np.cos(alpha), np.sin(alpha)
+        a = np.asarray(self.a, dtype=float)
+        C = np.zeros((self.joints, 4, 4))
+        C[:, 0, 0], C[:, 0, 1], C[:, 0, 2], C[:, 0, 3] = ct, -st * ca, st * sa, a * ct
+        C[:, 1, 0], C[:, 1, 1], C[:, 1, 2], C[:, 1, 3] = st, ct * ca, -ct * sa, a * st
+        C[:, 2, 1], C[:, 2, 2], C[:, 2, 3] = sa, ca, self.d
+        C[:, 3, 3] = 1.0
+        return C
 
     def forward(self, q: np.ndarray) -> Array:
         """Flange poses T_base_flange for joint vectors q: (n, joints) rad -> (n, 4, 4)."""

@@ -125,7 +125,8 @@ def _grid(result: StudyResult, rows: list[dict[str, Any]], xkey: str, xlabel: st
             legend.setdefault(name, handle)
     names = [label for label in labels if label in legend]
     handles = [legend[name] for name in names]
-    fig.legend(handles, names, loc="lower center", ncol=min(len(names), 5), fontsize=8, frameon=False)
+    if names:  # none when every run of the figure failed (e.g. too few pairs for the problem)
+        fig.legend(handles, names, loc="lower center", ncol=min(len(names), 5), fontsize=8, frameon=False)
     fig.suptitle(f"{title}\n{BAND_TEXT[center]}; units: "
                  f"{result.study.units} given to solvers, errors in rad / mm", fontsize=10)
     # fixed margins: tight_layout would draw the figure once more (seconds on a busy machine)

@@ -54,6 +54,7 @@ import numpy as np
 from handeye.framework.api import solve
 from handeye.framework.errors import InputError
 from handeye.framework.isolation import fork_available
+from handeye.framework.problem import Problem
 from handeye.framework.processes import die_with_parent
 from handeye.framework.registry import (
     _extra as _runtime_plugins,  # run-time plugins, re-registered in workers
@@ -117,8 +118,11 @@ def simulate(study: Study, cell: Cell, trial: int) -> tuple[dict[str, np.ndarray
     truth_kwargs: dict[str, Any] = {}
     if study.truth == "random":
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(1,)))
-        poses = random_poses(len(problem.unknowns), rng, RANDOM_TRUTH_MM)
-        truth_kwargs = dict(zip(problem.unknowns, poses))
+        if type(problem).random_unknowns is not Problem.random_unknowns:  # its own (e.g. a stack of links)
+            truth_kwargs = problem.random_unknowns(rng, RANDOM_TRUTH_MM)
+        else:
+            poses = random_poses(len(problem.unknowns), rng, RANDOM_TRUTH_MM)
+            truth_kwargs = dict(zip(problem.unknowns, poses))
     options = {**study.simulation, **cell.simulation}  # the sweep's own options over the study's
     data, truth = problem.simulate(pairs=cell.pairs, seed=seed, noise=cell.noise, **options, **truth_kwargs)
     return data, truth, seed

@@ -9,8 +9,9 @@ The calibrate workflow, once, for the library and the command line (``handeye ca
    (``camera.poses: camera-in-board``), convert them to the robot's length unit;
 3. turn the stations into the problem's data (`handeye.io.from_poses`: eye-in-hand /
    eye-to-hand, axxb's pairing) and solve (`handeye.solve`) with the cell's solver, or the default
-   (`handeye.workflow.solving`); for images the reprojection fit gives way to the pose-based answer
-   when the robot's pose errors dominate, with a warning;
+   (`handeye.workflow.solving`); for images the corner fit (with the robot's noise estimated or its
+   poses as measured, whichever predicts held-out corners better) gives way to the pose-based
+   answer where that predicts them better still, with a warning;
 4. measure the residuals and run the plausibility checks (`handeye.checks.plausibility`: the usual
    setup mistakes, residuals beyond a calibrated cell's noise): an implausible fit, or a clock
    offset the stream pairing does not trust, makes the status ``unreliable``. Nothing is switched:
@@ -61,7 +62,7 @@ def calibrate(cell: Cell, *, log: Log | None = None) -> CalibrationResult:
     if cell.observations is not None:  # several cameras and targets: tables of observations
         from handeye.workflow.observation_cell import calibrate_observations
 
-        result = calibrate_observations(cell)
+        result = calibrate_observations(cell, log)
         if log is not None:
             log("matching", result.stations.matching["message"])
         return result
@@ -86,7 +87,8 @@ def calibrate(cell: Cell, *, log: Log | None = None) -> CalibrationResult:
     solver = cell.solver or (images is not None and image_solver(cell.problem)) or default_solver(cell.problem)
     solution = solve(cell.problem, solver=solver, backend=cell.backend,
                      time_limit=time_limit(cell.time_limit, cell.problem, solver),
-                     **pose_file.data, **facts, **options, **image_data(images, solver, cell.problem))
+                     **pose_file.data, **facts, **options,
+                     **image_data(images, solver, cell.problem, compare=cell.solver is None))
     instead = pose_based_instead(solution, defaulted=cell.solver is None)
     if instead:
         solver = default_solver(cell.problem)

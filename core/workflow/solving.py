@@ -3,8 +3,8 @@ defaults shared by ``handeye.calibrate``, ``handeye calibrate`` and ``handeye so
 
 - `default_solver`: ``auto`` when installed, else ``kron-lstsq`` (`DEFAULT_SOLVERS`);
 - board images (axyb): `REPROJECTION_SOLVER` when installed (`image_solver`), which gives way to
-  the pose-based default when the robot's pose errors dominate the pixel noise
-  (`pose_based_instead`): its model takes the robot's poses as exact;
+  the pose-based default where that predicts the corners of held-out stations better
+  (`pose_based_instead`);
 - `time_limit`: none for handeye's own solvers, `PLUGIN_TIME_LIMIT` for a third party's, so a
   hanging plugin cannot hang a calibration; 0 means no limit.
 
@@ -28,6 +28,9 @@ from handeye.framework.solution import Solution, Status
 DEFAULT_SOLVERS = ("auto", "kron-lstsq")
 #: the solver that refines on the corners' reprojection error, the default for board images
 REPROJECTION_SOLVER = "reprojection"
+#: folds of the stations over which the default corner fit is compared with the pose-based
+#: answer by held-out corner prediction (`pose_based_instead`)
+HELD_OUT_FOLDS = 3
 #: statuses whose unknowns must not be used (the answer is shown for inspection only)
 UNUSABLE = (Status.NOT_CONVERGED, Status.FAILED)
 #: seconds a third-party plugin's solver may take by default
@@ -53,26 +56,31 @@ def image_solver(problem: str) -> str | None:
 
 def pose_based_instead(solution: Solution, defaulted: bool) -> str | None:
     """Why the default reprojection answer gives way to the pose-based default solver, or None:
-    when the robot's poses explain the corners far worse than each image alone does
-    (the solver's own verdict, ``robot_errors_dominate``), the robot's pose errors dominate,
-    which the reprojection model (robot poses exact) does not describe; only when no solver was
-    chosen."""
+    when the pose-based answer predicts the corners of stations it was not fitted to better than
+    the corner fit does (the solver's own held-out comparison, ``held_out``, asked for by
+    `image_data`); only when no solver was chosen."""
     d = solution.diagnostics
-    if not defaulted or solution.solver != REPROJECTION_SOLVER or not d.get("robot_errors_dominate"):
+    verdict = d.get("held_out") or {}
+    if not defaulted or solution.solver != REPROJECTION_SOLVER or not verdict.get("pose_based_better"):
         return None
-    return (f"the robot's poses explain the board corners only to {d['rms_px']:.2g} px RMS while "
-            f"each image alone fits them to {d['pnp_rms_px']:.2g} px: the robot's pose errors "
-            "dominate the pixel noise, so the answer is the pose-based one (noise on both sides), not the "
-            "reprojection fit (exact robot poses; `solver: reprojection` forces it)")
+    corners = verdict["reprojection_px"]
+    fitted = "failed on some fold" if corners is None else f"{corners:.3g} px"
+    return (f"over {verdict['folds']} folds of the stations, the pose-based answer predicts the board corners of "
+            f"images it was not fitted to to {verdict['pose_based_px']:.3g} px RMS, the fit to the corners to "
+            f"{fitted}: the answer is the pose-based one (`solver: reprojection` forces the corner fit)")
 
 
-def image_data(image_set: Any, solver: str, problem: str) -> dict[str, Any]:
+def image_data(image_set: Any, solver: str, problem: str, compare: bool = False) -> dict[str, Any]:
     """The image observations as the solver's ``images`` field, for the reprojection solver only
-    (of a problem whose data take them, ``images`` among its `Problem.optional_fields`)."""
+    (of a problem whose data take them, ``images`` among its `Problem.optional_fields`); with
+    `compare` (the solver was not chosen by the user) also its held-out comparison with the
+    pose-based answer over HELD_OUT_FOLDS folds of the stations, where there are enough of them."""
     if (image_set is None or solver != REPROJECTION_SOLVER
             or "images" not in get_registry().problem(problem).optional_fields):
         return {}
-    return {"images": image_set.observations}
+    stations = len(image_set.observations.image_points)
+    folds = {"held_out": HELD_OUT_FOLDS} if compare and stations >= 2 * HELD_OUT_FOLDS else {}
+    return {"images": image_set.observations, **folds}
 
 
 def time_limit(given: float | None, problem: str, solver: str) -> float | None:
