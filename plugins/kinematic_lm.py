@@ -327,6 +327,7 @@ def solve(data: Any, options: Options, choose: bool) -> SolverOutput:
         "comparison": comparison,
         "kinematics": {"used": not use_pose, "parameters": parameters,
                        "not_identifiable": [model.parameter_name(k) for k, _ in data.identifiability.confounded],
+                       "why": data.identifiability.words(data.dh.table),
                        "dh": full["table"].tolist()},
         "warnings": warnings,
     }

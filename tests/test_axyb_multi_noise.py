@@ -11,7 +11,6 @@ import handeye
 from handeye import Status
 from handeye.estimation.noise import NoiseModel
 from handeye.estimation.noise_sources import min_gain
-from handeye.geometry.se3 import so3_exp
 from handeye.problems.axyb_multi import PROBLEM, simulate_cell
 from tests.test_axyb_multi_problem import relative_error
 
@@ -21,16 +20,13 @@ CAMERA = (0.002, 0.5)
 
 def uneven_cell(stations: int, seed: int, spread: float = 4.0) -> tuple[dict, dict, np.ndarray]:
     """The default cell (8 fixed cameras, 16 markers) whose cameras differ in noise: camera k's
-    poses perturbed by CAMERA times a factor f_k, log-uniform in [1/spread, spread]; the robot's
-    by the study's. Returns (data, truth, f)."""
-    cell = simulate_cell(stations, seed=seed, noise=NoiseModel({"A": PROBLEM.study_noise["A"]}))
+    poses perturbed by CAMERA times a factor f_k, log-uniform in [1/spread, spread]
+    (`simulate_cell`'s camera_noise); the robot's by the study's. Returns (data, truth, f)."""
     rng = np.random.default_rng(1000 + seed)
-    f = np.exp(rng.uniform(-np.log(spread), np.log(spread), len(cell.truth["Y"])))
-    s = f[cell.data["y_index"]]
-    B = np.array(cell.data["B"])
-    B[:, :3, :3] = B[:, :3, :3] @ so3_exp((CAMERA[0] * s)[:, None] * rng.standard_normal((len(B), 3)))
-    B[:, :3, 3] += (CAMERA[1] * s)[:, None] * rng.standard_normal((len(B), 3))
-    return {**cell.data, "B": B}, cell.truth, f
+    f = np.exp(rng.uniform(-np.log(spread), np.log(spread), 8))
+    cell = simulate_cell(stations, seed=seed, noise=NoiseModel({"A": PROBLEM.study_noise["A"], "B": CAMERA}),
+                         camera_noise={f"cam{k}": float(v) for k, v in enumerate(f)})
+    return cell.data, cell.truth, f
 
 
 def rms(sol, truth, name: str) -> float:

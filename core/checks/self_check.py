@@ -46,15 +46,20 @@ solver's (third parties' too), against the data it was computed from:
    `handeye.validation.AGREEMENT_ANGLE`), must hold more than half the pairs (`MAJORITY`); else
    at least half are gross and no fit can be trusted (a failure, named first).
 
+8. **Systematic robot errors** (`handeye.checks.systematic`): residuals at the best fit that
+   follow the arm's configuration (an F test of their regression on the flange's position, the
+   stations given by ``Problem.configurations``) get a warning naming the robot's kinematics.
+
 Then **observability**: the covariance of the best fit, at the noise the data show, says how
 precisely the data determine each unknown; where the 1-sigma of a rotation exceeds
 `PRECISION_ROTATION_DEG` or of a translation exceeds `PRECISION_TRANSLATION` of the data's lever
 arm (their RMS translation), a warning gives the figures and the worst direction, named when it
 is the robot's main rotation axis (few or nearly parallel rotation axes).
 
-A problem takes part through three optional methods of `handeye.problem.Problem`:
+A problem takes part through four optional methods of `handeye.problem.Problem`:
 ``check_model`` (the least-squares model of check 2, with nuisance unknowns fitted),
-``expected_rotation_residual`` (check 1) and ``rotation_axes`` (for naming directions).
+``expected_rotation_residual`` (check 1) and ``rotation_axes`` (for naming directions), and
+``configurations`` (check 8).
 """
 
 from __future__ import annotations
@@ -66,6 +71,7 @@ from typing import Any
 
 import numpy as np
 
+from handeye.checks import systematic
 from handeye.checks.validation import AGREEMENT_ANGLE
 from handeye.estimation import camera_scale, camera_scales, nlls
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, MAD_TO_SIGMA, OUTLIER_CHI2
@@ -303,6 +309,9 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
     if not flagged.any() and len(failures) + len(warnings) == before:
         _camera_scale(model, res, cov, failures, warnings, figures)
     _camera_scale_noise(model, res, factor, failures, warnings, figures)
+    configurations = getattr(problem, "configurations", None)
+    systematic.assess_configuration(configurations(data) if configurations else None, model, res, flagged,
+                                    warnings, figures)
     names = model.unknowns
     delta = _difference(poses, fit)
     keep = np.concatenate([np.arange(6 * j, 6 * j + 6) for j, n in enumerate(names) if n in interest])
@@ -325,9 +334,7 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
                "this solver used them")
     if d > DISTANCE_FAIL:
         failures.append(f"the answer is {d:.3g} standard deviations from the best fit of these data ({gap_text}){why}")
-    elif d > DISTANCE_WARN and diagnostics.get("fitted_to", "poses") == "poses":
-        # an answer fitted to other observations (the board's corners) is judged by them, not by
-        # the poses' model; only a gross disagreement fails it
+    elif d > DISTANCE_WARN and not _own_model(diagnostics):
         warnings.append(f"self-check: the answer is {d:.3g} standard deviations from the best fit of these data "
                         f"({gap_text}), so the data support it far less than that fit{why}; solver 'auto' returns "
                         "the best fit")
@@ -335,6 +342,18 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
     _imprecise(figures["std"], model.scale, failures)
     # the rotation residuals of the data's own pairs at the answer, when the model is on them
     return np.linalg.norm(at_answer[:, :3], axis=1) if model.m == problem_pairs(data) else None
+
+
+def _own_model(diagnostics: Mapping[str, Any]) -> bool:
+    """Whether the answer was fitted under another model than this check's best fit (one noise
+    level per residual group, on the poses): to other observations (the board's corners,
+    ``fitted_to``) or with the noise of each pose, camera and marker estimated (``noise_model``
+    "sources"). Its distance from that fit is then a figure, not a warning (a gross disagreement,
+    beyond DISTANCE_FAIL, still fails it): a camera four times noisier than the rest moves the
+    weighted answer several of the one-level fit's sigmas, rightly."""
+    refine = diagnostics.get("refine")
+    model = diagnostics.get("noise_model") or (refine.get("noise_model") if isinstance(refine, Mapping) else None)
+    return diagnostics.get("fitted_to", "poses") != "poses" or model == "sources"
 
 
 def _disagreeing(data: Any) -> bool:

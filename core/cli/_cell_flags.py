@@ -32,6 +32,8 @@ FIELD_FLAGS = {
     "options": "--option", "tz_X": "--tz-X", "tz_Y": "--tz-Y", "camera_scale": "--camera-scale",
     "orthonormalize": "--orthonormalize", "checks": "--no-checks", "frame_ids": "--frame-ids",
     "time_limit": "--time-limit", "outputs.json": "-o", "outputs.yaml": "--yaml", "outputs.report": "--report",
+    "joints": "--joints", "joints.file": "--joints", "joints.unit": "--joints-unit", "joints.topic": "--joints-topic",
+    "arm": "--arm", "outputs.arm": "--arm-out",
 }
 #: settings whose flag is the value itself (a switch): (setting, value) -> flag
 SWITCHES = {("orthonormalize", "true"): "--orthonormalize", ("checks", "false"): "--no-checks"}
@@ -66,7 +68,7 @@ def flag_settings(args: argparse.Namespace, options: dict[str, Any] | None) -> d
                                 backend=args.backend, options=options, tz_X=args.tz_X, tz_Y=args.tz_Y,
                                 camera_scale=args.camera_scale, frame_ids=args.frame_ids, time_limit=args.time_limit,
                                 orthonormalize=True if args.orthonormalize else None,
-                                checks=False if args.no_checks else None)
+                                checks=False if args.no_checks else None, arm=getattr(args, "arm", None))
     sections = {
         "robot": given(file=args.robot, format=args.robot_format, unit=args.robot_unit, columns=args.robot_columns,
                        topic=args.robot_topic),
@@ -76,7 +78,9 @@ def flag_settings(args: argparse.Namespace, options: dict[str, Any] | None) -> d
         "matching": given(method=args.match, max_dt=args.max_dt, time_offset=args.time_offset,
                           max_offset=args.max_offset, max_gap=args.max_gap, min_speed=args.min_speed,
                           max_pairs=args.max_pairs),
-        "outputs": given(json=args.output, yaml=args.yaml, report=args.report),
+        "outputs": given(json=args.output, yaml=args.yaml, report=args.report, arm=getattr(args, "arm_out", None)),
+        "joints": given(file=getattr(args, "joints", None), unit=getattr(args, "joints_unit", None),
+                        topic=getattr(args, "joints_topic", None)),
     }
     tables = getattr(args, "observations", None)
     if tables:  # several cameras and targets: the --camera-* flags describe every table
@@ -107,6 +111,11 @@ def merged(base: dict[str, Any], flags: dict[str, Any]) -> dict[str, Any]:
     if "camera" in flags and "file" in flags["camera"]:
         out.pop("images", None)
         out.pop("observations", None)
+    if "joints" in flags and "file" in flags["joints"]:  # joint readings replace the file's robot poses
+        out.pop("robot", None)
+    if "robot" in flags and "file" in flags["robot"]:
+        out.pop("joints", None)
+        out.pop("arm", None)
     if "observations" in flags:  # the tables replace the file's camera side
         out.pop("camera", None)
         out.pop("images", None)

@@ -22,12 +22,14 @@ from handeye.workflow.solving import time_limit as _time_limit
 
 #: how the library's messages spell a fact or an option (as a Python keyword) -> how this command
 #: line spells it (`in_cli_words`); the library's own "(CLI --flag)" asides are dropped
-CLI_WORDS: tuple[tuple[re.Pattern[str], str], ...] = (
+CLI_WORDS: tuple[tuple[re.Pattern[str], Any], ...] = (
     (re.compile(r"; --tz-X on the command line"), ""),
     (re.compile(r"tz_([XY])=<[^>]*>"), r"--tz-\1 VALUE"),
     (re.compile(r"\btz_([XY])=([-+0-9.eE]+)"), r"--tz-\1 \2"),
     (re.compile(r"(?<!')\btz_([XY])\b(?!')"), r"--tz-\1"),  # not a quoted key ('tz_X' of a cell file)
     (re.compile(r"camera_scale='(known|unknown)'"), r"--camera-scale \1"),
+    (re.compile(r"(?:camera_scale=|--camera-scale )\[([^\]]*)\]"),  # a cell's cameras: cam0,cam2
+     lambda m: "--camera-scale " + ",".join(n.strip(" '\"") for n in m.group(1).split(","))),
     (re.compile(r"\b(noise|loss|outliers|init|estimate)='([^']*)'"), r"--option \1=\2"),
 )
 #: option values read as bools, whatever their case (JSON knows only lower-case true/false)

@@ -4,7 +4,9 @@ go to the problem's validation as well as to the solve (they are not solver opti
 - ``--tz-X``, ``--tz-Y``: a robot whose rotations all share one axis (a SCARA) cannot determine
   the translation of X along that axis; the user gives it (handeye.problems.planar, docs/planar.md);
 - ``--camera-scale unknown``: the camera's translations are known only up to scale (monocular
-  SLAM or structure from motion; handeye.camera_scale, docs/camera-scale.md).
+  SLAM or structure from motion; handeye.camera_scale, docs/camera-scale.md); in a cell of several
+  cameras ``--camera-scale cam0,wrist1`` names the monocular cameras, each with its own scale
+  (`camera_scale_value`).
 """
 
 from __future__ import annotations
@@ -28,11 +30,26 @@ def add_flags(parser: argparse.ArgumentParser, unit: str) -> None:
     parser.add_argument("--tz-Y", dest="tz_Y", type=float, metavar="VALUE",
                         help="axyb, planar robot: Y's translation along the robot's rotation axis instead of --tz-X "
                              "(either fixes both)")
-    parser.add_argument("--camera-scale", dest="camera_scale", choices=("known", "unknown"),
+    parser.add_argument("--camera-scale", dest="camera_scale", type=camera_scale_value,
+                        metavar="known|unknown|CAMERA,...",
                         help="'unknown': the camera's translations are known only up to scale (monocular SLAM, "
                              "structure from motion); the scale is estimated with X (and Y) by auto, refine and "
-                             "so3-sdp; default known (the camera's translations in the robot's unit); "
-                             "docs/camera-scale.md")
+                             "so3-sdp; default known (the camera's translations in the robot's unit); several "
+                             "cameras (axyb-multi): the monocular cameras' names, comma separated (cam0,wrist1), "
+                             "each with its own scale; docs/camera-scale.md")
+
+
+def camera_scale_value(text: str) -> str | list[str]:
+    """``--camera-scale``'s value: ``known``, ``unknown``, or camera names separated by commas
+    (a list)."""
+    text = text.strip()
+    if text in ("known", "unknown"):
+        return text
+    names = [name.strip() for name in text.split(",")]
+    if not all(names):
+        raise argparse.ArgumentTypeError(f"expected known, unknown or camera names separated by commas (cam0,wrist1), "
+                                         f"got {text!r}")
+    return names
 
 
 def take(args: argparse.Namespace, options: dict[str, Any]) -> dict[str, Any]:

@@ -16,6 +16,12 @@ FILE`` (a table: station, camera, target, the camera's pose of the target) or ``
 CAMERA=FILE`` per camera, beside ``--robot`` (one pose per station, matched by its name column);
 every X and Y is printed, exported and reported by its camera's or target's name.
 
+A kinematic calibration (``--problem axyb-kinematic``, the default with joints; docs/kinematic.md):
+``--joints FILE --joints-unit deg|rad`` (a table with a header: name and/or t, one column per
+joint; or a ROS bag with ``--joints-topic``) and ``--arm DH.yaml`` (the nominal standard DH table,
+docs/formats.md) instead of ``--robot``: X, Y and the arm's identifiable DH corrections with their
+1-sigma are printed, and ``--arm-out FILE`` writes the corrected table for the controller.
+
 Board images instead of a camera file: ``--images DIR --board SPEC [--intrinsics FILE]`` detects
 the board in each image, calibrates the camera from the same images without ``--intrinsics``,
 solves the board poses and pairs them with the robot poses (``--match index|name|time``); an
@@ -105,6 +111,7 @@ from handeye.workflow.cell import (
     Matching,
 )
 from handeye.workflow.frames import equation_of, frame_names, unknown_of
+from handeye.workflow.joint_cell import kinematics_lines
 from handeye.workflow.quality_report import check_new_report, report_files
 from handeye.workflow.result import CalibrationResult
 from handeye.workflow.solving import UNUSABLE
@@ -149,6 +156,21 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                              "CAMERA= one camera's file (station, target, pose); repeatable, instead of --camera; "
                              "--camera-format/-unit/-poses/-columns apply to every table (docs/calibrate.md, "
                              "'Several cameras and targets')")
+    parser.add_argument("--joints", metavar="FILE",
+                        help="a kinematic calibration (--problem axyb-kinematic, the default with joints; "
+                             "docs/kinematic.md): the robot's joint readings, one row per station, instead of --robot: "
+                             "a table with a header (name and/or t column, one column per joint; --joints-unit) or a "
+                             "ROS bag (--joints-topic, sensor_msgs/JointState); needs --arm")
+    parser.add_argument("--joints-unit", choices=("deg", "rad"), help="--joints: the angle unit of the table "
+                                                                       "(required for a table; bags hold rad)")
+    parser.add_argument("--joints-topic", metavar="TOPIC", help="--joints is a ROS bag: its JointState topic")
+    parser.add_argument("--arm", metavar="DH.yaml",
+                        help="--joints: the arm's nominal standard DH table as YAML (docs/formats.md, 'Arm models'), "
+                             "or a URDF (.urdf, its revolute chain; pip install 'handeye[urdf]'); its length unit is "
+                             "the answer's")
+    parser.add_argument("--arm-out", metavar="FILE",
+                        help="--joints: write the DH table of the answer (the corrected one) as an arm file, for the "
+                             "robot controller (an existing file is kept unless --force)")
     parser.add_argument("--images", metavar="DIR",
                         help="a folder of board images, one per station (instead of --camera/--camera-format): the "
                              "board is detected in each and its pose solved; paired with the robot poses by --match "
@@ -232,9 +254,10 @@ def cell_of(args: argparse.Namespace) -> Cell:
     or the flags alone (paths relative to the working folder)."""
     flags = flag_settings(args, parse_key_values(args.option) if args.option else None)
     if args.config is None:
-        if ("robot" not in flags and "observations" not in flags) or "setup" not in flags:
+        if ("robot" not in flags and "observations" not in flags and "joints" not in flags) or "setup" not in flags:
             missing = " and ".join(f for f, k in (("--robot FILE", "robot"), ("--setup", "setup"))
-                                   if k not in flags and not (k == "robot" and "observations" in flags))
+                                   if k not in flags and not (k == "robot" and ("observations" in flags
+                                                                                or "joints" in flags)))
             raise InputError(f"{missing} {'are' if ' and ' in missing else 'is'} required (or --config CELL.yaml, a "
                              "cell file that gives them)")
         return Cell.from_dict(flags)
@@ -249,7 +272,8 @@ def run(args: argparse.Namespace) -> int:
                   *(b for b in (cell.targets or {}).values() if isinstance(b, str))]
     else:
         inputs = [cell.robot.file, cell.images.folder if cell.images else cell.camera.file,
-                  cell.images.intrinsics if cell.images else None, cell.images.board if cell.images else None]
+                  cell.images.intrinsics if cell.images else None, cell.images.board if cell.images else None,
+                  *((cell.joints.file, cell.arm) if cell.joints is not None else ())]
     if args.write_config:
         check_outputs_apart([("--write-config", args.write_config)], inputs)
         check_new_file("--write-config", args.write_config, args.force)
@@ -257,12 +281,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote {cell.to_file(args.write_config, force=args.force)}")
         return 0
     out = cell.outputs
-    outputs = [("-o", out.json), ("--yaml", out.yaml)]
+    outputs = [("-o", out.json), ("--yaml", out.yaml), ("--arm-out", out.arm)]
     if out.report:
         check_new_report(out.report, args.force)
         outputs += [("--report", p) for p in report_files(out.report)]
     check_outputs_apart(outputs, inputs)
-    for flag, path in (("-o", out.json), ("--yaml", out.yaml)):
+    for flag, path in (("-o", out.json), ("--yaml", out.yaml), ("--arm-out", out.arm)):
         check_new_file(flag, path, args.force)
 
     log_to = sys.stderr if args.json else sys.stdout
@@ -275,6 +299,8 @@ def run(args: argparse.Namespace) -> int:
     r = result.to_dict()
     r["warnings"] = [cell_words(w) for w in r["warnings"]]  # the cell's settings as flags; else as the library says
     written = [] if not result.usable else _write(r, out.json, out.yaml, args.force)
+    if result.usable and out.arm:  # a kinematic calibration's corrected DH table
+        written.append(str(write_text(out.arm, result.arm_yaml(), force=args.force, flag="--arm-out")))
     if out.report:
         written.append(str(result.write_report(out.report, force=args.force, words=in_cli_words,
                                                command=getattr(args, "command_line", "handeye calibrate"))[0]))
@@ -366,7 +392,10 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
         lines += [f"  {row['X']:<14}{row['Y']:<14}{row['observations']:>5}{row['rotation_rms_deg']:>15.4g}"
                   f"{row['rotation_max_deg']:>10.4g}{row['translation_rms']:>18.4g}{row['translation_max']:>11.4g}"
                   for row in per_pair]
+    lines += _scale_lines(r, unit)
     lines += noise_lines(diagnostics, unit)
+    if "kinematics" in r:  # joint readings and the arm's DH table: the corrections
+        lines += kinematics_lines(r["kinematics"])
     ros = r["ros"]
     if ros is not None and "transforms" in ros:
         lines += ["", "ROS 2 (every pose by name, metres):", *(f"  {t['command']}" for t in ros["transforms"])]
@@ -382,3 +411,18 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
         lines.append("note: status uncertified: a valid answer, but the solver could not prove it globally optimal")
     lines += [f"warning: {w}" for w in r["warnings"]]
     return "\n".join(lines)
+
+
+def _scale_lines(r: dict[str, Any], unit: str) -> list[str]:
+    """The camera scales estimated (``camera_scale``: one camera's; ``camera_scales``: each
+    monocular camera's of a cell), with their 1-sigma."""
+    sigma = lambda std: "" if std is None else f" (1-sigma {std:.2g})"  # noqa: E731
+    if "camera_scale" in r:
+        s = r["camera_scale"]
+        return ["", f"camera scale s = {s['scale']:.6g}{sigma(s['std'])}: the camera's translations times s are in "
+                    f"{unit} (the residuals above use them)"]
+    if "camera_scales" not in r:
+        return []
+    return ["", f"camera scales (each monocular camera's translations times its s are in {unit}; the residuals "
+                "above use them):",
+            *(f"  {name:<14} s = {s['scale']:.6g}{sigma(s['std'])}" for name, s in r["camera_scales"].items())]

@@ -78,7 +78,12 @@ from handeye.workflow.quality_report import (
     report_files,
     write_report,
 )
-from handeye.workflow.solving import DEFAULT_SOLVERS, UNUSABLE, default_solver  # noqa: F401
+from handeye.workflow.solving import (  # noqa: F401
+    DEFAULT_SOLVERS,
+    UNUSABLE,
+    default_solver,
+    measured_data,
+)
 
 NAME = "solve"
 #: the residuals are listed one by one up to this many pairs; beyond, the LISTED_LARGEST largest
@@ -143,8 +148,7 @@ def run(args: argparse.Namespace) -> int:
     solution = solve(args.problem, solver=solver, backend=args.backend, time_limit=time_limit(args, args.problem, solver),
                      **data, **facts, **options)
     problem = get_registry().problem(args.problem)
-    measured = _facts.in_robot_unit(data, facts, solution.diagnostics)
-    residuals = problem.residuals(problem.validate(**measured, **facts), solution.unknowns)
+    residuals = problem.residuals(measured_data(problem, solution, data, facts), solution.unknowns)
     errors = problem.errors(solution.unknowns, truth) if truth is not None else None
     checks = None
     if pose_file.poses is not None and not args.no_checks and solution.status not in UNUSABLE:
@@ -271,6 +275,12 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
         sigma = "" if std is None else f" (1-sigma {std:.2g})"
         lines += ["", (f"camera scale s = {diagnostics['camera_scale']:.6g}{sigma}: the camera's translations times s "
                        "are in the robot's unit (the residuals below use them)")]
+    if diagnostics.get("camera_scales"):  # a cell's monocular cameras, each its own scale
+        stds = diagnostics.get("camera_scales_std") or {}
+        lines += ["", "camera scales (each monocular camera's translations times its s are in the robot's unit; the "
+                      "residuals below use them):"]
+        lines += [f"  {name:<14} s = {s:.6g}" + ("" if stds.get(name) is None else f" (1-sigma {stds[name]:.2g})")
+                  for name, s in diagnostics["camera_scales"].items()]
     if not frames:
         lines += ["", ("(no setup given: docs/conventions.md says which frames the unknowns are for "
                        "eye-in-hand and eye-to-hand data)")]

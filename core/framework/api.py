@@ -53,7 +53,8 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
 
     Returns
     -------
-    Solution with the unknowns as exact SE(3) (4, 4) arrays, status, timing and diagnostics.
+    Solution with the unknowns as exact SE(3) (4, 4) arrays, status, timing and diagnostics, and
+    the validated data it was solved from (``Solution.data``, for the residuals).
 
     Raises
     ------
@@ -157,7 +158,7 @@ def _host(registry: Any, problem: str, solver: str, spec: Any, backend: str, dat
     unknowns, status, diagnostics = _checked_output(output, spec_problem.unknowns, solver, sizes)
     if not self_check:
         return Solution(unknowns=unknowns, problem=problem, solver=solver, backend=backend, status=status,
-                        seconds=seconds, diagnostics=diagnostics)
+                        seconds=seconds, diagnostics=diagnostics, data=data)
     with _problem_faults(registry, problem):
         weak = spec_problem.diagnose(data)
     warnings = list(weak.pop("warnings", [])) + list(diagnostics.get("warnings", []))
@@ -183,7 +184,7 @@ def _host(registry: Any, problem: str, solver: str, spec: Any, backend: str, dat
     diagnostics["warnings"] = warnings
     diagnostics.setdefault("data", weak)
     return Solution(unknowns=unknowns, problem=problem, solver=solver, backend=backend, status=status,
-                    seconds=seconds, diagnostics=diagnostics)
+                    seconds=seconds, diagnostics=diagnostics, data=data)
 
 
 def _who(registry: Any, solver: str, problem: str, builtin: bool) -> str:

@@ -9,9 +9,11 @@ gets every shared tool with no edit to handeye (docs/plugins.md, "A problem plug
 
 - the engine's least-squares model of its data (`Problem.pose_model`): ``refine`` and ``auto``
   serve every problem that has one, started from the problem's `Problem.starts`;
-- the self-check's model (`Problem.check_model`) and the noise it expects;
+- the self-check's model (`Problem.check_model`), the noise it expects and the robot's pose at
+  each of its rows (`Problem.configurations`);
 - how its unknowns read in a cell (`Problem.frames`, `Problem.published`), for printing, exports
-  and the report, and how a cell's recorded stations become its data (`Problem.station_reader`);
+  and the report, and how a cell's recorded stations become its data (`Problem.station_reader`;
+  joint readings: `Problem.from_joints`);
 - the settings of studies and benchmarks (`Problem.study_noise`, `Problem.protocols`,
   `Problem.bench`) and which setup mistakes the plausibility check may try (`Problem.mistakes`);
 - unknowns that are stacks of poses (`Problem.stack_sizes`), checked by the host pose by pose;
@@ -183,6 +185,26 @@ class ObservationData:
     names: Mapping[str, tuple[str, ...]]
 
 
+@dataclasses.dataclass(frozen=True)
+class JointStations:
+    """A cell's stations with the robot's joint readings, so that a problem of the arm's
+    kinematics makes its data from them (`Problem.from_joints`).
+
+    robot: (m, 4, 4) T_base_flange, the nominal forward kinematics of `q` (as the controller
+    reports it); camera_poses: (m, 4, 4) T_cam_target as ``cv2.solvePnP`` gives it, in the arm's
+    length unit; q: (m, n) joint readings, rad, in the order of `dh`; dh: (n, 4) the arm's nominal
+    standard DH table, columns a, alpha, d, offset (lengths in the arm's unit, angles in rad).
+    """
+
+    robot: np.ndarray
+    camera_poses: np.ndarray
+    q: np.ndarray
+    dh: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.q)
+
+
 #: the setup mistakes `handeye.plausibility` knows how to undo and try (`Problem.mistakes`)
 MISTAKES = ("camera-inverted", "robot-inverted", "other-setup", "shifted", "camera-unit", "euler")
 
@@ -274,6 +296,13 @@ class Problem(ABC):
         expressed in, for naming a poorly determined direction; empty when not known."""
         return {}
 
+    def configurations(self, data: Any) -> np.ndarray | None:
+        """The robot's pose (T_base_flange, or its inverse) at each row of the model
+        `check_model` gives, (m, 4, 4), for the self-check's test of residuals that follow the
+        arm's configuration (systematic robot errors, `handeye.checks.systematic`); None (the
+        default): the problem's rows are not stations of one robot, the test is skipped."""
+        return None
+
     def pose_model(self, data: Any) -> Any:
         """The shared least-squares engine's model of validated `data` (a
         `handeye.estimation.nlls.PoseModel`, its unknowns in the order `flat_unknowns` gives),
@@ -313,6 +342,17 @@ class Problem(ABC):
     def reads_observations(self) -> bool:
         """Whether the problem is made from a table of observations (`from_observations`)."""
         return type(self).from_observations is not Problem.from_observations
+
+    def from_joints(self, stations: JointStations, setup: str) -> dict[str, Any] | None:
+        """The problem's data (the keyword arguments of `handeye.solve`) made from a cell's
+        stations with the robot's joint readings and nominal DH table (`JointStations`) in
+        `setup`; None (the default): the problem is not made from joint readings."""
+        return None
+
+    @property
+    def reads_joints(self) -> bool:
+        """Whether the problem is made from joint readings (`from_joints`)."""
+        return type(self).from_joints is not Problem.from_joints
 
     def residual_table(self, data: Any, unknowns: Poses) -> list[dict[str, Any]]:
         """Residuals per pair of poses the observations tie (e.g. one camera and one marker): rows

@@ -62,6 +62,10 @@ class Solution:
     seconds : wall time of the solver itself (validation excluded).
     diagnostics : dict of solver-specific figures (cost, iterations, certificate, ...) and
         ``warnings`` (list of str) about weak data or numerical trouble.
+    data : the problem's validated data the solver ran on (what ``Problem.validate`` returned
+        for the data given to `handeye.solve`, or the data given to ``run_registered``), so that
+        a caller measuring residuals need not validate the data again; None where no solve made
+        it. Not compared, not shown, not in `to_dict`.
     """
 
     unknowns: Mapping[str, np.ndarray]
@@ -71,6 +75,7 @@ class Solution:
     status: Status
     seconds: float
     diagnostics: Mapping[str, Any] = field(default_factory=dict)
+    data: Any = field(default=None, compare=False, repr=False)
 
     def __getattr__(self, name: str) -> np.ndarray:
         unknowns = self.__dict__.get("unknowns", {})

@@ -82,16 +82,8 @@ def read_bag_poses(path: str | Path, topic: str) -> PoseStack:
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
-    p = Path(path)
-    src = repr(str(p))
-    check_not_looping(p, "bag")
-    if not p.exists():
-        raise InputError(f"bag not found: {src}")
+    p, src, paths = _bag(path)
     name, frames = parse_topic(topic)
-    paths = [p.parent] if p.suffix.lower() in (".db3", ".mcap") and (p.parent / "metadata.yaml").is_file() else [p]
-    why = _truncation(p)
-    if why:
-        raise InputError(f"{src} is truncated: {why}; record or copy the bag again")
     try:
         with AnyReader(paths, default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
             available = {c.topic: c.msgtype for c in reader.connections}
@@ -126,6 +118,72 @@ def read_bag_poses(path: str | Path, topic: str) -> PoseStack:
     stamps.setflags(write=False)
     T.setflags(write=False)
     return PoseStack(T, "m", "xyz-quat-xyzw", None, stamps, None, source)
+
+
+def _bag(path: str | Path) -> tuple[Path, str, list[Path]]:
+    """(the bag's path, its name for messages, what rosbags' reader opens: a ROS 2 bag's folder
+    when given its .db3/.mcap file beside metadata.yaml), after the checks every reader makes:
+    InputError for a missing, looping or truncated bag."""
+    p = Path(path)
+    src = repr(str(p))
+    check_not_looping(p, "bag")
+    if not p.exists():
+        raise InputError(f"bag not found: {src}")
+    why = _truncation(p)
+    if why:
+        raise InputError(f"{src} is truncated: {why}; record or copy the bag again")
+    paths = [p.parent] if p.suffix.lower() in (".db3", ".mcap") and (p.parent / "metadata.yaml").is_file() else [p]
+    return p, src, paths
+
+
+JOINT_STATE = "sensor_msgs/msg/JointState"
+
+
+def read_bag_joints(path: str | Path, topic: str) -> Any:
+    """The joint readings of a ``sensor_msgs/JointState`` `topic` in the bag at `path`: a
+    (q (m, n) radians, the joints' names ordered as the first message names them, the header
+    stamps (m,) seconds), sorted by stamp, for `handeye.io.joint_files.read_joints`. Every message must name the same joints
+    (in any order) with a position each."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    p, src, paths = _bag(path)
+    name = str(topic).strip()
+    try:
+        with AnyReader(paths, default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+            available = {c.topic: c.msgtype for c in reader.connections}
+            if available.get(name) != JOINT_STATE:
+                what = f"is a {available[name]}" if name in available else "is not in it"
+                raise InputError(f"{src}: topic {name!r} {what}; the joint readings are a {JOINT_STATE} topic; the bag "
+                                 f"has {_listing(available)}")
+            conns = [c for c in reader.connections if c.topic == name]
+            messages = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=conns)]
+    except InputError:
+        raise
+    except _damaged_bag_errors() as exc:
+        reason = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise InputError(f"{src} could not be read as a ROS bag (damaged?): {reason}") from None
+    source = f"{src} {name}"
+    if not messages:
+        raise InputError(f"{source}: no joint readings (the topic has no messages)")
+    joints = tuple(str(j) for j in messages[0].name)
+    if len(joints) < 2 or len(set(joints)) < len(joints):
+        raise InputError(f"{source}: message 1 names the joints {list(joints)}; expected two or more distinct names")
+    q = np.empty((len(messages), len(joints)))
+    for k, m in enumerate(messages):
+        names, position = [str(j) for j in m.name], np.asarray(m.position, dtype=float)
+        if sorted(names) != sorted(joints) or len(position) != len(names):
+            raise InputError(f"{source}: message {k + 1} names joints {names} with {len(position)} positions; every "
+                             f"message must give a position to each of {list(joints)}")
+        q[k] = position[[names.index(j) for j in joints]]
+    if not np.all(np.isfinite(q)):
+        raise InputError(f"{source}: a joint position is NaN or inf")
+    stamps = np.array([_stamp(m.header) for m in messages], dtype=float)
+    order = np.argsort(stamps, kind="stable")
+    q, stamps = q[order], stamps[order]
+    q.setflags(write=False)
+    stamps.setflags(write=False)
+    return q, joints, stamps
 
 
 # ----------------------------------------------------------------------------- damaged bags

@@ -46,9 +46,12 @@ def find_circles(gray: np.ndarray, board: Board) -> Detection:
     to one already searched neither), so an image costs at most 2 x 2 findCirclesGrid calls (two
     detectors, a non-square grid in both orientations) on at most `blob_limit` candidates. A grid
     counts only if its centres are distinct and its blobs alike in size (OpenCV can return a grid
-    with a point twice or a speck in it)."""
+    with a point twice or a speck in it). Each detector's grid is a candidate (the first returned,
+    a second one as its `Detection.alternatives`): their blob centroids differ by hundredths of a
+    pixel, and `handeye.vision.best_corners` keeps the one fitting the camera best."""
     reasons: list[str] = []
     searched: list[np.ndarray] = []
+    grids: list[Detection] = []
     for permissive, detector in enumerate(_blob_detectors(gray.shape)):
         if permissive and reasons and reasons[-1].startswith("too cluttered"):
             break  # the permissive detector finds at least the strict one's blobs: more clutter
@@ -79,7 +82,10 @@ def find_circles(gray: np.ndarray, board: Board) -> Detection:
                 reasons.append(str(error))
                 continue
         points = _without_perspective_bias(grid.reshape(-1, 2), board)
-        return Detection.of(board, np.arange(board.point_count), points)
+        grids.append(Detection.of(board, np.arange(board.point_count), points,
+                                  ("strict", "permissive")[permissive] + " blobs"))
+    if grids:
+        return grids[0].with_alternatives(tuple(grids[1:]))
     raise BoardNotFound(_not_found(board, reasons))
 
 

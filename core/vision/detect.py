@@ -2,15 +2,22 @@
 board-frame coordinates they have.
 
 `detect(image, board)` returns a `Detection` (ids into ``board.object_points()``, pixels, board
-points) or raises `BoardNotFound` with a one-line reason. One OpenCV detector per kind:
+points) or raises `BoardNotFound` with a one-line reason. Where a kind has several detectors or
+flag sets, all are run and the detection carries the others as `Detection.alternatives`, the first
+in the order below; with `camera` the one fitting it best is returned, and an image set keeps per
+image the one fitting its calibrated camera best (`handeye.vision.best_corners`, which says why):
 
-- chessboard: ``cv2.findChessboardCornersSB`` (falls back to ``findChessboardCorners`` +
-  ``cornerSubPix``). The order is OpenCV's; on a board with `Board.orientation_ambiguous` two images
-  may number it 180 deg apart, which this module reports (the flag) but does not guess away.
-- charuco: ``cv2.aruco.CharucoDetector`` (ids are ChArUco corner ids; sub-pixel by OpenCV).
+- chessboard: ``cornerSubPix`` on the corners of the first flag set of
+  ``cv2.findChessboardCornersSB`` that finds the board (else ``findChessboardCorners``), then SB's
+  own corners with each of `SB_FLAG_SETS` that finds it (``CALIB_CB_EXHAUSTIVE`` only when none
+  did). The order is OpenCV's; on a board with `Board.orientation_ambiguous` two images may number
+  it 180 deg apart, which this module reports (the flag) but does not guess away.
+- charuco: ``cv2.aruco.CharucoDetector`` (ids are ChArUco corner ids; sub-pixel by OpenCV) with the
+  markers refined by ``CORNER_REFINE_SUBPIX``, then by ``CORNER_REFINE_CONTOUR``, then OpenCV's
+  corners refined again by ``cornerSubPix`` in a small window (`CHARUCO_WINDOW`).
 - circles / circlegrid: ``cv2.findCirclesGrid`` on the blobs of a detector sized for the image, at
   most `handeye.vision.circlegrid.blob_limit` of them (more: "too cluttered"), which also orders a
-  circlegrid from its big dot.
+  circlegrid from its big dot; the grid of each blob detector that finds one is a candidate.
 - aprilgrid: ``cv2.aruco.ArucoDetector`` with tag36h11 and Kalibr's 2-bit border, corners refined
   by ``cornerSubPix`` (`handeye.vision.aprilgrid`).
 """
@@ -23,19 +30,36 @@ import numpy as np
 from handeye.framework.errors import InputError
 from handeye.vision.boards import Board, parse_board
 from handeye.vision.detection import BoardNotFound, Detection
+from handeye.vision.observations import Camera
 
 #: fewest ChArUco corners a detection may have unless the caller says otherwise (a homography and
 #: a pose need 4; 6 leaves a margin against a wrong interpolation)
 CHARUCO_MIN_CORNERS = 6
 #: fewest aprilgrid corners by default (two tags)
 APRILGRID_MIN_CORNERS = 8
+#: findChessboardCornersSB flag sets, in order: on 2 x 18 real 640 x 480 images (OpenCV 4.14) alone
+#: ACCURACY calibrated best (0.114 / 0.110 px RMS), NORMALIZE | ACCURACY 0.137, none 0.141, NORMALIZE
+#: 0.166-0.173; ACCURACY costs ~250 ms an image there, the others ~60 ms. Any of them can fail where
+#: another finds the board.
+_N, _A = cv2.CALIB_CB_NORMALIZE_IMAGE, cv2.CALIB_CB_ACCURACY
+SB_FLAG_SETS = (("SB accuracy", _A), ("SB normalize accuracy", _N | _A), ("SB", 0), ("SB normalize", _N))
+#: tried only when no flag set of SB_FLAG_SETS finds the board (it searches harder and, on real
+#: images, once numbered a board wrongly)
+SB_EXHAUSTIVE = ("SB exhaustive", _N | _A | cv2.CALIB_CB_EXHAUSTIVE)
+#: cornerSubPix half window on ChArUco corners, as a fraction of a square's side in the image (2 px
+#: at least): the square's corner must stay outside the marker. On the real ChArUco set 0.1 gave
+#: 0.516 px calibration RMS against OpenCV's 0.525, 0.2 0.533, 0.3 0.655
+CHARUCO_WINDOW = 0.1
 
 
-def detect(image: np.ndarray, board: Board | str, *, min_corners: int | None = None) -> Detection:
+def detect(image: np.ndarray, board: Board | str, *, min_corners: int | None = None,
+           camera: Camera | None = None) -> Detection:
     """The points of `board` (a Board or a spec for parse_board) in `image` (uint8, gray or BGR/BGRA).
     `min_corners`: fewest points accepted (default: all of them for chessboard and circle boards,
-    CHARUCO_MIN_CORNERS for charuco, APRILGRID_MIN_CORNERS for aprilgrid). Raises BoardNotFound
-    when the board is absent, too little of it is seen or its orientation cannot be told."""
+    CHARUCO_MIN_CORNERS for charuco, APRILGRID_MIN_CORNERS for aprilgrid). `camera`: intrinsics to
+    judge the candidates with (`handeye.vision.best_corners.pick`); without, the first candidate,
+    the others as its `alternatives`. Raises BoardNotFound when the board is absent, too little of
+    it is seen or its orientation cannot be told."""
     board = parse_board(board) if isinstance(board, str) else board
     if not isinstance(board, Board):
         raise InputError(f"board must be a handeye.vision.boards.Board or a spec text, got {type(board).__name__}")
@@ -55,6 +79,11 @@ def detect(image: np.ndarray, board: Board | str, *, min_corners: int | None = N
         found = find_aprilgrid(gray, board)
     if len(found) < needed:
         raise BoardNotFound(f"only {len(found)} {_point_name(board)} found, need {needed} ({board.describe()})")
+    found = found.with_alternatives(tuple(a for a in found.alternatives if len(a) >= needed))
+    if camera is not None:
+        from handeye.vision.best_corners import pick
+
+        return pick(found, camera)
     return found
 
 
@@ -96,17 +125,29 @@ def _point_name(board: Board) -> str:
 
 # -- chessboard --------------------------------------------------------------------------------
 def _chessboard(gray: np.ndarray, board: Board) -> Detection:
-    size = (board.cols, board.rows)
-    flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_ACCURACY
-    found, corners = cv2.findChessboardCornersSB(gray, size, flags=flags)
-    if not found:
+    """cornerSubPix on the first corners found, then SB's own corners of each flag set that finds
+    the board (module docstring); all in the canonical order."""
+    size, ids = (board.cols, board.rows), np.arange(board.point_count)
+    sb = []
+    for method, flags in SB_FLAG_SETS:
+        found, corners = cv2.findChessboardCornersSB(gray, size, flags=flags)
+        if found:
+            sb.append(Detection.of(board, ids, _canonical_order(gray, corners.reshape(-1, 2), board), method))
+    if not sb:
+        found, corners = cv2.findChessboardCornersSB(gray, size, flags=SB_EXHAUSTIVE[1])
+        if found:
+            sb.append(Detection.of(board, ids, _canonical_order(gray, corners.reshape(-1, 2), board), SB_EXHAUSTIVE[0]))
+    if sb:
+        start, method = sb[0].image_points, "cornerSubPix on " + sb[0].method
+    else:
         flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
         found, corners = cv2.findChessboardCorners(gray, size, flags=flags)
         if not found:
             raise BoardNotFound(f"no {board.cols}x{board.rows} chessboard (inner corners) in the image; check the "
                                 "board size (inner corners, not squares), focus and that the whole board is visible")
-    points = _refine_corners(gray, _canonical_order(gray, corners.reshape(-1, 2), board), board)
-    return Detection.of(board, np.arange(len(points)), points)
+        start, method = _canonical_order(gray, corners.reshape(-1, 2), board), "cornerSubPix on classic"
+    refined = Detection.of(board, ids, _refine_corners(gray, start, board), method)
+    return refined.with_alternatives(tuple(sb))
 
 
 def _canonical_order(gray: np.ndarray, corners: np.ndarray, board: Board) -> np.ndarray:
@@ -171,4 +212,34 @@ def _charuco(gray: np.ndarray, board: Board) -> Detection:
     if ids is None or len(ids) == 0:
         raise BoardNotFound(f"{len(marker_ids)} ArUco markers but no ChArUco corner found ({board.describe()}); "
                             "check the board size and marker size, or the legacy flag")
-    return Detection.of(board, ids.ravel(), corners.reshape(-1, 2))
+    first = Detection.of(board, ids.ravel(), corners.reshape(-1, 2), "CharucoDetector, markers SUBPIX")
+    others = []
+    detector_parameters.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_CONTOUR
+    corners, ids, _, _ = cv2.aruco.CharucoDetector(cv_board, charuco_parameters, detector_parameters).detectBoard(gray)
+    if ids is not None and len(ids) > 0:
+        others.append(Detection.of(board, ids.ravel(), corners.reshape(-1, 2), "CharucoDetector, markers CONTOUR"))
+    if len(first) >= 4:
+        others.append(_charuco_subpix(gray, first, board))
+    return first.with_alternatives(tuple(others))
+
+
+def _charuco_subpix(gray: np.ndarray, found: Detection, board: Board) -> Detection:
+    """`found` refined by cornerSubPix with a half window of `CHARUCO_WINDOW` of the smallest
+    square side the homography of its points gives (2 px at least)."""
+    H, _ = cv2.findHomography(found.object_points[:, :2], found.image_points, 0)
+    half = 2
+    if H is not None:
+        xy = found.object_points[:, :2]
+        here = _homography(H, xy)
+        sides = [np.linalg.norm(_homography(H, xy + step) - here, axis=1)
+                 for step in ([board.spacing, 0.0], [0.0, board.spacing])]
+        half = int(np.clip(CHARUCO_WINDOW * min(s.min() for s in sides), 2, 11))
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-4)
+    refined = cv2.cornerSubPix(gray, found.image_points.astype(np.float32).reshape(-1, 1, 2), (half, half), (-1, -1),
+                               criteria)
+    return Detection.of(board, found.ids, refined.reshape(-1, 2), "CharucoDetector + cornerSubPix")
+
+
+def _homography(H: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    p = np.column_stack([xy, np.ones(len(xy))]) @ H.T
+    return p[:, :2] / p[:, 2:]

@@ -21,11 +21,18 @@ class BoardNotFound(InputError):
 @dataclasses.dataclass(frozen=True)
 class Detection:
     """Points of `board` found in one image: ids (n,) into board.object_points(), image_points
-    (n, 2) float64 sub-pixel pixels, object_points (n, 3) = board.object_points()[ids]. Read-only."""
+    (n, 2) float64 sub-pixel pixels, object_points (n, 3) = board.object_points()[ids]. Read-only.
+
+    method: which detector / flag set found these points ("" when not said). alternatives: the
+    other detections of the same board in the same image (other detectors or flag sets), in the
+    detector's order of preference, each without alternatives of its own; a caller that can judge
+    them (`handeye.vision.best_corners`, with intrinsics) keeps the one that fits best."""
 
     ids: np.ndarray
     image_points: np.ndarray
     object_points: np.ndarray
+    method: str = dataclasses.field(default="", compare=False)
+    alternatives: tuple[Detection, ...] = dataclasses.field(default=(), compare=False, repr=False)
 
     def __post_init__(self) -> None:
         ids = np.asarray(self.ids, dtype=np.int64).ravel()
@@ -42,9 +49,18 @@ class Detection:
         return len(self.ids)
 
     @classmethod
-    def of(cls, board: Board, ids: np.ndarray, image_points: np.ndarray) -> Detection:
+    def of(cls, board: Board, ids: np.ndarray, image_points: np.ndarray, method: str = "") -> Detection:
         """The detection of `board` with these ids and pixels, sorted by id."""
         ids = np.asarray(ids, dtype=np.int64).ravel()
         order = np.argsort(ids, kind="stable")
         points = np.asarray(image_points, dtype=np.float64).reshape(-1, 2)[order]
-        return cls(ids[order], points, board.object_points()[ids[order]])
+        return cls(ids[order], points, board.object_points()[ids[order]], method)
+
+    def candidates(self) -> tuple[Detection, ...]:
+        """This detection and its alternatives, in the detector's order of preference (each
+        without alternatives)."""
+        return (dataclasses.replace(self, alternatives=()), *self.alternatives)
+
+    def with_alternatives(self, others: tuple[Detection, ...]) -> Detection:
+        """This detection carrying `others` (their own alternatives dropped) as its alternatives."""
+        return dataclasses.replace(self, alternatives=tuple(dataclasses.replace(o, alternatives=()) for o in others))

@@ -15,6 +15,9 @@ which robot pose, the board's pose in each kept image, and why the others were d
    own range) and detects the board; unreadable images, images of another size than most
    (`_majority_size`) and images where the board is not found are dropped with their robot pose
    and the reason;
+   where the detector offers several detections of an image (OpenCV detectors or flag sets), the
+   one fitting the camera best is kept (`handeye.vision.best_corners.choose`: with the given
+   intrinsics, or with intrinsics calibrated from the images);
 4. without intrinsics, calibrates the camera from the detections (`handeye.vision.intrinsics`);
 5. solves each board pose (`handeye.vision.camera_poses`) in the robot's length unit (board
    lengths converted) and drops images whose reprojection error is far above the others'
@@ -44,6 +47,7 @@ from handeye.framework.errors import InputError
 from handeye.io.input_files import load_json, load_yaml, number
 from handeye.io.pose_readers import PoseStack, natural_key, read_pose_dir  # noqa: F401 (re-exported)
 from handeye.streams.station_matching import default_max_dt, match_by_time
+from handeye.vision.best_corners import choose
 from handeye.vision.boards import UNITS, Board
 from handeye.vision.camera_poses import board_pose, flag_outliers
 from handeye.vision.intrinsics import CameraCalibration, calibrate_camera
@@ -478,6 +482,8 @@ def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, ca
         warnings.append(f"the board ({board.describe()}) looks the same after a half turn (cols + rows even): "
                         "its corner order may flip 180 deg between images, which spoils the board poses; prefer "
                         "cols + rows odd or a ChArUco board")
+    for k, detection in zip(keep, choose([found[k] for k in keep], camera, size).detections):
+        found[k] = detection
     scale = UNITS[board.unit] / UNITS[unit]
     calibration = None
     while True:

@@ -42,7 +42,7 @@ from handeye.workflow.solving import (
     default_solver,
     image_data,
     image_solver,
-    in_robot_unit,
+    measured_data,
     pose_based_instead,
     time_limit,
 )
@@ -59,6 +59,10 @@ def calibrate(cell: Cell, *, log: Log | None = None) -> CalibrationResult:
     if not isinstance(cell, Cell):
         raise InputError(f"calibrate expects a handeye.Cell (e.g. handeye.Cell.from_file('cell.yaml')), got "
                          f"{type(cell).__name__}")
+    if cell.joints is not None:  # joint readings and the arm's DH table: a kinematic calibration
+        from handeye.workflow.joint_cell import calibrate_joints
+
+        return calibrate_joints(cell, log)
     if cell.observations is not None:  # several cameras and targets: tables of observations
         from handeye.workflow.observation_cell import calibrate_observations
 
@@ -96,8 +100,7 @@ def calibrate(cell: Cell, *, log: Log | None = None) -> CalibrationResult:
         warnings.append(instead)
 
     problem = get_registry().problem(cell.problem)
-    measured = in_robot_unit(pose_file.data, facts, solution.diagnostics)
-    residuals = problem.residuals(problem.validate(**measured, **facts), solution.unknowns)
+    residuals = problem.residuals(measured_data(problem, solution, pose_file.data, facts), solution.unknowns)
     report = None
     if cell.checks and solution.status not in UNUSABLE:
         report = check(Streams(robot.poses, camera.poses, robot.unit, cell.setup, cell.problem,

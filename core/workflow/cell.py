@@ -1,7 +1,8 @@
 """A cell: what a calibration cell recorded and how to read it, as one frozen value (`Cell`).
 
 A `Cell` says where the robot's flange poses are (`PoseStream`: a pose file, a folder of one
-pose file per station, or a ROS bag; format, length unit, column layout, bag topic), where the
+pose file per station, or a ROS bag; format, length unit, column layout, bag topic) or, for a
+kinematic calibration, its joint readings and nominal DH table (`JointStream`, ``arm``), where the
 camera's side is (`CameraStream`, the board's pose per station, or `Images`, board images with
 the board and optionally the intrinsics; or, for a cell of several cameras and targets, its
 tables of observations or its cameras' image folders, `ObservationStream`, with the boards the
@@ -46,6 +47,7 @@ from handeye.workflow.cell_parts import (  # noqa: F401 (the parts and their nam
     UNITS,
     CameraStream,
     Images,
+    JointStream,
     Matching,
     ObservationStream,
     Outputs,
@@ -53,23 +55,24 @@ from handeye.workflow.cell_parts import (  # noqa: F401 (the parts and their nam
     check_choice,
     check_flag,
     check_number,
+    check_path,
     check_text,
 )
 from handeye.workflow.frames import frame_ids as _frame_ids
 
 
-def _observations_problem(problem: str | None) -> str:
-    """`problem`, checked to be a registered problem made from a table of observations
-    (`Problem.from_observations`); None: the one registered problem that is, if exactly one."""
+def _reader_problem(problem: str | None, key: str, what: str) -> str:
+    """`problem`, checked to be a registered problem made from the cell's `key` entry (``reads_`` +
+    `key`: `Problem.from_observations`, `Problem.from_joints`; `what` says what that is); None:
+    the one registered problem that is, if exactly one."""
     from handeye.framework.registry import get_registry
 
-    registry = get_registry()
-    readers = sorted(name for name, spec in registry.problems.items() if spec.reads_observations)
+    readers = sorted(name for name, spec in get_registry().problems.items() if getattr(spec, f"reads_{key}"))
     if problem is None and len(readers) == 1:
         return readers[0]
     if problem not in readers:
-        raise InputError(f"`observations` need `problem` to be one of {', '.join(readers) or '(none registered)'} "
-                         f"(the registered problems made from a table of observations), got {shown(problem)}")
+        raise InputError(f"`{key}` need `problem` to be one of {', '.join(readers) or '(none registered)'} (the "
+                         f"registered problems made from {what}), got {shown(problem)}")
     return problem
 
 
@@ -101,12 +104,31 @@ def _targets(value: Any) -> dict[str, Any] | None:
     return {name: os.fspath(b) if isinstance(b, os.PathLike) else b for name, b in value.items()}
 
 
+def _check_camera_names(value: Any) -> None:
+    """`camera_scale` of a cell of several cameras: None, ``known``, or the names of its monocular
+    cameras (distinct non-empty texts; whether they are the tables' cameras is checked on reading)."""
+    if value is None or value == "known":
+        return
+    if value == "unknown":
+        raise InputError("`camera_scale: unknown` does not say which of the cell's cameras are monocular: name them, "
+                         "e.g. `camera_scale: [cam0, cam2]`, each gets its own scale (docs/camera-scale.md)")
+    if not isinstance(value, tuple) or not value or not all(isinstance(v, str) and v.strip() for v in value):
+        raise InputError("`camera_scale` of a cell of several cameras must be `known` or a list of the names of its "
+                         f"monocular cameras (e.g. [cam0, cam2]), got {shown(value)}")
+    twice = sorted({v for v in value if value.count(v) > 1})
+    if twice:
+        raise InputError(f"`camera_scale` names {twice[0]!r} twice; name each monocular camera once")
+
+
 def _stations_problem(problem: str | None) -> str:
     """`problem` (None: the default problem), checked to be a registered problem that a cell's
     stations make data for (`Problem.station_reader`)."""
     from handeye.framework.registry import get_registry
 
     problem = get_registry().default_problem() if problem is None else problem
+    if problem in get_registry().problems and get_registry().problem(problem).reads_joints:
+        raise InputError(f"`problem: {problem}` is made from the robot's joint readings: give `joints.file: FILE` "
+                         "(with `joints.unit`) and `arm: FILE` (the nominal DH table) instead of `robot.file`")
     readers = station_readers()
     if problem not in readers:
         raise InputError(f"`problem` must be one of {', '.join(sorted(readers))} (the registered problems a cell's "
@@ -129,8 +151,10 @@ class Cell:
     solver, backend: default ``auto`` (``reprojection`` for images when installed, giving way to
         the pose-based answer when the robot's errors dominate); options: solver options.
     tz_X, tz_Y: a planar robot's unobservable translation (docs/planar.md); camera_scale:
-        ``unknown`` for a camera known up to scale (docs/camera-scale.md). They may also be given
-        in `options`, not both.
+        ``unknown`` for a camera known up to scale (docs/camera-scale.md); in a cell of several
+        cameras (`observations`) the names of its monocular cameras instead, each with its own
+        unknown scale (``[cam0, wrist1]``, docs/camera-scale.md, "Several cameras"). They may also
+        be given in `options`, not both.
     orthonormalize: re-orthonormalise rotations exported with few decimals (both streams).
     checks: run the plausibility checks (default True). frame_ids: (parent, child) of the ROS,
         URDF and xacro exports (default: the problem's per setup, `Problem.published`).
@@ -144,10 +168,15 @@ class Cell:
     targets: with observations from images (`ObservationStream.images`), the boards the cameras
         look for, by name: a board spec or board file each (docs/boards.md); several boards in one
         image must be told apart by their marker ids (``:first=N``).
+    joints: a kinematic calibration (docs/kinematic.md) instead of `robot`: the robot's joint
+        readings (`JointStream`), matched with the camera's poses or images by `matching` (row,
+        name or time) as robot poses are; arm: the arm's nominal DH table (an arm file,
+        `handeye.io.arm_files`; its length unit is the answer's). The problem: the one registered
+        problem made from joint readings (`Problem.from_joints`; ``axyb-kinematic``).
     """
 
-    robot: PoseStream
-    setup: str
+    robot: PoseStream | None = None
+    setup: str | None = None
     camera: CameraStream | None = None
     images: Images | None = None
     matching: Matching = dataclasses.field(default_factory=Matching)
@@ -158,7 +187,7 @@ class Cell:
     options: Mapping[str, Any] = dataclasses.field(default_factory=dict)
     tz_X: float | None = None
     tz_Y: float | None = None
-    camera_scale: str | None = None
+    camera_scale: str | tuple[str, ...] | None = None
     orthonormalize: bool = False
     checks: bool = True
     frame_ids: tuple[str, str] | str | None = None
@@ -166,6 +195,8 @@ class Cell:
     outputs: Outputs = dataclasses.field(default_factory=Outputs)
     observations: tuple[ObservationStream, ...] | None = None
     targets: Mapping[str, Any] | None = None
+    joints: JointStream | None = None
+    arm: str | os.PathLike | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.options, Mapping) or not all(isinstance(k, str) and k for k in self.options):
@@ -173,25 +204,37 @@ class Cell:
         object.__setattr__(self, "options", types.MappingProxyType(dict(self.options)))
         object.__setattr__(self, "frame_ids", _frame_ids(self.frame_ids))
         for name, kind in (("robot", PoseStream), ("camera", CameraStream), ("images", Images),
-                           ("matching", Matching), ("outputs", Outputs)):
+                           ("matching", Matching), ("outputs", Outputs), ("joints", JointStream)):
             value = getattr(self, name)
             if value is not None and not isinstance(value, kind):
                 raise InputError(f"`{name}` must be a handeye.workflow.cell.{kind.__name__}, got "
                                  f"{type(value).__name__} (a mapping: build the cell with Cell.from_dict)")
-        if self.robot is None and self.observations is not None:  # the tables may carry the robot's poses
-            object.__setattr__(self, "robot", PoseStream())
+        if self.robot is None and (self.observations is not None or self.joints is not None):
+            object.__setattr__(self, "robot", PoseStream())  # the tables may carry the robot's poses; joints give them
+        if isinstance(self.arm, os.PathLike):
+            object.__setattr__(self, "arm", os.fspath(self.arm))
         if self.robot is None:
             raise InputError("`robot.file: FILE` is required: the robot's flange poses (a pose file, a folder of "
                              "one pose file per station, or a ROS bag)")
         check_choice(self.setup, SETUPS, "setup")
         object.__setattr__(self, "observations", _observation_streams(self.observations))
         object.__setattr__(self, "targets", _targets(self.targets))
+        if isinstance(self.camera_scale, list):  # camera names (a cell of several cameras)
+            object.__setattr__(self, "camera_scale", tuple(self.camera_scale))
         if self.observations is not None:
+            if self.joints is not None or self.arm is not None:
+                raise InputError("`joints` and `arm` apply to one camera's stations, not to `observations`; drop them")
             self._check_observations()
             return
         if self.targets is not None:
             raise InputError("`targets` name the boards of a cell of several cameras (`observations` with `images`); "
                              "one camera's images take `images.board`: drop `targets`")
+        if self.joints is not None:
+            self._check_joints()
+            return
+        if self.arm is not None or self.outputs.arm is not None:
+            raise InputError(f"`{'arm' if self.arm is not None else 'outputs.arm'}` applies to a kinematic calibration "
+                             "from joint readings: give `joints.file: FILE` too, or drop it")
         object.__setattr__(self, "problem", _stations_problem(self.problem))
         self.robot.check("robot")
         if self.robot.file is None:
@@ -210,6 +253,9 @@ class Cell:
             check_text(getattr(self, name), name)
         for name in ("tz_X", "tz_Y"):
             check_number(getattr(self, name), name, what="length in the robot's unit")
+        if isinstance(self.camera_scale, tuple):
+            raise InputError("`camera_scale` names the monocular cameras of a cell of several cameras "
+                             "(`observations`); one camera's is `known` or `unknown`")
         check_choice(self.camera_scale, ("known", "unknown"), "camera_scale", optional=True)
         for name in FACTS:
             if getattr(self, name) is not None and name in self.options:
@@ -224,7 +270,7 @@ class Cell:
     def _check_observations(self) -> None:
         """A cell of several cameras and targets: tables of observations, one robot pose file of
         the stations, neither `camera` nor `images`, no settings of one camera's stations."""
-        object.__setattr__(self, "problem", _observations_problem(self.problem))
+        object.__setattr__(self, "problem", _reader_problem(self.problem, "observations", "a table of observations"))
         self.robot.check("robot")
         if self.robot.file is None and any(s.images is not None for s in self.observations):
             raise InputError("`robot.file: FILE` is required with a camera's `images`: the robot's flange poses, one "
@@ -256,8 +302,37 @@ class Cell:
         for name in ("solver", "backend"):
             check_text(getattr(self, name), name)
         for name in FACTS:
-            if getattr(self, name) is not None:
+            if getattr(self, name) is not None and name != "camera_scale":
                 raise InputError(f"`{name}` does not apply to `observations`; drop it")
+        _check_camera_names(self.camera_scale)
+        check_flag(self.orthonormalize, "orthonormalize")
+        check_flag(self.checks, "checks")
+        check_number(self.time_limit, "time_limit", low=0.0, what="number of seconds (0: no limit)")
+
+    def _check_joints(self) -> None:
+        """A kinematic calibration: joint readings and the arm's DH table instead of the robot's
+        pose file (whose poses are the table's forward kinematics), a camera pose file or board
+        images, matched by row, name or time; settings of other problems refused."""
+        object.__setattr__(self, "problem", _reader_problem(self.problem, "joints", "joint readings"))
+        self.joints.check()
+        check_path(self.arm, "arm")
+        if self.arm is None:
+            raise InputError("`arm: FILE` is required with `joints`: the arm's nominal DH table (docs/formats.md, "
+                             "'Arm models')")
+        if self.robot.given():
+            raise InputError("`joints` give the robot's poses (the arm's forward kinematics of the readings): drop "
+                             f"`robot.{self.robot.given()[0]}`")
+        self._check_camera_side()
+        self.matching.check(images=self.images is not None)
+        if self.matching.method == "interpolate":
+            raise InputError("`matching.method: interpolate` does not apply to `joints` (joint readings are not "
+                             "interpolated yet); use row, name or time")
+        self.outputs.check()
+        stray = [name for name in ("pairing", *FACTS) if getattr(self, name) is not None or name in self.options]
+        if stray:
+            raise InputError(f"`{stray[0]}` does not apply to `joints` (problem {self.problem}); drop it")
+        for name in ("solver", "backend"):
+            check_text(getattr(self, name), name)
         check_flag(self.orthonormalize, "orthonormalize")
         check_flag(self.checks, "checks")
         check_number(self.time_limit, "time_limit", low=0.0, what="number of seconds (0: no limit)")

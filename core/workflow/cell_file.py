@@ -31,6 +31,7 @@ from handeye.io.input_files import check_not_looping, load_yaml
 from handeye.workflow.cell_parts import (
     CameraStream,
     Images,
+    JointStream,
     Matching,
     ObservationStream,
     Outputs,
@@ -41,14 +42,14 @@ from handeye.workflow.cell_parts import (
 MAX_CELL_FILE_BYTES = 1_000_000
 #: the sections of a cell file and the classes they become
 SECTIONS: dict[str, type] = {"robot": PoseStream, "camera": CameraStream, "images": Images, "matching": Matching,
-                             "outputs": Outputs}
+                             "outputs": Outputs, "joints": JointStream}
 #: the keys of each section that are paths (relative to the cell file's folder)
 PATH_KEYS = {"robot": ("file",), "camera": ("file",), "images": ("folder", "intrinsics"), "observations": ("file", "images", "intrinsics"),
-             "outputs": ("json", "yaml", "report")}
+             "outputs": ("json", "yaml", "report", "arm"), "joints": ("file",)}
 #: a board spec ending so is a board file (a path)
 BOARD_FILE_SUFFIXES = (".yaml", ".yml", ".json")
 #: top-level keys in the order a cell file lists them
-ORDER = ("setup", "problem", "robot", "camera", "images", "observations", "targets", "matching", "pairing", "solver", "backend", "options",
+ORDER = ("setup", "problem", "robot", "joints", "arm", "camera", "images", "observations", "targets", "matching", "pairing", "solver", "backend", "options",
          "tz_X", "tz_Y", "camera_scale", "orthonormalize", "checks", "frame_ids", "time_limit", "outputs")
 HEADER = ("# handeye cell file: what this cell records and how to calibrate it (docs/calibrate.md,\n"
           "# \"Cell files and Python\").\n"
@@ -96,6 +97,8 @@ def cell_from_dict(cls: type, data: Mapping[str, Any], *, base: str | os.PathLik
     if isinstance(data.get("targets"), Mapping) and base is not None:  # board files beside the cell file
         values["targets"] = {name: _joined(board, base) if _is_board_file(board) else board
                              for name, board in data["targets"].items()}
+    if base is not None and "arm" in values:  # the arm file beside the cell file
+        values["arm"] = _joined(values["arm"], base)
     values.setdefault("robot", None)
     values.setdefault("setup", None)
     return cls(**values)
@@ -216,6 +219,9 @@ def cell_to_dict(cell: Any, relative_to: str | os.PathLike | None = None) -> dic
                 section = _section(value, name, relative_to)
                 if section:
                     out[name] = section
+        elif name == "arm":
+            if value is not None:
+                out[name] = _portable(value, relative_to)
         elif name in ("setup", "problem") or value != defaults[name]:
             out[name] = (dict(value) if name == "options" else list(value) if isinstance(value, tuple) else value)
     return out

@@ -1,6 +1,7 @@
 """The parts of a `handeye.workflow.cell.Cell`, each a small frozen value: the robot's pose
-stream (`PoseStream`), the camera's (`CameraStream`) or its board images (`Images`), how the two
-pair into stations (`Matching`) and where the command line writes (`Outputs`); the names each
+stream (`PoseStream`) or its joint readings (`JointStream`), the camera's (`CameraStream`) or its
+board images (`Images`), how the two pair into stations (`Matching`) and where the command line
+writes (`Outputs`); the names each
 setting may take; and the checks that name a setting in its messages as the cell file spells it
 (```robot.unit```). `Cell` checks its parts when it is built (a part alone does not know
 whether it is the robot's or the camera's).
@@ -236,6 +237,37 @@ class ObservationStream(CameraStream):
             raise InputError(f"`{name}.targets` must list names of the cell's `targets`, got {shown(self.targets)}")
 
 
+#: the angle units of joint readings (`JointStream.unit`)
+JOINT_UNITS = ("deg", "rad")
+
+
+@dataclasses.dataclass(frozen=True)
+class JointStream:
+    """The robot's joint readings, one row per station (`handeye.io.joint_files`): a text table
+    with a header (a name and/or time-stamp column, one column per joint) or a ROS bag.
+
+    file: the path. unit: ``deg`` or ``rad``, required for a table (a ROS bag holds radians).
+    topic: a ROS bag's ``sensor_msgs/JointState`` topic (e.g. ``/joint_states``).
+    """
+
+    file: str | os.PathLike | None = None
+    unit: str | None = None
+    topic: str | None = None
+
+    def __post_init__(self) -> None:
+        if isinstance(self.file, os.PathLike):
+            object.__setattr__(self, "file", os.fspath(self.file))
+
+    def check(self) -> None:
+        """InputError for a value no joint stream can have, or one without its file."""
+        check_path(self.file, "joints.file")
+        if self.file is None:
+            raise InputError("`joints.file: FILE` is required: the robot's joint readings, one row per station (a "
+                             "table with a header, or a ROS bag)")
+        check_choice(self.unit, JOINT_UNITS, "joints.unit", optional=True)
+        check_text(self.topic, "joints.topic")
+
+
 @dataclasses.dataclass(frozen=True)
 class Images:
     """Board images instead of camera poses: one image per station.
@@ -340,12 +372,15 @@ class Matching:
 @dataclasses.dataclass(frozen=True)
 class Outputs:
     """Where ``handeye calibrate`` writes the result: `json` (``-o``), `yaml` (``--yaml``) and
-    `report` (``--report``, .html or .md). ``handeye.calibrate`` writes nothing itself; its result
-    has ``to_json()``, ``to_yaml()`` and ``write_report(path)``."""
+    `report` (``--report``, .html or .md), and for a kinematic calibration `arm` (``--arm-out``, the
+    corrected DH table). ``handeye.calibrate`` writes nothing itself; its result has ``to_json()``,
+    ``to_yaml()``, ``write_report(path)`` and ``arm_yaml()``."""
 
     json: str | os.PathLike | None = None
     yaml: str | os.PathLike | None = None
     report: str | os.PathLike | None = None
+    #: a kinematic calibration (`Cell.joints`): the corrected DH table as an arm file (``--arm-out``)
+    arm: str | os.PathLike | None = None
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):

@@ -28,9 +28,10 @@ from handeye.workflow.reading import read_stream
 from handeye.workflow.stations import Dropped, Log, Stations, take
 
 
-def image_stations(cell: Cell, log: Log | None = None) -> Stations:
+def image_stations(cell: Cell, log: Log | None = None, robot: PoseStack | None = None) -> Stations:
     """The stations of the cell's images (module docstring); `log` gets `summary_lines` as soon as
-    the images are done (``"images"``)."""
+    the images are done (``"images"``); `robot`: the robot's poses when not read from the cell's
+    robot file (a kinematic calibration's forward kinematics of the joint readings)."""
     from handeye.vision.boards import parse_board
     from handeye.vision.image_set import images_and_poses
     from handeye.vision.intrinsics import load_camera_of
@@ -41,7 +42,7 @@ def image_stations(cell: Cell, log: Log | None = None) -> Stations:
     except InputError as exc:
         raise InputError(f"`images.board`: {exc}") from None
     camera = load_camera_of(spec.intrinsics, "images.intrinsics")
-    robot = read_stream(cell.robot, "robot", cell.orthonormalize)
+    robot = read_stream(cell.robot, "robot", cell.orthonormalize) if robot is None else robot
     try:
         images = images_and_poses(spec.folder, board, camera, setup=cell.setup, robot=robot,
                                   match=IMAGE_MATCHES[cell.matching.method], max_dt=cell.matching.max_dt,
@@ -98,17 +99,25 @@ def inputs_entry(cell: Cell, images: Any) -> dict[str, Any]:
             "holds": "T_cam_target", "intrinsics": intrinsics_source(cell)}
 
 
+def intrinsics_entry(cam: Any, calibration: Any, given: str | None) -> dict[str, Any]:
+    """A camera's intrinsics as the result's ``camera`` entry: K, dist, image_size, source (the
+    intrinsics file `given`, else ``calibrated``) and, when calibrated from the images
+    (`calibration`, a `handeye.vision.intrinsics.CameraCalibration`), the model, the RMS
+    reprojection error and the 1-sigma of fx, fy, cx, cy (px)."""
+    entry: dict[str, Any] = {"K": cam.K.tolist(), "dist": cam.dist.tolist(),
+                             "image_size": None if cam.size is None else list(cam.size),
+                             "source": given or "calibrated"}
+    if calibration is not None:
+        entry.update({"model": calibration.model, "rms_px": calibration.rms,
+                      "std_px": dict(zip(("fx", "fy", "cx", "cy"), calibration.std_fx_fy_cx_cy.tolist()))})
+    return entry
+
+
 def result_entries(cell: Cell, images: Any) -> dict[str, Any]:
     """The result's ``camera`` (intrinsics) and ``images`` (stations, errors, dropped) entries."""
-    cam = images.camera
-    camera: dict[str, Any] = {"K": cam.K.tolist(), "dist": cam.dist.tolist(),
-                              "image_size": None if cam.size is None else list(cam.size),
-                              "source": cell.images.intrinsics or "calibrated"}
+    camera = intrinsics_entry(images.camera, images.calibration, cell.images.intrinsics)
     if images.calibration is not None:
-        cal = images.calibration
-        camera.update({"model": cal.model, "rms_px": cal.rms,
-                       "std_px": dict(zip(("fx", "fy", "cx", "cy"), cal.std_fx_fy_cx_cy.tolist())),
-                       "per_image_rms_px": dict(zip(images.names, cal.per_image_rms.tolist()))})
+        camera["per_image_rms_px"] = dict(zip(images.names, images.calibration.per_image_rms.tolist()))
     stations = [{"image": f, "robot_pose": p, "points": len(u), "rms_px": float(e)}
                 for f, p, u, e in zip(images.files, images.pose_names, images.observations.image_points,
                                       images.errors)]

@@ -10,7 +10,11 @@ file become the problem's data through the problem (`Problem.from_observations`)
    the robot file lacks is an error naming the row;
 3. the problem makes its data from the observations (`Observations`), with the names of its
    stacked unknowns' poses (the cameras' and targets' names); solve with the cell's solver, or
-   the default; the residuals per observation and per pair of poses (`Problem.residual_table`).
+   the default, and the cell's monocular cameras (``camera_scale: [names]``, each of them a
+   camera of the tables); the residuals per observation and per pair of poses
+   (`Problem.residual_table`), measured on the data the solve validated (`Solution.data`), or,
+   with monocular cameras, on the data with each one's translations times its estimated scale,
+   so that they are in the robot's unit (`handeye.workflow.solving.measured_data`).
 
 A camera's images (an ``observations`` entry with ``images``) become a table of their own first
 (`handeye.workflow.observation_images`: every board found in an image one row; what was left
@@ -22,6 +26,8 @@ The plausibility checks of one camera's stations do not apply (the solve's own s
 from __future__ import annotations
 
 import dataclasses
+import re
+from typing import Any
 
 import numpy as np
 
@@ -36,12 +42,12 @@ from handeye.io.observation_tables import (
     read_observation_table,
     robot_of_stations,
 )
-from handeye.io.pose_readers import PoseStack
+from handeye.io.pose_readers import PoseStack, natural_key
 from handeye.workflow.cell import Cell, ObservationStream
-from handeye.workflow.observation_images import image_tables
+from handeye.workflow.observation_images import image_tables, intrinsics_entries
 from handeye.workflow.reading import in_cell_words, read_stream
 from handeye.workflow.result import CalibrationResult
-from handeye.workflow.solving import default_solver, time_limit
+from handeye.workflow.solving import default_solver, measured_data, time_limit
 from handeye.workflow.stations import Log, Stations
 
 
@@ -127,14 +133,14 @@ def calibrate_observations(cell: Cell, log: Log | None = None) -> CalibrationRes
     problem = get_registry().problem(cell.problem)
     made = problem.from_observations(observations, cell.setup)
     fields = dict(made.fields)
-    options = cell.solver_options()
+    options, facts = cell.solver_options(), monocular_cameras(cell, observations)
     clash = sorted(set(options) & set(fields))
     if clash:
         raise InputError(f"`options` {clash} clash with the data field(s) of problem {cell.problem!r}")
     solver = cell.solver or default_solver(cell.problem)
     solution = solve(cell.problem, solver=solver, backend=cell.backend,
-                     time_limit=time_limit(cell.time_limit, cell.problem, solver), **fields, **options)
-    data = problem.validate(**fields)
+                     time_limit=time_limit(cell.time_limit, cell.problem, solver), **fields, **facts, **options)
+    data = measured_data(problem, solution, fields, facts)
     residuals = problem.residuals(data, solution.unknowns)
     pair_table = tuple(problem.residual_table(data, solution.unknowns))
 
@@ -153,11 +159,50 @@ def calibrate_observations(cell: Cell, log: Log | None = None) -> CalibrationRes
                         used, np.arange(len(observations)), matching, () if imaged is None else imaged.dropped,
                         () if imaged is None else imaged.warnings)
     return CalibrationResult(cell=cell, solution=solution, solver=solver, unit=unit, stations=stations, camera=camera,
-                             camera_read=camera, residuals=residuals, checks=None, pairing=None, facts={},
-                             warnings=(*stations.warnings, *solution.warnings), names=dict(made.names),
+                             camera_read=camera, residuals=residuals, checks=None, pairing=None, facts=facts,
+                             warnings=(*stations.warnings, *(named_observations(w, data, observations)
+                                                             for w in solution.warnings)), names=dict(made.names),
                              pair_table=pair_table, observation_labels=tuple(zip(observations.station,
                                                                                  observations.camera,
-                                                                                 observations.target)))
+                                                                                 observations.target)),
+                             cameras=None if imaged is None else intrinsics_entries(cell, imaged))
+
+
+def monocular_cameras(cell: Cell, observations: Observations) -> dict[str, Any]:
+    """The fact ``camera_scale`` of the solve: ``{"camera_scale": [names]}`` for the cell's
+    monocular cameras (`Cell.camera_scale`, or ``options.camera_scale``), each checked to be a
+    camera of the observations; empty when every camera is metric."""
+    given = cell.facts().get("camera_scale")
+    if given is None or given == "known":
+        return {}
+    cameras = sorted(set(observations.camera), key=natural_key)
+    stray = [name for name in given if name not in cameras]
+    if stray:
+        raise InputError(f"`camera_scale` names {stray[0]!r}, which is not a camera of the observations (their "
+                         f"cameras: {', '.join(cameras)}); name the monocular cameras among them")
+    return {"camera_scale": list(given)}
+
+
+#: an observation as a solver's message lists it, "(index 3: marker3 with cam5 at station 4)"
+_LISTED = re.compile(r"\(index (\d+): ([^()]*)\)")
+
+
+def named_observations(text: str, data: Any, observations: Observations) -> str:
+    """`text` (a solver's warning) with each observation it lists in the problem's words
+    (``(index 3: marker3 with cam5 at station 4)``, the data's `item_label`, stations numbered
+    in order) named by the cell's station, camera and target instead
+    (``(index 3: station s07 (cam5, marker3))``), as the report and the docs name them."""
+    label = getattr(data, "item_label", None)
+    if label is None:
+        return text
+
+    def name(match: re.Match[str]) -> str:
+        i = int(match.group(1))
+        if i >= len(observations) or match.group(2) != label(i):
+            return match.group(0)
+        return f"(index {i}: station {observations.station[i]} ({observations.camera[i]}, {observations.target[i]}))"
+
+    return _LISTED.sub(name, text)
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
@@ -166,4 +211,5 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     return a
 
 
-__all__ = ["ObservationStream", "calibrate_observations", "read_tables", "station_rows"]
+__all__ = ["ObservationStream", "calibrate_observations", "monocular_cameras", "named_observations", "read_tables",
+           "station_rows"]

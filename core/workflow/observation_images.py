@@ -84,6 +84,22 @@ def image_tables(cell: Cell, robot: PoseStack) -> ImageTables:
     return ImageTables(tuple(tables), tuple(dropped), tuple(warnings), cameras, tuple(lines))
 
 
+def intrinsics_entries(cell: Cell, imaged: ImageTables) -> dict[str, dict[str, Any]]:
+    """Each imaged camera's intrinsics, by name in the cell's order, as the single camera's result
+    writes its ``camera`` entry (`handeye.workflow.image_stations.intrinsics_entry`: K, dist,
+    image_size, source: the entry's ``intrinsics`` file or ``calibrated``; when calibrated, the
+    model, RMS and 1-sigma in px), with ``views``: the (image, board) views calibrated from."""
+    from handeye.workflow.image_stations import intrinsics_entry
+
+    given = {s.camera: s.intrinsics for s in cell.observations if s.images is not None}
+    out = {}
+    for name, obs in imaged.cameras.items():
+        out[name] = intrinsics_entry(obs.camera, obs.calibration, given.get(name))
+        if obs.calibration is not None:
+            out[name]["views"] = len(obs.calibration.per_image_rms)
+    return out
+
+
 def _table(stream: ObservationStream, obs: Any) -> ObservationTable:
     """One camera's observations as a table (rows named ``image 003, board1`` in messages)."""
     poses = np.array(obs.T_cam_target)

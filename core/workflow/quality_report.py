@@ -178,6 +178,9 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
         "images": None if images is None else dict(images),
         "pair_table": None if not pair_table else [dict(row) for row in pair_table],
         "labels": None if labels is None else [list(map(str, label)) for label in labels],
+        # a cell's monocular cameras: each one's scale and 1-sigma (the residuals above use them)
+        "camera_scales": {name: [s, (diagnostics.get("camera_scales_std") or {}).get(name)]
+                          for name, s in (diagnostics.get("camera_scales") or {}).items()} or None,
     })
 
 

@@ -126,8 +126,7 @@ def _residuals(r: Mapping[str, Any]) -> list[Block]:
     outliers = set(r.get("outliers") or [])
     labels = r.get("labels")
     if r.get("outliers") is not None:
-        named = [("station {} ({}, {})".format(*labels[k]) if labels and k < len(labels) else str(k))
-                 for k in sorted(outliers)]
+        named = [observation_name(r, k) for k in sorted(outliers)]
         out.append(Text(f"Outliers (auto: {r.get('outlier_test') or ''}): "
                         f"{', '.join(named) or 'none'}; marked in red."))
     marked = [k in outliers for k in range(len(rot))]
@@ -268,6 +267,9 @@ def advice(r: Mapping[str, Any]) -> list[tuple[str, str]]:
             rows = ", ".join(str(i + 1) for i in r["outlier_stations"])
             many = len(r["outlier_stations"]) > 1
             what = f"station{'s' if many else ''} (file row{'s' if many else ''}) {rows}"
+        elif r.get("labels"):  # several cameras and targets: by station, camera and target
+            what = f"{item}{'s' if len(r['outliers']) > 1 else ''} of " + ", ".join(
+                observation_name(r, i) for i in r["outliers"])
         else:
             what = f"{item}{'s' if len(r['outliers']) > 1 else ''} " + ", ".join(str(i) for i in r["outliers"])
             if r.get("stations") and r.get("one_per_station"):
@@ -343,6 +345,9 @@ def diag_rows(r: Mapping[str, Any]) -> list[tuple[str, str]]:
     if r.get("stations"):
         rows.append(("stations", str(r["stations"])))
     rows.append((f"{r['item']}s", str(m) + (f" ({r['pairing']} pairs of stations)" if r.get("pairing") else "")))
+    for name, (s, std) in (r.get("camera_scales") or {}).items():  # a cell's monocular cameras
+        rows.append((f"camera scale of {name}", f"{s:.6g}" + ("" if std is None else f" (1-sigma {std:.2g})")
+                     + f": its translations times this are in {unit}"))
     if "rotation_excitation" in data:
         rows.append(("rotation excitation", f"{data['rotation_excitation']:.3g} (weak below 1e-4)"))
     if "axis_spread" in data:
@@ -356,7 +361,8 @@ def diag_rows(r: Mapping[str, Any]) -> list[tuple[str, str]]:
         mis = data["likely_mismatched"]
         rows.append(("likely mismatched motions", ", ".join(map(str, mis)) if mis else "none"))
     if r.get("outliers") is not None:
-        rows.append((f"outlying {r['item']}s (left out)", ", ".join(map(str, r["outliers"])) or "none"))
+        rows.append((f"outlying {r['item']}s (left out)",
+                     ", ".join(observation_name(r, k) for k in r["outliers"]) or "none"))
     checks = r.get("checks")
     if checks:
         res, lim = checks["residual_rms"], checks["limits"]
@@ -401,3 +407,10 @@ def pair_label(r: Mapping[str, Any], k: int) -> str:
     if r.get("stations") and r.get("one_per_station"):
         return f"row {k + 1}"
     return ""
+
+
+def observation_name(r: Mapping[str, Any], k: int) -> str:
+    """Item k in words: in a cell of several cameras and targets its station, camera and target
+    (``station s03 (cam1, marker2)``, from ``r["labels"]``), else its index."""
+    labels = r.get("labels")
+    return "station {} ({}, {})".format(*labels[k]) if labels and 0 <= k < len(labels) else str(k)

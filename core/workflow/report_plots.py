@@ -2,7 +2,8 @@
 Agg backend (imported here, lazily: ``import handeye`` and the solvers never import matplotlib).
 
 - ``residuals``: the per-pair residuals of the problem's equation (eqs. 32-33: rotation angle in
-  deg, translation distance in the data unit) as bars, the outliers auto left out in red;
+  deg, translation distance in the data unit) as bars, the outliers auto left out in red; in a
+  cell of several cameras and targets each tick named by its station, camera and target;
 - ``poses``: a 3D view, in the robot's base frame and unit, of the flange positions (the robot
   poses' translations), the base frame and the solved frames as axis triads (x red, y green,
   z blue): the frames A_i X at each station (eye-in-hand: the camera; eye-to-hand axyb: the
@@ -15,7 +16,7 @@ pairs, the solved frame's axes at `TRIADS_UP_TO` evenly spread stations.
 from __future__ import annotations
 
 import io
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -68,6 +69,16 @@ def draw_all(r: Mapping[str, Any]) -> dict[str, bytes]:
     return images
 
 
+def observation_ticks(labels: Sequence[Sequence[str]], outliers: set[int], step: int) -> tuple[list[int], list[str]]:
+    """The residual plot's ticks of a cell of several cameras and targets and their texts
+    (``s03 cam1 marker2``): every `step`-th observation and every outlier, the ticks next to an
+    outlier left out so that its name stays readable."""
+    m = len(labels)
+    marked = {k for k in outliers if 0 <= k < m}
+    ticks = sorted(marked | {k for k in range(0, m, step) if not marked & {k - 1, k + 1}})
+    return ticks, [" ".join(map(str, labels[k])) for k in ticks]
+
+
 def residual_plot(r: Mapping[str, Any]) -> bytes:
     plt = _pyplot()
     rot = np.asarray(r["residuals"]["rotation_deg"], dtype=float)
@@ -92,6 +103,11 @@ def residual_plot(r: Mapping[str, Any]) -> bytes:
     step = max(1, int(np.ceil(m / 40)))
     axes[1].set_xticks(np.arange(0, m, step))
     axes[1].set_xlabel(r["item"])
+    labels = r.get("labels")
+    if labels and len(labels) == m:  # several cameras and targets: each tick by station, camera and target
+        ticks, texts = observation_ticks(labels, outliers, step)
+        axes[1].set_xticks(ticks, texts, rotation=90, fontsize="x-small")
+        axes[1].set_xlabel(f"{r['item']} (station camera target)")
     from matplotlib.patches import Patch
 
     handles = [Patch(color=INLIER_COLOUR, label=r["item"])]

@@ -67,6 +67,10 @@ def _frame_id(name: str) -> str:
     return text if text[0].isalpha() else f"f{text}"
 
 
+def _number(value: Any) -> float | None:
+    return None if value is None else float(value)
+
+
 def _summary(values: np.ndarray) -> dict[str, float]:
     values = np.asarray(values, dtype=float)
     return {"median": float(np.median(values)), "rms": float(np.sqrt(np.mean(values**2))),
@@ -106,6 +110,12 @@ class CalibrationResult:
     pair_table: tuple[dict[str, Any], ...] | None = None
     #: such a cell's (station, camera, target) of each observation, in the residuals' order, else None
     observation_labels: tuple[tuple[str, str, str], ...] | None = None
+    #: such a cell's cameras of images: per camera name its intrinsics, as one camera's result
+    #: writes its ``camera`` entry (`handeye.workflow.observation_images.intrinsics_entries`), else None
+    cameras: Mapping[str, dict[str, Any]] | None = None
+    #: a kinematic calibration (`Cell.joints`): the DH corrections, what is not identifiable and
+    #: the corrected table (`handeye.workflow.joint_cell.kinematics_entry`), else None
+    kinematics: Mapping[str, Any] | None = None
 
     # ------------------------------------------------------------------------- the answer
 
@@ -259,6 +269,13 @@ class CalibrationResult:
         }
         if self.names:  # several cameras and targets: every pose by name, the residuals per pair
             result.update(self._named_entries(unknowns))
+        if self.kinematics is not None:  # joint readings and the arm's DH table: the corrections
+            result["inputs"]["robot"] = dict(self.kinematics["inputs"])
+            for name in [n for n in unknowns if unknown_of(n) == "links"]:  # the DH table says it
+                for entry in (result, result["poses"], result["frames"], result["std"] or {}):
+                    entry.pop(name, None)
+            result["kinematics"] = {k: v for k, v in self.kinematics.items() if k not in ("inputs", "arm_yaml")}
+        result.update(self._scale_entries())
         if images is not None:  # where the board poses came from, the intrinsics, the images' stations
             from handeye.workflow.image_stations import inputs_entry, result_entries
 
@@ -284,6 +301,7 @@ class CalibrationResult:
             "stations": int(stations.matching["stations"]),
             "observations": {"count": len(self.camera_read), "cameras": self._camera_names(),
                              "per_pair": [dict(row) for row in self.pair_table or ()]},
+            **({"cameras": {name: dict(entry) for name, entry in self.cameras.items()}} if self.cameras else {}),
             "inputs": {"robot": {"file": cell.robot.file or stations.robot_file.source,
                                  "format": stations.robot_file.format,
                                  "unit": stations.robot_file.unit, "poses": len(stations.robot_file)},
@@ -292,6 +310,20 @@ class CalibrationResult:
                                     "command": ros_line(p.T, self.unit, p.parent, p.child)} for p in named],
                     "translation_unit": "m"},
         }
+
+    def _scale_entries(self) -> dict[str, Any]:
+        """The camera scales the solve estimated, when the cell says they are unknown: one
+        camera's ``camera_scale`` {"scale", "std"}; a cell's monocular cameras' ``camera_scales``
+        {name: {"scale", "std"}} (their translations times the scale are in the robot's unit,
+        as the residuals are measured)."""
+        d, given = self.solution.diagnostics, self.facts.get("camera_scale")
+        if given == "unknown" and d.get("camera_scale") is not None:
+            return {"camera_scale": {"scale": float(d["camera_scale"]), "std": _number(d.get("camera_scale_std"))}}
+        if given is None or isinstance(given, str) or not d.get("camera_scales"):
+            return {}
+        std = d.get("camera_scales_std") or {}
+        return {"camera_scales": {name: {"scale": float(s), "std": _number(std.get(name))}
+                                  for name, s in d["camera_scales"].items()}}
 
     def _camera_names(self) -> list[str]:
         """The names of the poses that are cameras: those of the unknown whose frame's child is
@@ -303,6 +335,13 @@ class CalibrationResult:
     @property
     def _inverted(self) -> bool:
         return self.cell.camera is not None and self.cell.camera.poses == "camera-in-board"
+
+    def arm_yaml(self) -> str:
+        """A kinematic calibration's DH table of the answer as an arm file (`handeye.io.arm_files`;
+        the corrected table, for the robot controller); InputError for other cells."""
+        if self.kinematics is None:
+            raise InputError("arm_yaml applies to a kinematic calibration (a cell with `joints` and `arm`)")
+        return self.kinematics["arm_yaml"]
 
     def to_json(self) -> str:
         """`to_dict` as JSON text (indented; NaN as null)."""
@@ -347,7 +386,9 @@ class CalibrationResult:
                        residuals=self.residuals, frames=frame_names(cell.problem, cell.setup),
                        checks=None if self.checks is None else self.checks.to_dict(),
                        warnings=[words(w) for w in self.warnings],
-                       inputs={"robot file": f"{cell.robot.file} ({robot_file.format}, {robot_file.unit})",
+                       inputs={"robot file": f"{cell.robot.file} ({robot_file.format}, {robot_file.unit})"
+                               if self.kinematics is None else "joints: {file} ({format}, {unit})".format(
+                                   **self.kinematics["inputs"]),
                                "camera " + ("images" if images is not None else "file"): camera_input},
                        robot_poses=robot.poses, stations=len(robot), pairing=self.pairing, command=command,
                        images=None if images is None else image_entries(

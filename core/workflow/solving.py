@@ -8,8 +8,10 @@ defaults shared by ``handeye.calibrate``, ``handeye calibrate`` and ``handeye so
 - `time_limit`: none for handeye's own solvers, `PLUGIN_TIME_LIMIT` for a third party's, so a
   hanging plugin cannot hang a calibration; 0 means no limit.
 
-Also the statuses whose unknowns must not be used (`UNUSABLE`) and the camera's translations
-scaled into the robot's unit when the camera scale was estimated (`in_robot_unit`).
+Also the statuses whose unknowns must not be used (`UNUSABLE`), the camera's translations
+scaled into the robot's unit when the camera scale (or, in a cell of several cameras, each
+monocular camera's scale) was estimated (`in_robot_unit`), and the validated data the residuals
+are measured on (`measured_data`: the solve's own, `Solution.data`, unless scaled).
 """
 
 from __future__ import annotations
@@ -100,11 +102,41 @@ def time_limit(given: float | None, problem: str, solver: str) -> float | None:
 def in_robot_unit(data: Mapping[str, Any], facts: Mapping[str, Any],
                   diagnostics: Mapping[str, Any]) -> Mapping[str, Any]:
     """The data with the camera's translations (B) in the robot's unit: multiplied by the camera
-    scale the solve estimated when the scale is unknown; else the data as they are (for the
-    residuals shown to the user)."""
-    scale = diagnostics.get("camera_scale") if facts.get("camera_scale") == "unknown" else None
-    if scale is None:
+    scale the solve estimated when the scale is unknown (``camera_scale: unknown``), or, in a cell
+    of several cameras (``camera_scale`` a list of camera names), each monocular camera's
+    translations by its own scale (``diagnostics["camera_scales"]``: {name: s}, a name being one
+    of the data's ``x_names`` or ``y_names``); else the data as they are (for the residuals shown
+    to the user)."""
+    given = facts.get("camera_scale")
+    if given == "unknown":
+        scale = diagnostics.get("camera_scale")
+        if scale is None:
+            return data
+        B = np.array(data["B"], dtype=float)
+        B[:, :3, 3] *= scale
+        return {**data, "B": B}
+    scales = diagnostics.get("camera_scales") if given is not None and not isinstance(given, str) else None
+    if not scales:
         return data
     B = np.array(data["B"], dtype=float)
-    B[:, :3, 3] *= scale
+    for which in ("x", "y"):
+        if data.get(f"{which}_index") is None:
+            continue
+        index = np.asarray(data[f"{which}_index"])
+        given_names = data.get(f"{which}_names")
+        names = ([f"{which.upper()}{k}" for k in range(int(index.max()) + 1)] if given_names is None
+                 else [str(n) for n in given_names])
+        for name, s in scales.items():
+            if name in names:
+                B[index == names.index(name), :3, 3] *= s
     return {**data, "B": B}
+
+
+def measured_data(problem: Any, solution: Solution, data: Mapping[str, Any], facts: Mapping[str, Any]) -> Any:
+    """The validated data the residuals shown to the user are measured on: the solve's own
+    (`Solution.data`, validated once) when the camera's translations are metric as given, else
+    `data` with them in the robot's unit (`in_robot_unit`), validated by `problem` with `facts`."""
+    measured = in_robot_unit(data, facts, solution.diagnostics)
+    if measured is data and solution.data is not None:
+        return solution.data
+    return problem.validate(**measured, **facts)

@@ -78,14 +78,16 @@ class Stations:
         return len(self.robot)
 
 
-def pose_stations(cell: Cell, log: Log | None = None) -> Stations:
+def pose_stations(cell: Cell, log: Log | None = None, robot_file: PoseStack | None = None) -> Stations:
     """Read the cell's two pose streams and pair them into stations (module docstring; a cell of
     images: `handeye.workflow.image_stations`). `log` is called with what the pairing did as soon
-    as it is known (the command line prints it)."""
-    robot_file = read_stream(cell.robot, "robot", cell.orthonormalize)
+    as it is known (the command line prints it). `robot_file`: the robot's poses when not read
+    from the cell's robot file (a kinematic calibration's forward kinematics of its joints)."""
+    if robot_file is None:
+        robot_file = read_stream(cell.robot, "robot", cell.orthonormalize)
     camera_file = read_stream(cell.camera, "camera", cell.orthonormalize)
     if cell.matching.method == "interpolate":  # robot poses interpolated, not rows of the file
-        stations = _interpolated(cell, robot_file, camera_file)
+        stations = _interpolated(cell, robot_file, camera_file)  # not with joints (`Cell` refuses it)
     else:
         robot_rows, camera_rows, matching, warnings, dropped = match_rows(cell, robot_file, camera_file)
         stations = Stations(robot_file, camera_file, take(robot_file, robot_rows), robot_rows, camera_rows, matching,
@@ -144,7 +146,8 @@ def match_rows(cell: Cell, robot: PoseStack, camera: PoseStack) -> tuple[np.ndar
                                                                        tuple[Dropped, ...]]:
     """(robot rows, camera rows, the `matching` entry of the result, warnings, dropped) of the
     cell's row, index, name or time matching of two pose streams."""
-    method, robot_path, camera_path = cell.matching.method, str(cell.robot.file), str(cell.camera.file)
+    method, camera_path = cell.matching.method, str(cell.camera.file)
+    robot_path = str(cell.robot.file) if cell.robot.file is not None else robot.source
     if method in ("row", "index"):  # a pose file's rows: index and row say the same
         warnings = pairing_checks(robot, camera, robot_path, camera_path)
         rows = np.arange(len(robot))

@@ -193,6 +193,12 @@ class AXXB(Problem):
 
         return axxb_geometry.rotation_axes(data)
 
+    def configurations(self, data: AXXBData) -> np.ndarray | None:
+        """The stations' robot poses when `check_model`'s model is on the stations (the motions
+        are every pair of them); None for independent motions (rows that are not stations)."""
+        stations = data.stations
+        return None if stations is None else stations[0]
+
     def simulate(self, *, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
                  X: np.ndarray | None = None, Y: np.ndarray | None = None, pairing: str = "all",
                  **options: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:

@@ -162,6 +162,10 @@ class AXYB(Problem):
 
         return axyb_geometry.rotation_axes(data)
 
+    def configurations(self, data: AXYBData) -> np.ndarray:
+        """The robot's flange poses A_i, one per row of `check_model`'s model (its pairs)."""
+        return data.A
+
     def simulate(self, *, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
                  X: np.ndarray | None = None, Y: np.ndarray | None = None,
                  **options: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:

@@ -32,6 +32,7 @@ from handeye.framework.errors import InputError
 from handeye.framework.problem import (
     BenchSettings,
     Frame,
+    JointStations,
     Problem,
     Published,
     pose_discrepancy,
@@ -144,6 +145,15 @@ class AXYBKinematic(Problem):
         ident = model.structural(table)
         check_determined(q, table, ident, pairs.translation_scale)
         return KinematicData(pairs, q, DHArm.from_table(table), ident)
+
+    def from_joints(self, stations: JointStations, setup: str) -> dict[str, Any]:
+        """The data of a cell's stations with joint readings (``handeye.calibrate`` of a cell with
+        ``joints`` and ``arm``): A, B as problem axyb makes them from the stations' robot and
+        camera poses in `setup`, with the readings q and the nominal DH table."""
+        from handeye.problems.axyb.data import pairs_from_stations
+
+        pairs = pairs_from_stations(stations.robot, stations.camera_poses, setup=setup)
+        return {**pairs, "q": np.asarray(stations.q, dtype=float), "dh": DHArm.from_table(stations.dh)}
 
     def diagnose(self, data: KinematicData) -> dict[str, Any]:
         ident = data.identifiability

@@ -3,7 +3,8 @@
 `data`: the validated observations and their graph (components of X's and Y's tied together),
 `geometry`: the residuals and Jacobians of the shared least-squares engine and the self-check's
 figures, `observability`: what the observations determine (the rule, refusals, warnings),
-`problem`: the `Problem` (validation, residuals, simulator) and its registration.
+`problem`: the `Problem` (validation, residuals) and its registration, `simulation`: the
+simulated cell, `noise`: a noise level per camera and marker, `cell_files`: a cell from its files.
 """
 
 from handeye.problems.axyb_multi.data import (
@@ -15,13 +16,11 @@ from handeye.problems.axyb_multi.data import (
 from handeye.problems.axyb_multi.geometry import AXYBMultiModel
 from handeye.problems.axyb_multi.problem import (
     PROBLEM,
-    SETUPS,
     AXYBMulti,
-    SimulatedCell,
     errors_per_pose,
     register_problems,
-    simulate_cell,
 )
+from handeye.problems.axyb_multi.simulation import SETUPS, SimulatedCell, simulate_cell
 
 __all__ = [
     "PROBLEM",

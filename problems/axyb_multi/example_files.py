@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from handeye.estimation.noise import NoiseModel
 from handeye.geometry.se3 import inverse
-from handeye.problems.axyb_multi.problem import simulate_cell
+from handeye.problems.axyb_multi.simulation import simulate_cell
 
 #: the bundled example cell: setup, cameras, markers, stations, seed, noise (rad, mm) on the robot
 #: (A) and on the camera poses (B)
