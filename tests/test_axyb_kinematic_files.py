@@ -226,6 +226,7 @@ def test_bad_inputs_are_one_line_errors_with_exit_2(exact, tmp_path, capsys, cas
     elif case == "arm-modified":
         arm = _bad_arm(tmp_path, good_arm.replace("standard-dh", "modified-dh"))
     elif case == "arm-urdf":
+        pytest.importorskip("yourdfpy")  # without it: "pip install 'handeye[urdf]'" (test_urdf_needs_its_extra)
         arm = tmp_path / "robot.urdf"
         arm.write_text("<robot name='r'/>")
     elif case == "arm-joints":
@@ -454,3 +455,17 @@ def test_calibrate_with_a_urdf_gives_x_and_y_in_its_frames(exact, tmp_path):
     assert max(abs(p["correction"]) for p in k["parameters"]) < 1e-9
     corrected = read_arm((tmp_path / "corrected.yaml", (tmp_path / "corrected.yaml").write_text(result.arm_yaml()))[0])
     np.testing.assert_allclose(corrected.forward(cell["q"]), A, atol=1e-12)
+
+
+def test_urdf_needs_its_extra(tmp_path, monkeypatch):
+    """Without yourdfpy (handeye[urdf]) a URDF arm is refused in one line naming the extra."""
+    import sys
+
+    from handeye.io.arm_files import read_arm
+
+    monkeypatch.setitem(sys.modules, "yourdfpy", None)  # import yourdfpy now raises ImportError
+    arm = tmp_path / "robot.urdf"
+    arm.write_text("<robot name='r'/>")
+    with pytest.raises(InputError, match=r"needs the package yourdfpy \(pip install 'handeye\[urdf\]'\)") as caught:
+        read_arm(arm)
+    assert "\n" not in str(caught.value)
