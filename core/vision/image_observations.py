@@ -8,7 +8,9 @@ board) was left out. The images of a cell of several cameras and targets (``axyb
 1. lists the images and pairs them with the robot's stations as the single-camera image path
    does (`handeye.vision.image_set.pair_images`: ``index``, ``name`` or ``time``), before anything
    can fail, so that an image left out never shifts the others;
-2. reads each image and looks for every board in it (`handeye.vision.board_set.detect_boards`);
+2. reads each image and looks for every board in it (`handeye.vision.board_set.detect_boards`),
+   keeping per board and image the detector whose corners fit the camera best
+   (`handeye.vision.best_corners.choose`, as for one camera's images);
    an unreadable image or one of another size than most is dropped whole; a board not found, or
    found with fewer points than its detector needs, is dropped for that image only, with the
    detector's reason;
@@ -32,6 +34,7 @@ import numpy as np
 
 from handeye.framework.errors import InputError
 from handeye.io.pose_readers import PoseStack
+from handeye.vision.best_corners import choose
 from handeye.vision.board_set import Detector, check_distinct, detect_boards
 from handeye.vision.boards import UNITS, Board
 from handeye.vision.camera_poses import board_pose, flag_outliers
@@ -124,6 +127,11 @@ def camera_observations(folder: str | Path, boards: Mapping[str, Board], camera:
     if camera is not None and camera.size is not None and tuple(camera.size) != size:
         raise InputError(f"the intrinsics are for {camera.size[0]}x{camera.size[1]} images but the images of "
                          f"{str(folder)!r} are {size[0]}x{size[1]}; give this camera's intrinsics at this resolution")
+    for name in boards:  # each board's corners: the detector that fits the camera best (`best_corners.choose`)
+        seen = [k for k, n in views if n == name]
+        if seen:
+            for k, detection in zip(seen, choose([found[k][name] for k in seen], camera, size).detections):
+                found[k] = {**found[k], name: detection}
     calibration: CameraCalibration | None = None
     while True:  # until no pose is left out: the median, and intrinsics calibrated here, change
         if camera is None or calibration is not None:
