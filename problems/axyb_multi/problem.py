@@ -161,6 +161,11 @@ class AXYBMulti(Problem):
 
         return geometry.rotation_axes(data)
 
+    def configurations(self, data: AXYBMultiData) -> np.ndarray:
+        """The robot's flange pose at each observation (a station's repeated for each of its
+        observations, which the self-check's test of systematic robot errors counts once)."""
+        return data.A
+
     def simulate(self, *, pairs: int, seed: int | None = None, noise: NoiseModel | None = None,
                  X: np.ndarray | None = None, Y: np.ndarray | None = None, setup: str = "eye-to-hand",
                  cameras: int | None = None, markers: int | None = None, visible: tuple[int, int] | None = None,
