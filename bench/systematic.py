@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 import handeye
-from handeye.checks import self_check, systematic
+from handeye.checks import best_fit, self_check, systematic
 from handeye.estimation.noise import NoiseModel
 from handeye.framework.problem import pose_errors
 from handeye.geometry.kinematics import LR_MATE_200ID, simulate_stations
@@ -134,7 +134,7 @@ def _fit(A: np.ndarray, B: np.ndarray) -> tuple[Any, Any, np.ndarray, np.ndarray
     sol = handeye.solve("axyb", A=A, B=B)
     data = AXYB.validate(A=A, B=B)
     model, poses, _ = AXYB.check_model(data, sol.unknowns)
-    fit, cov, flagged, res, _, _ = self_check._best_fit(model, poses)
+    fit, cov, flagged, res, _, _ = best_fit.best_fit(model, poses)
     return sol, model, res, cov
 
 
@@ -170,7 +170,7 @@ def _halves(A: np.ndarray, B: np.ndarray, sol: handeye.Solution) -> float:
     for half in (s <= np.median(s), s > np.median(s)):
         data = AXYB.validate(A=A[half], B=B[half])
         model, poses, _ = AXYB.check_model(data, sol.unknowns)
-        fit, cov, *_ = self_check._best_fit(model, poses)
+        fit, cov, *_ = best_fit.best_fit(model, poses)
         fits.append(fit)
         covs.append(cov)
     delta = self_check._difference(fits[0], fits[1])

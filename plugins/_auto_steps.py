@@ -41,7 +41,7 @@ def estimate_scale_if_needed(data: Any, options: Any, backend: str, output: Solv
                              at: tuple[Any, np.ndarray] | None, solve: Solve) -> tuple[Any, SolverOutput]:
     """(data, output) as they are, or with the camera's scale unknown and solved again when check
     5 fails on `output` (auto's `run`)."""
-    from handeye.checks.self_check import (
+    from handeye.checks.scale_checks import (
         camera_scale_screen,
         camera_scale_verdict,
         scale_suspect,

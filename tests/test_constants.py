@@ -8,7 +8,7 @@ import math
 import pytest
 from scipy import stats
 
-from handeye.checks import self_check, validation
+from handeye.checks import best_fit, validation
 from handeye.estimation import robust, whitening
 from handeye.plugins import auto
 
@@ -39,7 +39,7 @@ def test_noise_sources_gain_is_half_the_1_percent_point_of_chi2_with_6_dof():
 def test_outlier_threshold_is_eight_robust_sigmas_and_shared():
     """8 robust sigmas (squared), one constant for auto's outlier step and the self-check."""
     assert robust.OUTLIER_CHI2 == 8.0**2
-    assert auto.OUTLIER_CHI2 is robust.OUTLIER_CHI2 and self_check.OUTLIER_CHI2 is robust.OUTLIER_CHI2
+    assert auto.OUTLIER_CHI2 is robust.OUTLIER_CHI2 and best_fit.OUTLIER_CHI2 is robust.OUTLIER_CHI2
     # far beyond the chi^2_6 99.9% point, where heavier-tailed real residuals flagged clean pairs
     assert robust.OUTLIER_CHI2 > 2 * stats.chi2.ppf(0.999, 6)
 

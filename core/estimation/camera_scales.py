@@ -223,7 +223,7 @@ def screen_groups(model: PoseModel, poses: Poses, e: np.ndarray, W: Any, cov: np
     group of observations (name, rows: each X's and each Y's, since which are cameras the data
     do not say), the scale s its t_B would need and its standard deviation, in one Gauss-Newton
     step from a least-squares fit (`poses`, residuals e, per-group weights W, covariance cov), as
-    `handeye.self_check.camera_scale_screen` does for one camera. Returns [(name, rows, s, std)]
+    `handeye.checks.scale_checks.camera_scale_screen` does for one camera. Returns [(name, rows, s, std)]
     for the groups the data determine (a positive Schur complement)."""
     g = model.camera_direction(poses)
     gw, ew = W.residual(g), W.residual(e)

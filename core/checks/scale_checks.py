@@ -1,0 +1,213 @@
+"""The self-check's checks 5 and 6, the camera's scale: do the camera's translations need a factor
+to fit the robot's (a unit mix-up, a monocular camera, a board size or focal length off), for one
+camera (`camera_scale_check`) or camera by camera in a cell (`camera_scales_check`), and does
+noise bias a fitted scale (`camera_scale_noise`); `camera_scale_verdict` and
+`camera_scale_screen` for `auto`, which asks before it solves again with the scale unknown."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from handeye.checks.best_fit import FIT_TOL, MAX_ITER, best_fit
+from handeye.estimation import camera_scale, camera_scales, nlls
+from handeye.estimation.robust import DEFAULT_LOSS_SCALE
+from handeye.framework.errors import DegenerateDataError
+
+#: check 5: the camera's translations need a factor s to fit the robot's: a failure beyond a
+#: factor SCALE_FAIL either way (a unit mix-up, m against mm or inch, or a monocular camera), a
+#: warning beyond SCALE_WARN (1%: a board size or focal length off, or robot errors that mimic
+#: them: the bundled real circle-grid set, with robot errors dominating its pixel noise, fits
+#: best at 0.94), each only when s is SCALE_SIGMAS standard deviations from 1
+SCALE_FAIL = 1.5
+SCALE_WARN = 0.01
+SCALE_SIGMAS = 5.0
+#: ... and only when the factor explains the translation misfit: the RMS translation residual
+#: with s free is this many times smaller than at s = 1 (measured: a unit mix-up or a monocular
+#: camera at 0.37, 150-460; a 2% factor, 5-8; correct units, 1.0-1.5; systematic robot errors
+#: that a free s partly absorbs (kinhec small tier, mixed-000066, IRB 120 with DH errors, 8 deg
+#: rotations), 1.54 at s = 0.37, which is no unit error)
+SCALE_GAIN_FAIL = 3.0
+SCALE_GAIN_WARN = 2.0
+#: check 6 (the scale fitted): noise in the camera's translations biases the fitted scale toward
+#: zero by a relative amount up to kappa (`handeye.camera_scale.noise_bias`); flagged when that
+#: is NOISE_BIAS_SIGMAS standard deviations of the scale (and SCALE_WARN). Measured
+#: (docs/camera-scale.md): genuinely monocular data at most 2.2 sigma (KinHEC's 32 monocular
+#: sequences; 2.9 for its mixed monocular ones), simulated ones at most 1.0 (camera noise 5 mm)
+#: and 2.4 (robot noise 10 mm, where the bound is loose); metric data given camera_scale=
+#: 'unknown' with noisy camera depth 5.0-10.3 (KinHEC mixed-000015: 6.3, kappa 7.1%, the scale
+#: 7.2% short). A failure beyond NOISE_BIAS_FAIL: noise could span half the translations'
+#: spread, the scale is not determined (measured 0.57 to 2000 where it was meaningless; at most
+#: 0.34 elsewhere, 0.013 on the monocular sequences)
+NOISE_BIAS_SIGMAS = 4.0
+NOISE_BIAS_FAIL = 0.5
+
+
+def camera_scale_verdict(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray]) -> dict[str, Any] | None:
+    """Check 5 alone, for a solver that wants to know whether the data demand a camera scale
+    (`auto`): the figures of `camera_scale_check` with "verdict" "fail", "warn" or None, or None when
+    the check does not apply (no camera, the scale already unknown, pairs far off the others,
+    the fit singular)."""
+    spec = problem.check_model(data, unknowns)
+    if spec is None:
+        return None
+    model, poses, _ = spec
+    try:
+        _, cov, flagged, res, _, _ = best_fit(model, poses)
+    except DegenerateDataError:
+        return None
+    if flagged.any():
+        return None
+    failures: list[str] = []
+    warnings: list[str] = []
+    figures: dict[str, Any] = {}
+    camera_scale_check(model, res, cov, failures, warnings, figures)
+    if "camera_scale" not in figures:
+        return None
+    verdict = "fail" if failures else "warn" if warnings else None
+    return {**figures["camera_scale"], "verdict": verdict}
+
+
+def camera_scale_screen(model: Any, poses: tuple[np.ndarray, ...], e: np.ndarray, W: Any,
+                        cov: np.ndarray) -> tuple[float, float] | None:
+    """Check 5's screen: (s, its standard deviation) for the scale of the camera's translations
+    in one Gauss-Newton step from a least-squares fit (`poses`, its residuals e, per-group
+    weights W, covariance cov as `handeye.nlls.covariance` gives it); exact in s, which the
+    residual is linear in, with the poses stationary at the fit. None where the data do not
+    determine s (the Schur complement of s is not positive)."""
+    g = model.camera_direction(poses)
+    gw, ew = W.residual(g).ravel(), W.residual(e).ravel()
+    if model.m >= model.sums_min_pairs:  # J^T W g in closed form: g lives on the translation rows only
+        b = model.translation_gradient(poses, g[:, 3:]) / W.sigma_trans ** 2
+    else:
+        J = W.jacobian(model.jacobian(poses, e))
+        b = J.reshape(-1, J.shape[2]).T @ gw  # cov is P (P^T H P)^-1 P^T: b stays in the full 6k
+    factor = float(ew @ ew) / max(ew.size - len(b), 1)  # the variance factor of cov
+    schur = float(gw @ gw) - float(b @ cov @ b) / factor
+    if not schur > 0.0:
+        return None
+    return 1.0 - float(gw @ ew) / schur, math.sqrt(factor / schur)
+
+
+def scale_suspect(s: float, std: float) -> bool:
+    """Whether a screened scale needs the fit with s free (`camera_scale_check`): it moved by more
+    than SCALE_WARN and two standard deviations."""
+    return abs(s - 1.0) > SCALE_WARN and abs(s - 1.0) > 2.0 * std
+
+
+def camera_scale_check(model: Any, res: Any, cov: np.ndarray, failures: list[str], warnings: list[str],
+                  figures: dict[str, Any]) -> None:
+    """Check 5: do the camera's translations fit the robot's at scale 1? Screened in one
+    Gauss-Newton step from the best fit for the scale s of the camera's translations
+    (`handeye.camera_scale`; the residual is linear in s and the fit stationary in the poses),
+    with its standard deviation from the Schur complement of s in the information matrix; where
+    s moves by more than SCALE_WARN and two standard deviations, the fit is redone with s free
+    (the residuals at s = 1 carry the misfit of a wrong scale, which inflates the noise and
+    would hide it) and s judged there. Models without a camera, or whose camera scale is
+    already unknown, are skipped."""
+    if not hasattr(model, "camera_direction") or res.W.L is not None:
+        return
+    screen = camera_scale_screen(model, res.poses, res.e, res.W, cov)
+    if screen is None:
+        return
+    s, std = screen
+    gain = 1.0
+    if scale_suspect(s, std):
+        try:
+            free = camera_scale.ScaledCameraModel(model)
+            fit = nlls.levenberg_marquardt(free, res.poses, None, "linear", DEFAULT_LOSS_SCALE, MAX_ITER, FIT_TOL)
+            figures_s = camera_scale.scale_figures(free, fit.poses, fit.W.sigma_rot, fit.W.sigma_trans,
+                                                   nlls.covariance(fit, "linear", DEFAULT_LOSS_SCALE, True)[1])
+        except DegenerateDataError:
+            return
+        s, std = figures_s["camera_scale"], figures_s["camera_scale_std"]
+        gain = math.sqrt(float(np.sum(res.e[:, 3:] ** 2)) / max(float(np.sum(fit.e[:, 3:] ** 2)), 1e-300))
+    if not s > SCALE_SIGMAS * std:  # the robot's translations do not fix the camera's scale (e.g. none)
+        return
+    z = (s - 1.0) / std
+    figures["camera_scale"] = {"scale": s, "std": std, "sigmas": z, "translation_fit_gain": gain}
+    text = (f"the camera's translations fit the robot's best when multiplied by {s:.4g} (+-{std:.2g}, "
+            f"{abs(z):.3g} standard deviations from 1; the translation residuals {gain:.3g} times smaller)")
+    hint = getattr(model, "scale_hint", "camera_scale='unknown'")  # how the data say so (a cell: the cameras' names)
+    if abs(math.log(s)) > math.log(SCALE_FAIL) and abs(z) > SCALE_SIGMAS and gain > SCALE_GAIN_FAIL:
+        failures.append(f"{text}: are both in one length unit (m against mm)? For a camera whose translations are "
+                        f"known only up to scale (monocular SLAM), give {hint}")
+    elif abs(s - 1.0) > SCALE_WARN and abs(z) > SCALE_SIGMAS and gain > SCALE_GAIN_WARN:
+        warnings.append(f"self-check: {text}: check the board's size and the camera's focal length (a PnP pose's "
+                        f"distance scales with both); {hint} fits the factor")
+
+
+def camera_scales_check(model: Any, res: Any, cov: np.ndarray, failures: list[str], warnings: list[str],
+                   figures: dict[str, Any]) -> None:
+    """Check 5 per camera of a cell (a model with ``scale_groups``: the observations of each X
+    and each Y, whose cameras the data do not single out), before check 5 for all cameras at once:
+    one monocular camera among metric ones misfits by a factor that a scale for all would average
+    away. The fit with groups' scales free that explains the most
+    (`handeye.camera_scales.groups_off_scale`), its scales judged as check 5 judges one camera."""
+    groups = getattr(model, "scale_groups", None)
+    if not groups or res.W.L is not None:
+        return
+    best = camera_scales.groups_off_scale(model, res, cov, groups, scale_suspect, MAX_ITER, FIT_TOL)
+    if best is None:
+        return
+    names, gain, f = best
+    scales = {name: (f["camera_scales"][name], f["camera_scales_std"][name]) for name in names}
+    figures["camera_scales"] = {"translation_fit_gain": gain, **{
+        name: {"scale": s, "std": std, "sigmas": (s - 1.0) / std} for name, (s, std) in scales.items()}}
+    far = [n for n, (s, std) in scales.items() if s > SCALE_SIGMAS * std and abs(s - 1.0) > SCALE_SIGMAS * std]
+    fail = [n for n in far if abs(math.log(scales[n][0])) > math.log(SCALE_FAIL)]
+    warn = [n for n in far if abs(scales[n][0] - 1.0) > SCALE_WARN]
+    named = fail if fail and gain > SCALE_GAIN_FAIL else warn if warn and gain > SCALE_GAIN_WARN else []
+    if not named:
+        return
+    text = (f"the translations of the observations of {', '.join(repr(n) for n in named)} fit the robot's best when "
+            f"multiplied by {', '.join(f'{scales[n][0]:.4g} (+-{scales[n][1]:.2g})' for n in named)} (the translation "
+            f"residuals {gain:.3g} times smaller)")
+    if named is fail:
+        failures.append(f"{text}: is each camera in the cell's length unit? For cameras known only up to scale "
+                        f"(monocular SLAM), give camera_scale={named!r}")
+    else:
+        warnings.append(f"self-check: {text}: check those cameras' board sizes and focal lengths (a PnP pose's "
+                        f"distance scales with both); camera_scale={named!r} fits their factors")
+
+
+def camera_scale_noise(model: Any, res: Any, factor: float, failures: list[str], warnings: list[str],
+                        figures: dict[str, Any]) -> None:
+    """Check 6, where the camera's scale is unknown (fitted with the answer): could noise in the
+    camera's translations have biased the fitted scale s toward zero by more than its stated
+    uncertainty (`handeye.camera_scale.noise_bias`)? A failure beyond NOISE_BIAS_FAIL (the data
+    do not determine s), a warning beyond SCALE_WARN; both only NOISE_BIAS_SIGMAS standard
+    deviations of s. Skipped for models whose scale is known."""
+    if not isinstance(model, camera_scale.ScaledCameraModel) or res.W.L is not None:
+        return
+    try:
+        f = camera_scale.noise_bias(model, res.poses, res.W.sigma_rot, res.W.sigma_trans, factor)
+    except DegenerateDataError:
+        return
+    s, std, bias, sigmas = f["camera_scale"], f["camera_scale_std"], f["bias"], f["bias_sigmas"]
+    figures["camera_scale_noise"] = {"scale": s, "std": std, "bias": bias, "bias_sigmas": sigmas}
+    whose, fitted = "the camera's scale", f"the camera's scale {s:.4g} (+-{std:.2g})"
+    if "camera" in f:  # several cameras (`handeye.camera_scales`): the worst named, all in the figures
+        whose = f"the scale of camera {f['camera']!r}"
+        fitted = f"the scale {s:.4g} (+-{std:.2g}) of camera {f['camera']!r}"
+        figures["camera_scale_noise"].update(camera=f["camera"], cameras=f["cameras"])
+    if not sigmas > NOISE_BIAS_SIGMAS:
+        return
+    rms = float(np.sqrt(np.mean(np.sum(res.e[:, 3:] ** 2, axis=1))))
+    spread = (f"the translation residuals ({rms:.3g} RMS, in the robot's length unit) are large against the spread of "
+              "the camera's translations that fixes its scale, and noise in those translations pulls a fitted scale "
+              "toward zero")
+    advice = ("record poses whose camera-to-target distance varies more, or less noisy camera poses; if the camera's "
+              "translations are metric, solve with the scale known")
+    if bias > NOISE_BIAS_FAIL:
+        share = "all" if bias >= 1.0 else f"{bias:.0%}"
+        failures.append(f"the data do not determine {whose}: {spread}; noise as large as the residuals "
+                        f"could account for {share} of that spread, so the fitted {s:.4g} (+-{std:.2g}) may be far "
+                        f"too small: {advice}")
+    elif bias > SCALE_WARN:
+        warnings.append(f"self-check: {fitted} may be up to {bias:.1%} too small, "
+                        f"{sigmas:.3g} standard deviations that its stated uncertainty (and X's and Y's) leaves out: "
+                        f"{spread}; {advice}")
