@@ -9,7 +9,7 @@ registered axbycz solver runs on its default backend (``--solvers`` to choose), 
 `refine` started at the ground truth: the accuracy floor of the data.
 
 Per cell and solver the script prints the RMS error over the trials of each unknown (rotation in
-mrad, translation in mm) and auto's ratio to the oracle, and checks the targets of issue 12:
+mrad, translation in mm) and auto's ratio to the oracle, and checks its targets:
 
 - `auto` within 3% of the oracle's RMS error, every unknown, rotation and translation, every cell;
 - `auto` never worse (RMS) than the best other method (oracle excluded) in any cell and metric.

@@ -1,4 +1,4 @@
-"""Kinematic calibration with hand-eye (``axyb-kinematic``, issue 26): how much the arm's own DH
+"""Kinematic calibration with hand-eye (``axyb-kinematic``): how much the arm's own DH
 errors cost the pose-only answer, and what fitting them gives back.
 
 The study: the simulator's default cell (`AXYBKinematic.simulate`: the LR Mate 200iD-like arm,

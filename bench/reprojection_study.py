@@ -13,8 +13,8 @@ chessboard, blur 0.7 px, grey-level noise 2) through detection, then 0.3 px of n
 detected corners (the detector alone is ~0.02 px accurate on renders), PnP, same three answers.
 
 Printed per setup: median and 90th percentile of the rotation (deg) and translation (mm) errors
-of X and Y, the ratio of (b) to (c) and to (a) (medians), and the time per solve. Targets
-(issue "From sensors to poses"): (b) within 1.2x of (c); (b) at least as accurate as (a).
+of X and Y, the ratio of (b) to (c) and to (a) (medians), and the time per solve. Targets:
+(b) within 1.2x of (c); (b) at least as accurate as (a).
 ``--figure DIR`` writes the error distributions (reprojection.png).
 
 Usage::

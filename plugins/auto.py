@@ -274,9 +274,12 @@ def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: 
         return poses, status, diag
     reason = _sources_skipped(data, status, ropts, report, stations)
     if reason is None:
+        model = _refine.model_of(kept)
+        count = model.noise_factors(kept, poses).count
+        if options.noise is None and 6 * kept.m < RESIDUALS_PER_VARIANCE * count:
+            return poses, status, {**diag, "noise_sources_skipped": f"{kept.m} observations are too few for {count} variances"}
         try:
-            new, new_status, new_diag = _refine.fit(_refine.model_of(kept), kept, poses,
-                                                    _refine.settings_of(ropts, kept.m), "sources")
+            new, new_status, new_diag = _refine.fit(model, kept, poses, _refine.settings_of(ropts, kept.m), "sources")
         except DegenerateDataError:
             reason = "the pairs kept do not determine the fit with the noise sources"
     if reason is not None:
@@ -284,9 +287,6 @@ def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: 
         if options.noise == "sources":
             note["warnings"] = diag.get("warnings", []) + [f"auto: noise='sources' was not applied: {reason}"]
         return poses, status, {**diag, **note}
-    count = len(new_diag["noise_sources"])
-    if options.noise is None and 6 * kept.m < RESIDUALS_PER_VARIANCE * count:
-        return poses, status, {**diag, "noise_sources_skipped": f"{kept.m} observations are too few for {count} variances"}
     if options.noise is None and new_diag["loglik_gain"] < noise_sources.min_gain(count):  # no better than one level per group
         return poses, status, {**diag, "noise_sources_gain": new_diag["loglik_gain"]}
     carried = {k: diag[k] for k in ("outliers_left_out", "init") if k in diag}

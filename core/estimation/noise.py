@@ -33,13 +33,16 @@ class NoiseModel:
         names = (stacks,) if isinstance(stacks, str) else stacks
         return cls({n: (float(rot), float(trans)) for n in names})
 
-    def apply(self, name: str, T: Array, rng: np.random.Generator) -> Array:
-        """A noisy copy of pose stack T: (m, 4, 4) named `name` (unchanged copy if no noise)."""
+    def apply(self, name: str, T: Array, rng: np.random.Generator, factor: Array | None = None) -> Array:
+        """A noisy copy of pose stack T: (m, 4, 4) named `name` (unchanged copy if no noise);
+        `factor`: (m,) each pose's standard deviations times its own factor (the same draws),
+        e.g. the observations of a camera noisier than the others."""
         out = np.array(T, dtype=float, copy=True)
         rot, trans = self.sigmas.get(name, (0.0, 0.0))
         m = len(out)
+        scale = 1.0 if factor is None else np.asarray(factor, dtype=float)[:, None]
         if rot > 0:
-            out[:, :3, :3] = out[:, :3, :3] @ so3_exp(rot * rng.standard_normal((m, 3)))
+            out[:, :3, :3] = out[:, :3, :3] @ so3_exp(scale * (rot * rng.standard_normal((m, 3))))
         if trans > 0:
-            out[:, :3, 3] += trans * rng.standard_normal((m, 3))
+            out[:, :3, 3] += scale * (trans * rng.standard_normal((m, 3)))
         return out

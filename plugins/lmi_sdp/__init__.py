@@ -28,7 +28,7 @@ Backends:
   (`handeye.plugins._sdp_backends`).
 - ``picos``: the same LMI through PICOS and CVXOPT. PICOS has no parameters for general
   constants, so its problem is rebuilt per call (13-20 ms per solve, ~10 ms of it CVXOPT).
-- ``casadi``: NOT this LMI, the issue-4 extension: the eq. 8 cost under exact SO(3)
+- ``casadi``: NOT this LMI, an extension beyond the paper: the eq. 8 cost under exact SO(3)
   constraints, solved by IPOPT (`handeye.plugins.lmi_sdp.casadi.solve_casadi`); its options
   ``multistart``, ``seed``, ``ipopt_options`` apply to it alone, ``cvxpy_solver`` to cvxpy alone
   (InputError otherwise). Its rotations are exactly in SO(3), so ``orthogonalize`` leaves them

@@ -256,15 +256,31 @@ def _compare_held_out(data: AXYBData, options: Options) -> dict[str, Any]:
         raise InputError(f"held_out={k} needs at least {2 * k} stations (2 per fold), got {len(data.A)}; "
                          "give fewer folds or record more stations")
     plain = dataclasses.replace(options, held_out=0, init_X=None, init_Y=None)
+    fold: list[Any] = [None, None]  # the fold's training data and the pose-based answer on them
+
+    def pose_based(train: AXYBData) -> Any:
+        """The start solver on the fold's poses, once per fold: it is also the corner fits' start."""
+        if fold[0] is not train:
+            fold[:] = [train, run_registered(START, dataclasses.replace(train, images=None), problem="axyb")]
+        return fold[1]
+
+    def corner_fit(robot: str) -> held_out.Fitter:
+        fit_options = dataclasses.replace(plain, robot_noise=robot)
+
+        def fit(train: AXYBData) -> dict[str, np.ndarray]:
+            start = pose_based(train)
+            given = fit_options  # a start that ended badly: `run`'s own start refuses it, as alone
+            if Status(start.status) in (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED):
+                given = dataclasses.replace(fit_options, init_X=start.unknowns["X"], init_Y=start.unknowns["Y"])
+            return run(train, given, "default").unknowns
+        return fit
+
     fitters: dict[str, held_out.Fitter] = {}
     if options.robot_noise_estimated:
-        joint = dataclasses.replace(plain, robot_noise="estimated")
-        fitters["joint"] = lambda train: run(train, joint, "default").unknowns
+        fitters["joint"] = corner_fit("estimated")
     if options.robot_noise != "estimated":
-        exact = dataclasses.replace(plain, robot_noise="none")
-        fitters["exact_robot"] = lambda train: run(train, exact, "default").unknowns
-    fitters["pose_based"] = lambda train: run_registered(START, dataclasses.replace(train, images=None),
-                                                         problem="axyb").unknowns
+        fitters["exact_robot"] = corner_fit("none")
+    fitters["pose_based"] = lambda train: pose_based(train).unknowns
     found = held_out.held_out(data, fitters, k)
     corner_fits = {name: px for name, px in found.items() if name != "pose_based" and px is not None}
     chosen = min(corner_fits, key=corner_fits.get) if corner_fits else next(iter(fitters))

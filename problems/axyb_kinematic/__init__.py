@@ -1,5 +1,5 @@
 """FK(q_i) X = Y B_i: hand-eye and robot-world calibration together with the arm's kinematic (DH)
-errors, from joint readings (issue 26).
+errors, from joint readings.
 
 `model`: forward kinematics with the sensitivity to each DH parameter and which parameters
 hand-eye data can determine; `data`: the validated data; `problem`: the `Problem` (validation,

@@ -136,11 +136,9 @@ def simulate_cell(stations: int, *, seed: int | None = None, noise: NoiseModel |
     noise = noise or NoiseModel()
     A_noisy = noise.apply("A", A_station, noise_rng)
     B = inverse(Y)[y_index] @ A_station[station] @ X[x_index]  # exact: B_i = Y_k^-1 A_i X_j
-    if camera_noise:
-        factors = _scales(camera_noise, [f"cam{c}" for c in range(n_cam)], "camera_noise")
-        B = _noisier(B, noise, np.array([factors.get(f"cam{c}", 1.0) for c in range(n_cam)])[camera], noise_rng)
-    else:
-        B = noise.apply("B", B, noise_rng)
+    factors = _scales(camera_noise, [f"cam{c}" for c in range(n_cam)], "camera_noise") if camera_noise else None
+    B = noise.apply("B", B, noise_rng, None if factors is None else
+                    np.array([factors.get(f"cam{c}", 1.0) for c in range(n_cam)])[camera])
     m = len(B)
     bad = np.sort(gross_rng.choice(m, size=int(round(gross * m)), replace=False)) if gross > 0 else np.zeros(0, dtype=np.int64)
     if len(bad):
@@ -194,19 +192,6 @@ def _scales(value: Any, cameras: list[str], option: str = "camera_scales") -> di
         if isinstance(s, bool) or not isinstance(s, (int, float, np.floating, np.integer)) or not 0 < s < math.inf:
             raise InputError(f"{option}[{name!r}] must be a factor > 0, got {s!r}")
     return {name: float(s) for name, s in value.items()}
-
-
-def _noisier(B: np.ndarray, noise: NoiseModel, factor: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """`NoiseModel.apply` of "B" with each observation's standard deviations times its factor
-    (the same draws in the same order)."""
-    out = np.array(B, dtype=float, copy=True)
-    rot, trans = noise.sigmas.get("B", (0.0, 0.0))
-    m = len(out)
-    if rot > 0:
-        out[:, :3, :3] = out[:, :3, :3] @ so3_exp((rot * factor)[:, None] * rng.standard_normal((m, 3)))
-    if trans > 0:
-        out[:, :3, 3] += (trans * factor)[:, None] * rng.standard_normal((m, 3))
-    return out
 
 
 def _share(value: Any) -> float:
