@@ -11,6 +11,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from scipy.stats import norm
 
 from handeye.checks.best_fit import FIT_TOL, MAX_ITER, best_fit
 from handeye.estimation import camera_scale, camera_scales, nlls
@@ -32,6 +33,22 @@ SCALE_SIGMAS = 5.0
 #: rotations), 1.54 at s = 0.37, which is no unit error)
 SCALE_GAIN_FAIL = 3.0
 SCALE_GAIN_WARN = 2.0
+#: ... or, below those sizes, when fitting the factor would move an unknown by more than
+#: EFFECT_SIGMAS of its own stated 1-sigma, the factor EFFECT_SCALE_SIGMAS standard deviations
+#: from 1 and beyond SCALE_FLOOR (rounding: noise-free data fit best at 1 +- 1e-14). A factor
+#: 0.3% off (a board size or focal length a little wrong) moves Y of a camera 1.5 m away by 4.5
+#: mm, 8 times its 1-sigma at 30 stations, with translation residuals no smaller. Measured
+#: (docs/camera-scale.md): 2 warnings in 4000 simulated answers of exact cameras (8-60 stations,
+#: five kinds of noise); 0.3% off warned in 40/40 at 30 and 60 stations, 12/40 at 15
+EFFECT_SIGMAS = 3.0
+EFFECT_SCALE_SIGMAS = 4.0
+#: ... for a cell, the same false-alarm rate over its groups (each X's and each Y's observations):
+#: the two-sided tail of EFFECT_SCALE_SIGMAS shared among them (4.8 sigma for 24 groups)
+EFFECT_TAIL = 2.0 * float(norm.sf(EFFECT_SCALE_SIGMAS))
+SCALE_FLOOR = 1e-6
+#: ... for factors within EFFECT_MAX of 1 (a larger one is judged by how much it explains, as
+#: above: KinHEC's noisiest camera fits best at 0.72 with a right answer, its noise's bias)
+EFFECT_MAX = 0.05
 #: check 6 (the scale fitted): noise in the camera's translations biases the fitted scale toward
 #: zero by a relative amount up to kappa (`handeye.camera_scale.noise_bias`); flagged when that
 #: is NOISE_BIAS_SIGMAS standard deviations of the scale (and SCALE_WARN). Measured
@@ -78,6 +95,15 @@ def camera_scale_screen(model: Any, poses: tuple[np.ndarray, ...], e: np.ndarray
     weights W, covariance cov as `handeye.nlls.covariance` gives it); exact in s, which the
     residual is linear in, with the poses stationary at the fit. None where the data do not
     determine s (the Schur complement of s is not positive)."""
+    screen = _screen(model, poses, e, W, cov)
+    return None if screen is None else screen[:2]
+
+
+def _screen(model: Any, poses: tuple[np.ndarray, ...], e: np.ndarray, W: Any,
+            cov: np.ndarray) -> tuple[float, float, np.ndarray] | None:
+    """`camera_scale_screen`'s (s, std) and the slope d(poses)/ds (6k,): how far the fit moves,
+    in each pose's own frame, per unit of s when s is fitted with it (-H^-1 J^T W g, H^-1 =
+    cov / the variance factor)."""
     g = model.camera_direction(poses)
     gw, ew = W.residual(g).ravel(), W.residual(e).ravel()
     if model.m >= model.sums_min_pairs:  # J^T W g in closed form: g lives on the translation rows only
@@ -86,10 +112,43 @@ def camera_scale_screen(model: Any, poses: tuple[np.ndarray, ...], e: np.ndarray
         J = W.jacobian(model.jacobian(poses, e))
         b = J.reshape(-1, J.shape[2]).T @ gw  # cov is P (P^T H P)^-1 P^T: b stays in the full 6k
     factor = float(ew @ ew) / max(ew.size - len(b), 1)  # the variance factor of cov
-    schur = float(gw @ gw) - float(b @ cov @ b) / factor
+    slope = cov @ b / factor
+    schur = float(gw @ gw) - float(b @ slope)
     if not schur > 0.0:
         return None
-    return 1.0 - float(gw @ ew) / schur, math.sqrt(factor / schur)
+    return 1.0 - float(gw @ ew) / schur, math.sqrt(factor / schur), -slope
+
+
+def slightly_off(s: float, std: float, residuals: int, sigmas: float = EFFECT_SCALE_SIGMAS) -> bool:
+    """Whether a screened camera scale s (its standard deviation std) is a little off: within
+    EFFECT_MAX of 1 but `sigmas` standard deviations beyond what exact cameras give, which is 1, or up to
+    kappa = n (std / s)^2 short of it, the bias that noise in the camera's translations puts on a
+    fitted scale (`handeye.camera_scale.noise_bias`; n the translation residuals less the
+    unknowns': KinHEC's noisy cameras fit best at 0.65-0.9, 8-10 standard deviations short, with
+    answers as right as their 1-sigma), and beyond SCALE_FLOOR."""
+    if not abs(s - 1.0) < EFFECT_MAX:
+        return False
+    kappa = residuals * (std / s) ** 2
+    low = 1.0 - kappa - sigmas * std
+    return (s > 1.0 + max(sigmas * std, SCALE_FLOOR)) or s < min(low, 1.0 - SCALE_FLOOR)
+
+
+def scale_effect(model: Any, cov: np.ndarray, slope: np.ndarray, s: float) -> tuple[str, float, float]:
+    """How far fitting the camera's scale s would move the answer: (the unknown it moves the most
+    against its own 1-sigma, that many standard deviations, its translation's shift in the data's
+    length unit), the shift (s - 1) * slope to first order, measured by each unknown's
+    translation covariance block."""
+    worst = ("", 0.0, 0.0)
+    for j, name in enumerate(model.unknowns):
+        t = slope[6 * j + 3:6 * j + 6] * (s - 1.0)
+        block = cov[6 * j + 3:6 * j + 6, 6 * j + 3:6 * j + 6]
+        try:
+            sigmas = math.sqrt(max(float(t @ np.linalg.solve(block, t)), 0.0))
+        except np.linalg.LinAlgError:
+            continue
+        if sigmas > worst[1]:
+            worst = (name, sigmas, float(np.linalg.norm(t)))
+    return worst
 
 
 def scale_suspect(s: float, std: float) -> bool:
@@ -110,10 +169,10 @@ def camera_scale_check(model: Any, res: Any, cov: np.ndarray, failures: list[str
     already unknown, are skipped."""
     if not hasattr(model, "camera_direction") or res.W.L is not None:
         return
-    screen = camera_scale_screen(model, res.poses, res.e, res.W, cov)
+    screen = _screen(model, res.poses, res.e, res.W, cov)
     if screen is None:
         return
-    s, std = screen
+    s, std, slope = screen
     gain = 1.0
     if scale_suspect(s, std):
         try:
@@ -128,9 +187,16 @@ def camera_scale_check(model: Any, res: Any, cov: np.ndarray, failures: list[str
     if not s > SCALE_SIGMAS * std:  # the robot's translations do not fix the camera's scale (e.g. none)
         return
     z = (s - 1.0) / std
-    figures["camera_scale"] = {"scale": s, "std": std, "sigmas": z, "translation_fit_gain": gain}
+    moved, effect, shift = scale_effect(model, cov, slope, s)
+    # what a camera scale 0.1% off (a board size or focal length a little wrong) would do to each
+    # unknown: the stated 1-sigma takes the scale as exact (docs/camera-scale.md)
+    per_permille = {name: float(np.linalg.norm(1e-3 * slope[6 * j + 3:6 * j + 6])) for j, name in enumerate(model.unknowns)}
+    figures["camera_scale"] = {"scale": s, "std": std, "sigmas": z, "translation_fit_gain": gain,
+                               "moves": moved, "moves_sigmas": effect, "moves_by": shift,
+                               "per_permille": per_permille}
+    smaller = f"; the translation residuals {gain:.3g} times smaller" if gain > 1.1 else ""
     text = (f"the camera's translations fit the robot's best when multiplied by {s:.4g} (+-{std:.2g}, "
-            f"{abs(z):.3g} standard deviations from 1; the translation residuals {gain:.3g} times smaller)")
+            f"{abs(z):.3g} standard deviations from 1{smaller})")
     hint = getattr(model, "scale_hint", "camera_scale='unknown'")  # how the data say so (a cell: the cameras' names)
     if abs(math.log(s)) > math.log(SCALE_FAIL) and abs(z) > SCALE_SIGMAS and gain > SCALE_GAIN_FAIL:
         failures.append(f"{text}: are both in one length unit (m against mm)? For a camera whose translations are "
@@ -138,6 +204,11 @@ def camera_scale_check(model: Any, res: Any, cov: np.ndarray, failures: list[str
     elif abs(s - 1.0) > SCALE_WARN and abs(z) > SCALE_SIGMAS and gain > SCALE_GAIN_WARN:
         warnings.append(f"self-check: {text}: check the board's size and the camera's focal length (a PnP pose's "
                         f"distance scales with both); {hint} fits the factor")
+    elif effect > EFFECT_SIGMAS and slightly_off(s, std, 3 * (model.m - len(model.unknowns))):
+        warnings.append(f"self-check: {text}; that factor would move {moved}'s translation by {shift:.3g} in the "
+                        f"data's length unit, {effect:.3g} times its stated 1-sigma, so {moved} is less certain than "
+                        f"stated: check the board's size and the camera's focal length (a PnP pose's distance scales "
+                        f"with both), or the robot's own errors, which can mimic a scale; {hint} fits the factor")
 
 
 def camera_scales_check(model: Any, res: Any, cov: np.ndarray, failures: list[str], warnings: list[str],
@@ -146,13 +217,23 @@ def camera_scales_check(model: Any, res: Any, cov: np.ndarray, failures: list[st
     and each Y, whose cameras the data do not single out), before check 5 for all cameras at once:
     one monocular camera among metric ones misfits by a factor that a scale for all would average
     away. The fit with groups' scales free that explains the most
-    (`handeye.camera_scales.groups_off_scale`), its scales judged as check 5 judges one camera."""
+    (`handeye.camera_scales.groups_off_scale`), its scales judged as check 5 judges one camera;
+    where it names none, the groups whose scale would move the answer beyond its 1-sigma
+    (`_groups_moving`)."""
     groups = getattr(model, "scale_groups", None)
     if not groups or res.W.L is not None:
         return
-    best = camera_scales.groups_off_scale(model, res, cov, groups, scale_suspect, MAX_ITER, FIT_TOL)
-    if best is None:
-        return
+    screens = camera_scales.screen_groups(model, res.poses, res.e, res.W, cov, groups)
+    best = camera_scales.groups_off_scale(model, res, screens, groups, scale_suspect, MAX_ITER, FIT_TOL)
+    if best is None or not _groups_off(best, failures, warnings, figures):
+        _groups_moving(model, res, cov, screens, warnings, figures)
+
+
+def _groups_off(best: tuple[list[str], float, dict[str, Any]], failures: list[str], warnings: list[str],
+                figures: dict[str, Any]) -> bool:
+    """`camera_scales_check` for the best fit with groups' scales free: a failure or a warning
+    for the groups whose scale is off by SCALE_FAIL or SCALE_WARN where that fit explains the
+    misfit (as check 5 for one camera); whether it named any."""
     names, gain, f = best
     scales = {name: (f["camera_scales"][name], f["camera_scales_std"][name]) for name in names}
     figures["camera_scales"] = {"translation_fit_gain": gain, **{
@@ -162,7 +243,7 @@ def camera_scales_check(model: Any, res: Any, cov: np.ndarray, failures: list[st
     warn = [n for n in far if abs(scales[n][0] - 1.0) > SCALE_WARN]
     named = fail if fail and gain > SCALE_GAIN_FAIL else warn if warn and gain > SCALE_GAIN_WARN else []
     if not named:
-        return
+        return False
     text = (f"the translations of the observations of {', '.join(repr(n) for n in named)} fit the robot's best when "
             f"multiplied by {', '.join(f'{scales[n][0]:.4g} (+-{scales[n][1]:.2g})' for n in named)} (the translation "
             f"residuals {gain:.3g} times smaller)")
@@ -172,6 +253,65 @@ def camera_scales_check(model: Any, res: Any, cov: np.ndarray, failures: list[st
     else:
         warnings.append(f"self-check: {text}: check those cameras' board sizes and focal lengths (a PnP pose's "
                         f"distance scales with both); camera_scale={named!r} fits their factors")
+    return True
+
+
+def _groups_moving(model: Any, res: Any, cov: np.ndarray, screens: list[camera_scales.GroupScreen],
+                   warnings: list[str], figures: dict[str, Any]) -> None:
+    """A warning for the groups (cameras or targets) whose screened scale is off beyond noise
+    (`slightly_off`, at EFFECT_TAIL shared among the groups, its standard deviation the larger of
+    the screen's and the one robust to cameras of unequal noise, `_robust_std`) and would move an
+    unknown by more than EFFECT_SIGMAS of its 1-sigma (`scale_effect`), most standard deviations
+    first, sharing no observation: a camera's board size or focal length a little off, which
+    neither the residuals nor a scale for the whole cell single out."""
+    gate = float(norm.isf(0.5 * EFFECT_TAIL / max(len(screens), 1)))
+    parts: dict[str, np.ndarray] = {}
+    named: list[tuple[camera_scales.GroupScreen, tuple[str, float, float]]] = []
+    used = np.zeros(model.m, dtype=bool)
+    for x in sorted(screens, key=lambda x: -abs(x.scale - 1.0) / x.std):
+        if used[x.rows].any() or not slightly_off(x.scale, x.std, 3 * len(x.rows), gate):
+            continue
+        x = x._replace(std=max(x.std, _robust_std(model, res, x, parts)))
+        effect = scale_effect(model, cov, x.slope, x.scale)
+        if slightly_off(x.scale, x.std, 3 * len(x.rows), gate) and effect[1] > EFFECT_SIGMAS:
+            named.append((x, effect))
+            used[x.rows] = True
+    if not named:
+        return
+    figures["camera_scales"] = {x.name: {"scale": x.scale, "std": x.std, "sigmas": (x.scale - 1.0) / x.std,
+                                         "moves": moved, "moves_sigmas": sigmas, "moves_by": by}
+                                for x, (moved, sigmas, by) in named}
+    parts = "; ".join(f"those of {x.name!r} when multiplied by {x.scale:.4g} (+-{x.std:.2g}, "
+                      f"{abs(x.scale - 1.0) / x.std:.3g} standard deviations from 1), which would move {moved}'s "
+                      f"translation by {by:.3g}, {sigmas:.3g} times its stated 1-sigma" for x, (moved, sigmas, by) in named)
+    names = [x.name for x, _ in named]
+    warnings.append(f"self-check: the camera translations fit the robot's best at another scale: {parts} (lengths in "
+                    f"the data's unit), so the answer is less certain than stated: check those cameras' board sizes "
+                    f"and focal lengths (a PnP pose's distance scales with both), or the robot's own errors, which can "
+                    f"mimic a scale; camera_scale={names!r} fits their factors")
+
+
+def _robust_std(model: Any, res: Any, x: camera_scales.GroupScreen, parts: dict[str, np.ndarray]) -> float:
+    """The standard deviation of a group's screened scale that holds whatever each observation's
+    noise (the sandwich estimate): s - 1 = -(h . e) / |h|^2 with h = (I - P) g the group's scale
+    direction off the poses' Jacobian (g + J slope, whitened), so var(s) = sum_i (h_i . e_i)^2 /
+    |h|^4 over the observations i, e the residuals with that scale fitted, times N / (N - p).
+    The screen's sqrt(factor) / |h| takes one
+    noise level for all, which makes a camera four times noisier than the rest look far off.
+    `parts` caches the whitened Jacobian, camera direction and residuals between groups."""
+    if not parts:
+        parts["J"] = res.W.jacobian(model.jacobian(res.poses, res.e))
+        parts["g"] = res.W.residual(model.camera_direction(res.poses))
+        parts["e"] = res.W.residual(res.e)
+    J, g, e = parts["J"], parts["g"], parts["e"]
+    h = np.einsum("iak,k->ia", J, x.slope)
+    h[x.rows] += g[x.rows]
+    hh = float(np.sum(h * h))
+    if not hh > 0.0:
+        return math.inf
+    e = e - (float(np.sum(h * e)) / hh) * h  # the residuals with the group's scale fitted: noise alone
+    size, p = e.size, J.shape[2] + 1
+    return math.sqrt(float(np.sum(np.einsum("ia,ia->i", h, e) ** 2)) * size / max(size - p, 1)) / hh
 
 
 def camera_scale_noise(model: Any, res: Any, factor: float, failures: list[str], warnings: list[str],

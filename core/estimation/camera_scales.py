@@ -27,7 +27,7 @@ holds column by column:
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -46,6 +46,16 @@ POSITIVE_SIGMAS = 3.0
 #: a camera's scale fitted fewer than this many of its standard deviations from zero (the start's
 #: linear least squares) is weakly determined: a warning names it
 WEAK_SIGMAS = 10.0
+
+
+class GroupScreen(NamedTuple):
+    """One group's screened scale (`screen_groups`): its name and rows, the scale its camera
+    translations would need with its standard deviation, and d(poses)/d(scale) (6k,)."""
+    name: str
+    rows: np.ndarray
+    scale: float
+    std: float
+    slope: np.ndarray
 
 
 class ScaledCamerasModel(ScaledCameraModel):
@@ -218,13 +228,14 @@ def translations_and_scales(model: PoseModel, rotations: Poses, groups: np.ndarr
 
 
 def screen_groups(model: PoseModel, poses: Poses, e: np.ndarray, W: Any, cov: np.ndarray,
-                  groups: tuple[tuple[str, np.ndarray], ...]) -> list[tuple[str, np.ndarray, float, float]]:
+                  groups: tuple[tuple[str, np.ndarray], ...]) -> list[GroupScreen]:
     """The host's check 5 per camera of a cell whose every camera is taken as metric: for each
     group of observations (name, rows: each X's and each Y's, since which are cameras the data
     do not say), the scale s its t_B would need and its standard deviation, in one Gauss-Newton
     step from a least-squares fit (`poses`, residuals e, per-group weights W, covariance cov), as
-    `handeye.checks.scale_checks.camera_scale_screen` does for one camera. Returns [(name, rows, s, std)]
-    for the groups the data determine (a positive Schur complement)."""
+    `handeye.checks.scale_checks.camera_scale_screen` does for one camera, and how the fit would
+    move per unit of that scale (-H^-1 J^T W g over the group's rows, H^-1 = cov / the variance
+    factor). For the groups the data determine (a positive Schur complement)."""
     g = model.camera_direction(poses)
     gw, ew = W.residual(g), W.residual(e)
     Jw = W.jacobian(model.jacobian(poses, e))
@@ -234,17 +245,18 @@ def screen_groups(model: PoseModel, poses: Poses, e: np.ndarray, W: Any, cov: np
     out = []
     for name, rows in groups:
         b = C[rows].sum(axis=0)
-        schur = float(gg[rows].sum()) - float(b @ cov @ b) / factor
+        slope = cov @ b / factor
+        schur = float(gg[rows].sum()) - float(b @ slope)
         if schur > 0.0:
-            out.append((name, rows, 1.0 - float(ge[rows].sum()) / schur, math.sqrt(factor / schur)))
+            out.append(GroupScreen(name, rows, 1.0 - float(ge[rows].sum()) / schur, math.sqrt(factor / schur), -slope))
     return out
 
 
-def groups_off_scale(model: PoseModel, res: Any, cov: np.ndarray, groups: tuple[tuple[str, np.ndarray], ...],
+def groups_off_scale(model: PoseModel, res: Any, screens: list[GroupScreen], groups: tuple[tuple[str, np.ndarray], ...],
                      suspect: Any, max_iter: int, tol: float) -> tuple[list[str], float, dict[str, Any]] | None:
     """For the host's check 5 on a cell: the groups of observations (each X's, each Y's) whose
-    t_B fit best at another scale, from the least-squares fit `res` (an `nlls` result, its
-    covariance cov). Each group screened (`screen_groups`); where any is `suspect(s, std)`, the
+    t_B fit best at another scale, from the least-squares fit `res` (an `nlls` result) and its
+    groups' `screens` (`screen_groups`). Where any is `suspect(s, std)`, the
     fits with scales free (`ScaledCamerasModel`, least squares, estimated weights) of every X's
     group, every Y's, and the suspects' (most standard deviations first, sharing no
     observation): the one whose translation residuals shrink the most, as (names, that factor,
@@ -252,13 +264,13 @@ def groups_off_scale(model: PoseModel, res: Any, cov: np.ndarray, groups: tuple[
     from handeye.estimation import nlls
     from handeye.estimation.robust import DEFAULT_LOSS_SCALE
 
-    screens = [x for x in screen_groups(model, res.poses, res.e, res.W, cov, groups) if suspect(x[2], x[3])]
+    suspects = [x for x in screens if suspect(x.scale, x.std)]
     greedy: list[tuple[str, np.ndarray]] = []
     used = np.zeros(model.m, dtype=bool)
-    for name, rows, _, _ in sorted(screens, key=lambda x: -abs(x[2] - 1.0) / x[3]):
-        if not used[rows].any():
-            greedy.append((name, rows))
-            used[rows] = True
+    for x in sorted(suspects, key=lambda x: -abs(x.scale - 1.0) / x.std):
+        if not used[x.rows].any():
+            greedy.append((x.name, x.rows))
+            used[x.rows] = True
     if not greedy:
         return None
     nX = getattr(model, "nX", 0)
