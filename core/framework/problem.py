@@ -303,6 +303,17 @@ class Problem(ABC):
         default): the problem's rows are not stations of one robot, the test is skipped."""
         return None
 
+    def station_information(self, A: np.ndarray, B: np.ndarray, unknowns: Poses, robot_sigma: tuple[float, float],
+                            camera_cov: np.ndarray) -> tuple[np.ndarray, tuple[str, ...], tuple[str, ...]] | None:
+        """For planning which stations to record (`handeye.planning`): the Fisher information
+        (m, 6k, 6k) that each planned station would give, its robot pose A_i (T_base_flange) and
+        camera pose B_i exactly as planned (A X = Y B's convention, docs/conventions.md), the
+        camera pose's covariance camera_cov (m, 6, 6) in B_i's own frame and the robot's noise
+        robot_sigma (rad, length per axis); with the names of the k unknowns (6 parameters each,
+        rotation then translation in their own frame) and those of interest (the others are
+        nuisances). None (the default): the problem cannot plan stations yet."""
+        return None
+
     def pose_model(self, data: Any) -> Any:
         """The shared least-squares engine's model of validated `data` (a
         `handeye.estimation.nlls.PoseModel`, its unknowns in the order `flat_unknowns` gives),

@@ -159,6 +159,12 @@ def _face_up(board: Board) -> bool:
     return board.kind in ("circlegrid", "aprilgrid")
 
 
+def printed_normal(board: Board) -> np.ndarray:
+    """The unit normal out of the board's printed face, in its frame: +z for circlegrid and
+    aprilgrid, -z for OpenCV's boards (`_face_up`)."""
+    return np.array([0.0, 0.0, 1.0 if _face_up(board) else -1.0])
+
+
 def _sees_back(board: Board, T: np.ndarray) -> bool:
     """Whether the camera centre lies on the unprinted side of the board's plane."""
     camera_in_board = -T[:3, :3].T @ T[:3, 3]

@@ -193,6 +193,15 @@ class AXXB(Problem):
 
         return axxb_geometry.rotation_axes(data)
 
+    def station_information(self, A: np.ndarray, B: np.ndarray, unknowns: Mapping[str, np.ndarray],
+                            robot_sigma: tuple[float, float], camera_cov: np.ndarray) -> tuple[np.ndarray, tuple[str, ...], tuple[str, ...]]:
+        """The stations of A X = X B are those of A X = Y B with Y (the board's pose eye in hand,
+        the camera's eye to hand) a nuisance: the same information, X of interest. (Any pairing
+        of the stations into motions carries no more: the motions are functions of them.)"""
+        from handeye.problems.axyb import planning
+
+        return planning.station_information(A, B, dict(unknowns), robot_sigma, camera_cov), ("X", "Y"), ("X",)
+
     def configurations(self, data: AXXBData) -> np.ndarray | None:
         """The stations' robot poses when `check_model`'s model is on the stations (the motions
         are every pair of them); None for independent motions (rows that are not stations)."""

@@ -1,0 +1,147 @@
+"""``handeye plan``: which stations to record. From the setup, a rough X and Y (CAD, or a first
+answer), the camera's intrinsics and the board, where the flange may go and what makes a view
+usable, it proposes the stations that make the answer sharpest at the expected noise, writes them
+in the robot's own pose format, and prints the 1-sigma they predict (docs/planning.md).
+
+    handeye plan --setup eye-in-hand --x 60,-20,100,17,0,0 --y 600,0,0,0,0,180 \\
+        --board chessboard:9x6:30mm --intrinsics camera.yaml --count 12 \\
+        --workspace 200,-500,50,1000,500,1000 --max-tilt 70 -o stations.csv --format kuka-abc
+
+X and Y are given as one pose each in --pose-format (default kuka-abc: x, y, z in mm, then A, B,
+C in deg); eye in hand X = T_flange_cam and Y = T_base_target, eye to hand X = T_flange_target and
+Y = T_base_cam (docs/conventions.md). Stations already recorded (--recorded-robot and
+--recorded-camera, read as `handeye calibrate` reads --robot and --camera, row by row) count as
+given: the plan is then the next --count.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+import numpy as np
+
+from handeye.cli._common import add_force_flag, check_new_file
+from handeye.framework.errors import InputError
+from handeye.geometry.se3 import make_pose
+from handeye.io.pose_formats import parse_format
+from handeye.io.pose_readers import read_poses
+from handeye.planning.plan import Noise, plan
+from handeye.planning.stations import Workspace
+from handeye.planning.views import ViewLimits
+from handeye.vision.boards import parse_board
+from handeye.vision.intrinsics import load_camera
+from handeye.vision.observations import SETUPS
+
+NAME = "plan"
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    parser = subparsers.add_parser(NAME, help="propose which stations to record", description=__doc__,
+                                   formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--problem", default=None,
+                        help="a registered problem that can plan (default: A X = Y B, X and Y of interest; the "
+                             "A X = X B problem plans for X alone)")
+    parser.add_argument("--setup", choices=SETUPS, required=True)
+    parser.add_argument("--x", required=True, metavar="POSE", help="rough X as comma-separated fields of --pose-format")
+    parser.add_argument("--y", required=True, metavar="POSE", help="rough Y as comma-separated fields of --pose-format")
+    parser.add_argument("--pose-format", default="kuka-abc",
+                        help="format of --x, --y and of the written stations unless --format (default kuka-abc)")
+    parser.add_argument("--unit", choices=("mm", "m"), default="mm", help="length unit of the poses (default mm)")
+    parser.add_argument("--board", required=True, metavar="SPEC", help="the board, e.g. chessboard:9x6:30mm (docs/boards.md)")
+    parser.add_argument("--intrinsics", required=True, metavar="FILE",
+                        help="camera intrinsics with the image size (OpenCV YAML/XML/JSON, ROS camera_info YAML)")
+    parser.add_argument("--count", type=int, default=12, help="stations to plan (default 12)")
+    parser.add_argument("--workspace", metavar="X0,Y0,Z0,X1,Y1,Z1",
+                        help="the box the flange's origin must stay in, base frame, --unit (default: no limit)")
+    parser.add_argument("--max-tilt", type=float, metavar="DEG",
+                        help="largest angle of the flange's z axis from straight down (base -z) (default: no limit)")
+    parser.add_argument("--distance", metavar="NEAR,FAR",
+                        help="camera-board distance range, --unit (default: 0.5-2x that at which the board fills half "
+                             "the image's width)")
+    parser.add_argument("--max-angle", type=float, default=45.0, metavar="DEG",
+                        help="largest angle between the optical axis and the board's normal (default 45)")
+    parser.add_argument("--pixel-noise", type=float, default=0.3, metavar="PX", help="expected corner noise (default 0.3)")
+    parser.add_argument("--robot-noise", default="0.0002,0.05", metavar="RAD,LENGTH",
+                        help="expected robot pose noise per axis: rad, --unit (default 0.0002,0.05)")
+    parser.add_argument("--recorded-robot", metavar="FILE", help="robot poses of stations already recorded")
+    parser.add_argument("--recorded-camera", metavar="FILE", help="their camera poses (as A X = Y B takes them: docs/conventions.md)")
+    parser.add_argument("--robot-format", help="format of --recorded-robot (default: --pose-format)")
+    parser.add_argument("--camera-format", help="format of --recorded-camera (default: --pose-format)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed of the candidate stations (default 0)")
+    parser.add_argument("-o", "--output", required=True, help="the stations file (.csv, .json, ...)")
+    parser.add_argument("--format", help="pose format of the written stations (default: --pose-format)")
+    parser.add_argument("--figure", metavar="PNG", help="also draw the plan")
+    parser.add_argument("--json", metavar="FILE", help="also write the plan with its predicted 1-sigma as JSON")
+    add_force_flag(parser)
+    parser.set_defaults(run=run)
+    return parser
+
+
+def run(args: argparse.Namespace) -> int:
+    for flag, path in (("--output", args.output), ("--figure", args.figure), ("--json", args.json)):
+        check_new_file(flag, path, args.force)
+    fmt = parse_format(args.pose_format)
+    X, Y = (_pose(text, fmt, flag) for text, flag in ((args.x, "--x"), (args.y, "--y")))
+    board = parse_board(args.board).in_unit(args.unit)
+    camera = load_camera(args.intrinsics)
+    limits = ViewLimits(distance=_numbers(args.distance, 2, "--distance"), max_angle_deg=args.max_angle) \
+        if args.distance else None
+    if limits is None and args.max_angle != 45.0:
+        from handeye.planning.plan import default_limits
+
+        limits = ViewLimits(distance=default_limits(board, camera).distance, max_angle_deg=args.max_angle)
+    workspace = None
+    if args.workspace or args.max_tilt is not None:
+        box = _numbers(args.workspace, 6, "--workspace") if args.workspace else (-1e12,) * 3 + (1e12,) * 3
+        workspace = Workspace(low=box[:3], high=box[3:], max_tilt_deg=args.max_tilt)
+    noise = Noise(pixel=args.pixel_noise, robot=_numbers(args.robot_noise, 2, "--robot-noise"))
+    recorded = _recorded(args)
+    result = plan(args.problem, setup=args.setup, X=X, Y=Y, camera=camera, board=board, count=args.count,
+                  workspace=workspace, limits=limits, noise=noise, recorded=recorded, seed=args.seed)
+    result.write(args.output, args.format or args.pose_format, args.unit)
+    print(f"{len(result.A)} stations ({args.setup}) written to {args.output}, in the order to record them"
+          + (f", after the {result.recorded} recorded" if result.recorded else ""))
+    print(f"predicted 1-sigma ({args.pixel_noise:g} px per corner, robot {args.robot_noise} rad,{args.unit} per axis):")
+    for k, std in enumerate(result.progression, start=1):
+        cells = "; ".join(f"{n} {s['rotation_deg']:.3g} deg / {s['translation']:.3g} {args.unit}" for n, s in std.items())
+        print(f"  after station {k:2d}: {cells}")
+    if args.figure:
+        from handeye.planning.figure import draw
+
+        print(f"figure: {draw(result, board, X, Y, args.figure, args.unit)}")
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as f:
+            json.dump(result.to_dict(), f, indent=1)
+        print(f"plan: {args.json}")
+    return 0
+
+
+def _pose(text: str, fmt: Any, flag: str) -> np.ndarray:
+    row = _numbers(text, fmt.width, flag)
+    R, t, _ = fmt.to_rotations(np.array([row]))
+    return make_pose(R[0], t[0])
+
+
+def _numbers(text: str, count: int, flag: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != count or not all(np.isfinite(values)):
+        raise InputError(f"{flag} needs {count} comma-separated numbers, got {text!r}")
+    return values
+
+
+def _recorded(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray] | None:
+    if not args.recorded_robot and not args.recorded_camera:
+        return None
+    if not (args.recorded_robot and args.recorded_camera):
+        raise InputError("stations already recorded need both --recorded-robot and --recorded-camera")
+    robot = read_poses(args.recorded_robot, args.robot_format or args.pose_format, unit=args.unit)
+    camera = read_poses(args.recorded_camera, args.camera_format or args.pose_format, unit=args.unit)
+    if len(robot) != len(camera):
+        raise InputError(f"--recorded-robot has {len(robot)} poses and --recorded-camera {len(camera)}; give one of each "
+                         "per recorded station, row by row")
+    return np.array(robot.in_unit(args.unit).poses), np.array(camera.in_unit(args.unit).poses)

@@ -1,0 +1,218 @@
+"""Planned stations (`handeye.planning`): every planned station usable (the board wholly in the
+image, in range, facing the camera) and inside the workspace, with the truth as well as the rough
+X and Y it was planned from; the information a station gives equal to Monte Carlo; planned
+stations sharper than twice as many random ones from the same pool, predicted and measured; the
+predicted 1-sigma honest (z-scores); stations already recorded taken into account; axxb's plan of
+X alone; bad input refused in one line; `handeye plan` writing the stations in a robot's format.
+
+Figures (bench/planning.py, 40 trials, docs/planning.md): eye in hand at 8 stations, X 0.019 deg /
+0.11 mm planned against 0.043 deg / 0.48 mm for 16 random ones; z RMS 1.19-1.37 in both setups.
+"""
+
+from __future__ import annotations
+
+import math
+import types
+
+import cv2
+import numpy as np
+import pytest
+
+import handeye
+from handeye.cli import main
+from handeye.estimation.noise import NoiseModel
+from handeye.framework.errors import InputError
+from handeye.geometry.se3 import inverse, make_pose, so3_exp, so3_log
+from handeye.io.pose_readers import read_poses
+from handeye.planning import design, stations, views
+from handeye.planning.plan import Noise, plan
+from handeye.planning.stations import PlanningError, Workspace
+from handeye.planning.views import ViewLimits
+from handeye.problems.axyb.geometry import AXYBModel
+from handeye.problems.axyb.planning import residual_covariance
+from handeye.vision.boards import Board
+from handeye.vision.observations import Camera
+
+CAMERA = Camera(np.array([[1000.0, 0, 640], [0, 1000, 480], [0, 0, 1]]), np.zeros(5), (1280, 960))
+BOARD = Board(kind="chessboard", cols=9, rows=6, spacing=30.0)
+LIMITS = ViewLimits(distance=(300.0, 900.0), max_angle_deg=45.0)
+NOISE = Noise(pixel=0.3, robot=(0.0002, 0.05))
+WORKSPACE = Workspace(low=(200, -500, 50), high=(1000, 500, 1000), max_tilt_deg=70)
+CELLS = {
+    "eye-in-hand": (make_pose(so3_exp([0.0, 0.0, 0.3]), [60.0, -20.0, 100.0]),
+                    make_pose(so3_exp([math.pi, 0.0, 0.0]), [600.0, 0.0, 0.0])),
+    "eye-to-hand": (make_pose(np.eye(3), [0.0, 30.0, 120.0]),
+                    make_pose(so3_exp([math.pi - 0.3, 0.0, 0.0]), [600.0, -300.0, 1200.0])),
+}
+
+
+def rough(T: np.ndarray) -> np.ndarray:
+    return make_pose(T[:3, :3] @ so3_exp([0.02, -0.02, 0.01]), T[:3, 3] + [6.0, -5.0, 5.0])
+
+
+def record(A: np.ndarray, X: np.ndarray, Y: np.ndarray, setup: str, rng: np.random.Generator):
+    """(A, B) recorded at flange poses A: robot noise on A, B from PnP of noisy corners."""
+    seen = views.views_of(inverse(Y) @ A @ X, setup)
+    P = BOARD.object_points()
+    B = np.empty_like(A)
+    for i, T in enumerate(seen):
+        uv = views.project(P, CAMERA, T) + rng.normal(0.0, NOISE.pixel, (len(P), 2))
+        rvec0, _ = cv2.Rodrigues(T[:3, :3])
+        _, rvec, tvec = cv2.solvePnP(P, uv, CAMERA.K, CAMERA.dist, rvec0.copy(), T[:3, 3].copy(), useExtrinsicGuess=True)
+        B[i] = make_pose(cv2.Rodrigues(rvec)[0], tvec.ravel())
+    return NoiseModel({"A": NOISE.robot}).apply("A", A, rng), inverse(B) if setup == "eye-in-hand" else B
+
+
+def errors(sol: handeye.Solution, X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    return np.concatenate([part for T, E in ((X, sol.X), (Y, sol.Y))
+                           for part in (so3_log(T[:3, :3].T @ E[:3, :3]), T[:3, :3].T @ (E[:3, 3] - T[:3, 3]))])
+
+
+@pytest.fixture(scope="module", params=sorted(CELLS))
+def planned(request):
+    setup = request.param
+    X, Y = CELLS[setup]
+    p = plan("axyb", setup=setup, X=rough(X), Y=rough(Y), camera=CAMERA, board=BOARD, count=8, workspace=WORKSPACE,
+             limits=LIMITS, noise=NOISE, rough=(2.0, 10.0))
+    return setup, X, Y, p
+
+
+def test_planned_stations_are_usable_and_reachable(planned):
+    setup, X, Y, p = planned
+    assert p.A.shape == (8, 4, 4) and len(p.progression) == 8
+    true_views = views.views_of(inverse(Y) @ p.A @ X, setup)  # what the camera will really see
+    assert views.usable(BOARD, CAMERA, p.views, LIMITS).all()
+    # the real views show the whole board; angle and distance may pass by twice the roughness
+    relaxed = ViewLimits(distance=(LIMITS.distance[0] - 20, LIMITS.distance[1] + 20), max_angle_deg=LIMITS.max_angle_deg + 4)
+    assert views.usable(BOARD, CAMERA, true_views, relaxed).all()
+    box, tilt = WORKSPACE.holds(p.A)
+    assert box.all() and tilt.all()
+    np.testing.assert_allclose(p.B, stations.camera_poses(p.views, setup), atol=1e-9)
+
+
+def test_a_stations_residual_covariance_matches_monte_carlo():
+    X, Y = CELLS["eye-in-hand"]
+    seen = stations.random_views(BOARD, LIMITS, 1, np.random.default_rng(3))
+    A, B = stations.robot_poses(seen, X, Y, "eye-in-hand"), inverse(seen)
+    C = views.target_to_camera_frame(seen, views.pose_covariance(BOARD, CAMERA, seen, 0.3))[0]
+    rng = np.random.default_rng(0)
+    draws = rng.multivariate_normal(np.zeros(6), C, 6000)
+    res = []
+    for xi, w, t in zip(draws, rng.normal(0, 2e-4, (6000, 3)), rng.normal(0, 0.05, (6000, 3))):
+        An = A[0] @ make_pose(so3_exp(w), np.zeros(3))
+        An[:3, 3] += t
+        model = AXYBModel(types.SimpleNamespace(A=An[None], B=(B[0] @ make_pose(so3_exp(xi[:3]), xi[3:]))[None],
+                                                translation_scale=1.0))
+        res.append(model.residuals((X, Y))[0])
+    predicted = residual_covariance(A, B, X, Y, (2e-4, 0.05), C[None])[0]
+    empirical = np.cov(np.array(res).T)
+    scale = np.sqrt(np.outer(np.diag(predicted), np.diag(predicted)))
+    assert np.max(np.abs(empirical - predicted) / scale) < 0.06
+
+
+def test_the_pnp_covariance_matches_monte_carlo():
+    seen = stations.random_views(BOARD, LIMITS, 1, np.random.default_rng(5))[0]
+    predicted = views.pose_covariance(BOARD, CAMERA, seen[None], 0.3)[0]
+    P, rng, xis = BOARD.object_points(), np.random.default_rng(1), []
+    rvec0, _ = cv2.Rodrigues(seen[:3, :3])
+    for _ in range(1500):
+        uv = views.project(P, CAMERA, seen) + rng.normal(0, 0.3, (len(P), 2))
+        _, rvec, tvec = cv2.solvePnP(P, uv, CAMERA.K, CAMERA.dist, rvec0.copy(), seen[:3, 3].copy(), useExtrinsicGuess=True)
+        T = make_pose(cv2.Rodrigues(rvec)[0], tvec.ravel())
+        d = inverse(seen) @ T  # = exp(xi) in the board's own frame
+        xis.append(np.r_[so3_log(d[:3, :3]), d[:3, 3]])
+    empirical = np.cov(np.array(xis).T)
+    np.testing.assert_allclose(np.sqrt(np.diag(empirical)), np.sqrt(np.diag(predicted)), rtol=0.08)
+
+
+def test_planned_stations_beat_twice_as_many_random_ones(planned):
+    setup, X, Y, p = planned
+    pool, seen = stations.candidates(BOARD, CAMERA, X, Y, setup, LIMITS, WORKSPACE, 1500, np.random.default_rng(7))
+    from handeye.problems.axyb import PROBLEM
+
+    info = PROBLEM.station_information(pool, stations.camera_poses(seen, setup), {"X": X, "Y": Y}, NOISE.robot,
+                                       _camera_cov(seen, setup))[0]
+    rng = np.random.default_rng(11)
+    for _ in range(5):  # predicted: a smaller confidence ellipsoid of X and Y than as many random (what it maximises)
+        assert design.criterion(p.information, None) > design.criterion(info[rng.choice(len(pool), 8, replace=False)].sum(0), None) + 3
+    # measured: the solve's errors over trials, planned 8 against random 16
+    planned_e, random_e = [], []
+    for trial in range(8):
+        r = np.random.default_rng(100 + trial)
+        planned_e.append(errors(handeye.solve("axyb", **dict(zip("AB", record(p.A, X, Y, setup, r)))), X, Y))
+        chosen = pool[r.choice(len(pool), 16, replace=False)]
+        random_e.append(errors(handeye.solve("axyb", **dict(zip("AB", record(chosen, X, Y, setup, r)))), X, Y))
+    rms = lambda e: np.sqrt(np.mean(np.square(e), axis=0))  # noqa: E731
+    assert np.sum(rms(np.array(planned_e))[[3, 4, 5, 9, 10, 11]]) < np.sum(rms(np.array(random_e))[[3, 4, 5, 9, 10, 11]])
+
+
+def _camera_cov(seen: np.ndarray, setup: str) -> np.ndarray:
+    cov = views.pose_covariance(BOARD, CAMERA, seen, NOISE.pixel)
+    return views.target_to_camera_frame(seen, cov) if setup == "eye-in-hand" else cov
+
+
+def test_the_predicted_sigma_is_honest(planned):
+    setup, X, Y, p = planned
+    L = np.linalg.cholesky(p.covariance())
+    z = [np.linalg.solve(L, errors(handeye.solve("axyb", **dict(zip("AB", record(p.A, X, Y, setup, np.random.default_rng(t))))), X, Y))
+         for t in range(20)]
+    assert 0.7 < float(np.sqrt(np.mean(np.square(z)))) < 1.45
+
+
+def test_recorded_stations_are_taken_into_account():
+    setup = "eye-in-hand"
+    X, Y = CELLS[setup]
+    first = plan("axyb", setup=setup, X=X, Y=Y, camera=CAMERA, board=BOARD, count=5, workspace=WORKSPACE, limits=LIMITS)
+    more = plan("axyb", setup=setup, X=X, Y=Y, camera=CAMERA, board=BOARD, count=3, workspace=WORKSPACE, limits=LIMITS,
+                recorded=(first.A, first.B))
+    assert more.recorded == 5
+    assert all(np.isfinite(s["translation"]) for s in more.progression[0].values())  # the recorded determine it
+    for name in ("X", "Y"):
+        assert more.std[name]["translation"] < first.std[name]["translation"]
+        steps = [s[name]["translation"] for s in more.progression]
+        assert all(b <= a * (1 + 1e-9) for a, b in zip(steps, steps[1:]))
+    assert min(np.linalg.norm(a[:3, 3] - b[:3, 3]) for a in more.A for b in first.A) > 1.0  # new stations
+
+
+def test_axxb_plans_for_x_alone():
+    X, Y = CELLS["eye-in-hand"]
+    p = plan("axxb", setup="eye-in-hand", X=X, Y=Y, camera=CAMERA, board=BOARD, count=8, workspace=WORKSPACE,
+             limits=LIMITS)
+    assert list(p.std) == ["X"] and p.std["X"]["translation"] < 0.2
+
+
+def test_bad_input_is_refused_in_one_line():
+    X, Y = CELLS["eye-in-hand"]
+    with pytest.raises(PlanningError, match="workspace box") as info:
+        plan("axyb", setup="eye-in-hand", X=X, Y=Y, camera=CAMERA, board=BOARD, count=8, limits=LIMITS,
+             workspace=Workspace(low=(-900, -900, 2000), high=(-800, -800, 2100)))
+    assert isinstance(info.value, ValueError) and "\n" not in str(info.value)
+    with pytest.raises(InputError, match="image size"):
+        plan("axyb", setup="eye-in-hand", X=X, Y=Y, camera=Camera(CAMERA.K, CAMERA.dist), board=BOARD, count=8)
+    with pytest.raises(InputError, match="cannot plan"):
+        plan("axbycz", setup="eye-in-hand", X=X, Y=Y, camera=CAMERA, board=BOARD, count=8, limits=LIMITS)
+    with pytest.raises(InputError, match="setup"):
+        plan("axyb", setup="hand-eye", X=X, Y=Y, camera=CAMERA, board=BOARD, count=8)
+    with pytest.raises(InputError, match="low < high"):
+        Workspace(low=(0, 0, 0), high=(1, -1, 1))
+
+
+def test_cli_writes_the_stations_in_the_robots_format(tmp_path, capsys):
+    fs = cv2.FileStorage(str(tmp_path / "cam.yaml"), cv2.FILE_STORAGE_WRITE)
+    fs.write("camera_matrix", CAMERA.K)
+    fs.write("distortion_coefficients", np.zeros((1, 5)))
+    fs.write("image_width", 1280)
+    fs.write("image_height", 960)
+    fs.release()
+    args = ["plan", "--setup", "eye-in-hand", "--x", "60,-20,100,17.19,0,0", "--y", "600,0,0,0,0,180",
+            "--board", "chessboard:9x6:30mm", "--intrinsics", str(tmp_path / "cam.yaml"), "--count", "6",
+            "--workspace", "200,-500,50,1000,500,1000", "--max-tilt", "70", "-o", str(tmp_path / "st.csv"),
+            "--format", "ur-rotvec", "--unit", "mm", "--json", str(tmp_path / "plan.json")]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "after station  6: X" in out
+    stack = read_poses(tmp_path / "st.csv", "ur-rotvec", unit="mm")
+    assert len(stack) == 6 and stack.names[0] == "station01"
+    assert WORKSPACE.holds(np.array(stack.poses))[0].all()
+    assert main(args[:4] + ["1,2,3"] + args[5:] + ["--force"]) == 2  # --x with too few numbers
+    assert "--x needs 6" in capsys.readouterr().err
