@@ -131,7 +131,7 @@ def test_planned_stations_beat_twice_as_many_random_ones(planned):
     from handeye.problems.axyb import PROBLEM
 
     info = PROBLEM.station_information(pool, stations.camera_poses(seen, setup), {"X": X, "Y": Y}, NOISE.robot,
-                                       _camera_cov(seen, setup))[0]
+                                       _camera_cov(seen, setup), setup)[0]
     rng = np.random.default_rng(11)
     for _ in range(5):  # predicted: a smaller confidence ellipsoid of X and Y than as many random (what it maximises)
         assert design.criterion(p.information, None) > design.criterion(info[rng.choice(len(pool), 8, replace=False)].sum(0), None) + 3
@@ -174,11 +174,27 @@ def test_recorded_stations_are_taken_into_account():
     assert min(np.linalg.norm(a[:3, 3] - b[:3, 3]) for a in more.A for b in first.A) > 1.0  # new stations
 
 
-def test_axxb_plans_for_x_alone():
+@pytest.mark.parametrize("setup", sorted(CELLS))
+def test_axxb_plans_for_the_cameras_pose_alone(setup):
+    X, Y = CELLS[setup]
+    p = plan("axxb", setup=setup, X=X, Y=Y, camera=CAMERA, board=BOARD, count=8, workspace=WORKSPACE, limits=LIMITS)
+    both = plan("axyb", setup=setup, X=X, Y=Y, camera=CAMERA, board=BOARD, count=8, workspace=WORKSPACE, limits=LIMITS)
+    camera = "X" if setup == "eye-in-hand" else "Y"  # axxb's X: A X = Y B's camera pose
+    assert list(p.std) == ["X"] and p.names == (("X", "target") if setup == "eye-in-hand" else ("target", "X"))
+    # planned for the camera's pose alone: at least as sharp there as a plan for both
+    assert p.std["X"]["translation"] <= both.std[camera]["translation"] * 1.02
+
+
+def test_the_default_robot_noise_follows_the_boards_unit():
     X, Y = CELLS["eye-in-hand"]
-    p = plan("axxb", setup="eye-in-hand", X=X, Y=Y, camera=CAMERA, board=BOARD, count=8, workspace=WORKSPACE,
-             limits=LIMITS)
-    assert list(p.std) == ["X"] and p.std["X"]["translation"] < 0.2
+    metres = [make_pose(T[:3, :3], T[:3, 3] / 1000) for T in (X, Y)]
+    in_mm = plan(setup="eye-in-hand", X=X, Y=Y, camera=CAMERA, board=BOARD, count=6, limits=LIMITS)
+    in_m = plan(setup="eye-in-hand", X=metres[0], Y=metres[1], camera=CAMERA, board=BOARD.in_unit("m"), count=6,
+                limits=ViewLimits(distance=(0.3, 0.9), max_angle_deg=45.0))
+    assert in_m.robot_sigma == pytest.approx((0.0002, 5e-5)) and in_mm.robot_sigma == pytest.approx((0.0002, 0.05))
+    for name in ("X", "Y"):  # the same plan, its 1-sigma scaled
+        assert in_m.std[name]["translation"] * 1000 == pytest.approx(in_mm.std[name]["translation"], rel=1e-6)
+        assert in_m.std[name]["rotation_deg"] == pytest.approx(in_mm.std[name]["rotation_deg"], rel=1e-6)
 
 
 def test_bad_input_is_refused_in_one_line():

@@ -63,8 +63,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--max-angle", type=float, default=45.0, metavar="DEG",
                         help="largest angle between the optical axis and the board's normal (default 45)")
     parser.add_argument("--pixel-noise", type=float, default=0.3, metavar="PX", help="expected corner noise (default 0.3)")
-    parser.add_argument("--robot-noise", default="0.0002,0.05", metavar="RAD,LENGTH",
-                        help="expected robot pose noise per axis: rad, --unit (default 0.0002,0.05)")
+    parser.add_argument("--robot-noise", metavar="RAD,LENGTH",
+                        help="expected robot pose noise per axis: rad, --unit (default 0.0002 rad, 0.05 mm)")
     parser.add_argument("--recorded-robot", metavar="FILE", help="robot poses of stations already recorded")
     parser.add_argument("--recorded-camera", metavar="FILE", help="their camera poses (as A X = Y B takes them: docs/conventions.md)")
     parser.add_argument("--robot-format", help="format of --recorded-robot (default: --pose-format)")
@@ -96,14 +96,15 @@ def run(args: argparse.Namespace) -> int:
     if args.workspace or args.max_tilt is not None:
         box = _numbers(args.workspace, 6, "--workspace") if args.workspace else (-1e12,) * 3 + (1e12,) * 3
         workspace = Workspace(low=box[:3], high=box[3:], max_tilt_deg=args.max_tilt)
-    noise = Noise(pixel=args.pixel_noise, robot=_numbers(args.robot_noise, 2, "--robot-noise"))
+    noise = Noise(pixel=args.pixel_noise, robot=_numbers(args.robot_noise, 2, "--robot-noise") if args.robot_noise else None)
     recorded = _recorded(args)
     result = plan(args.problem, setup=args.setup, X=X, Y=Y, camera=camera, board=board, count=args.count,
                   workspace=workspace, limits=limits, noise=noise, recorded=recorded, seed=args.seed)
     result.write(args.output, args.format or args.pose_format, args.unit)
     print(f"{len(result.A)} stations ({args.setup}) written to {args.output}, in the order to record them"
           + (f", after the {result.recorded} recorded" if result.recorded else ""))
-    print(f"predicted 1-sigma ({args.pixel_noise:g} px per corner, robot {args.robot_noise} rad,{args.unit} per axis):")
+    rot, trans = result.robot_sigma
+    print(f"predicted 1-sigma ({args.pixel_noise:g} px per corner, robot {rot:g} rad and {trans:g} {args.unit} per axis):")
     for k, std in enumerate(result.progression, start=1):
         cells = "; ".join(f"{n} {s['rotation_deg']:.3g} deg / {s['translation']:.3g} {args.unit}" for n, s in std.items())
         print(f"  after station {k:2d}: {cells}")

@@ -50,8 +50,9 @@ def criterion(information: np.ndarray, interest: np.ndarray | None) -> float:
     return log_det(information) - log_det(information[np.ix_(~interest, ~interest)])
 
 
-def _gains(total: np.ndarray, F: np.ndarray, interest: np.ndarray | None) -> np.ndarray:
-    """Each candidate's gain of `criterion` added to `total` (module docstring)."""
+def gains(total: np.ndarray, F: np.ndarray, interest: np.ndarray | None) -> np.ndarray:
+    """Each candidate's gain of `criterion` when added to `total`: F (n, p, r) the candidates'
+    `factors` (module docstring)."""
     def gain(info: np.ndarray, Fc: np.ndarray) -> np.ndarray:
         inv = np.linalg.inv(info)
         small = np.eye(Fc.shape[2]) + np.swapaxes(Fc, 1, 2) @ inv @ Fc
@@ -66,18 +67,20 @@ def _gains(total: np.ndarray, F: np.ndarray, interest: np.ndarray | None) -> np.
 
 
 def greedy(candidates: np.ndarray, count: int, *, prior: np.ndarray | None = None,
-           interest: np.ndarray | None = None) -> list[int]:
+           interest: np.ndarray | None = None, candidate_factors: np.ndarray | None = None) -> list[int]:
     """Indices of `count` candidates (information (n, p, p)) that maximise `criterion` of
-    prior + their sum: greedy, then EXCHANGE_PASSES exchange passes. Each candidate at most once."""
+    prior + their sum: greedy, then EXCHANGE_PASSES exchange passes. Each candidate at most once.
+    candidate_factors: their `factors`, where a caller chooses from one pool many times (the
+    eigen decompositions are most of a selection's cost)."""
     n, p, _ = candidates.shape
     scale = np.mean(np.diagonal(candidates, axis1=1, axis2=2), axis=0)
     ridge = np.diag(RIDGE * np.where(scale > 0, scale, 1.0))
     base = ridge + (np.zeros((p, p)) if prior is None else prior)
-    F = factors(candidates)
+    F = factors(candidates) if candidate_factors is None else candidate_factors
     chosen: list[int] = []
     total = base.copy()
     for _ in range(min(count, n)):
-        g = _gains(total, F, interest)
+        g = gains(total, F, interest)
         g[chosen] = -np.inf
         best = int(np.argmax(g))
         chosen.append(best)
@@ -96,7 +99,7 @@ def _exchange(candidates: np.ndarray, F: np.ndarray, base: np.ndarray, chosen: l
     for k in range(len(chosen)):
         without = base + candidates[[c for j, c in enumerate(chosen) if j != k]].sum(axis=0)
         current = criterion(without + candidates[chosen[k]], interest)
-        g = _gains(without, F, interest)
+        g = gains(without, F, interest)
         g[chosen] = -np.inf
         best = int(np.argmax(g))
         if criterion(without + candidates[best], interest) > current + 1e-9:

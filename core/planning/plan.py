@@ -30,6 +30,8 @@ from handeye.vision.observations import SETUPS, Camera
 
 #: candidate stations drawn per plan
 POOL = 3000
+#: the robot's pose noise per axis a plan expects by default: rad, mm
+ROBOT_NOISE = (0.0002, 0.05)
 #: how far the rough X and Y may be off by default: rotation (deg), translation (share of the
 #: farthest viewing distance)
 ROUGH_DEG = 1.0
@@ -39,14 +41,22 @@ ROUGH_SHARE = 0.01
 @dataclasses.dataclass(frozen=True)
 class Noise:
     """The noise a plan expects: pixel noise of the board's corners (px per coordinate) and the
-    robot's pose noise per axis (rotation rad, translation in the data's length unit)."""
+    robot's pose noise per axis (rotation rad, translation in the data's length unit; None: the
+    default `ROBOT_NOISE` in the board's unit)."""
 
     pixel: float = 0.3
-    robot: tuple[float, float] = (0.0002, 0.05)
+    robot: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
-        if not self.pixel > 0 or min(self.robot) < 0:
+        if not self.pixel > 0 or (self.robot is not None and min(self.robot) < 0):
             raise InputError(f"the expected pixel noise must be positive and the robot's not negative, got {self}")
+
+    def robot_sigma(self, unit: str) -> tuple[float, float]:
+        """The robot's noise (rad, length in `unit`): as given, else ROBOT_NOISE (0.0002 rad,
+        0.05 mm per axis, a serial arm's repeatability) in `unit`."""
+        if self.robot is not None:
+            return float(self.robot[0]), float(self.robot[1])
+        return ROBOT_NOISE[0], ROBOT_NOISE[1] * {"mm": 1.0, "m": 1e-3}[unit]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,6 +78,7 @@ class Plan:
     progression: tuple[dict[str, dict[str, float]], ...]
     recorded: int
     noise: Noise
+    robot_sigma: tuple[float, float]
     information: np.ndarray
     names: tuple[str, ...]
 
@@ -79,7 +90,7 @@ class Plan:
     def to_dict(self) -> dict[str, Any]:
         return {"problem": self.problem, "setup": self.setup, "stations": self.A.tolist(),
                 "camera_poses": self.B.tolist(), "predicted_std": self.std, "progression": list(self.progression),
-                "recorded": self.recorded, "noise": dataclasses.asdict(self.noise)}
+                "recorded": self.recorded, "noise": {"pixel": self.noise.pixel, "robot": self.robot_sigma}}
 
     def write(self, path: str | Path, format: str, unit: str) -> Path:
         """The stations in a robot's pose format (`handeye.pose_formats`, e.g. "kuka-abc",
@@ -129,7 +140,8 @@ def plan(problem: str | None = None, *, setup: str, X: np.ndarray, Y: np.ndarray
     totals = base + np.cumsum(info[chosen], axis=0)
     progression = tuple(_std(T, names, interest) for T in totals)
     return Plan(problem, setup, A[chosen], stations.camera_poses(seen[chosen], setup), seen[chosen], progression[-1],
-                progression, 0 if recorded is None else len(recorded[0]), noise, totals[-1], names)
+                progression, 0 if recorded is None else len(recorded[0]), noise, noise.robot_sigma(board.unit), totals[-1],
+                names)
 
 
 def default_limits(board: Board, camera: Camera) -> ViewLimits:
@@ -146,7 +158,7 @@ def _information(spec: Any, problem: str, A: np.ndarray, B: np.ndarray, seen: np
     cov = views.pose_covariance(board, camera, seen, noise.pixel)
     if setup == "eye-in-hand":  # B = T_target_cam: the covariance in the camera's frame
         cov = views.target_to_camera_frame(seen, cov)
-    out = spec.station_information(A, B, {"X": X, "Y": Y}, noise.robot, cov)
+    out = spec.station_information(A, B, {"X": X, "Y": Y}, noise.robot_sigma(board.unit), cov, setup)
     if out is None:
         raise InputError(f"problem {problem!r} cannot plan stations yet (problems that can: {', '.join(planners())})")
     return out

@@ -194,13 +194,16 @@ class AXXB(Problem):
         return axxb_geometry.rotation_axes(data)
 
     def station_information(self, A: np.ndarray, B: np.ndarray, unknowns: Mapping[str, np.ndarray],
-                            robot_sigma: tuple[float, float], camera_cov: np.ndarray) -> tuple[np.ndarray, tuple[str, ...], tuple[str, ...]]:
-        """The stations of A X = X B are those of A X = Y B with Y (the board's pose eye in hand,
-        the camera's eye to hand) a nuisance: the same information, X of interest. (Any pairing
-        of the stations into motions carries no more: the motions are functions of them.)"""
+                            robot_sigma: tuple[float, float], camera_cov: np.ndarray,
+                            setup: str) -> tuple[np.ndarray, tuple[str, ...], tuple[str, ...]]:
+        """The stations of A X = X B are those of A X = Y B (any pairing of them into motions
+        carries no more: the motions are functions of them), the same information, with X the
+        camera's pose: eye in hand A X = Y B's X (T_flange_cam; its Y, the board's pose, a
+        nuisance), eye to hand its Y (T_base_cam; its X, the board on the flange, a nuisance)."""
         from handeye.problems.axyb import planning
 
-        return planning.station_information(A, B, dict(unknowns), robot_sigma, camera_cov), ("X", "Y"), ("X",)
+        names = ("X", "target") if setup == "eye-in-hand" else ("target", "X")
+        return planning.station_information(A, B, dict(unknowns), robot_sigma, camera_cov), names, ("X",)
 
     def configurations(self, data: AXXBData) -> np.ndarray | None:
         """The stations' robot poses when `check_model`'s model is on the stations (the motions

@@ -163,7 +163,8 @@ class AXYB(Problem):
         return axyb_geometry.rotation_axes(data)
 
     def station_information(self, A: np.ndarray, B: np.ndarray, unknowns: Mapping[str, np.ndarray],
-                            robot_sigma: tuple[float, float], camera_cov: np.ndarray) -> tuple[np.ndarray, tuple[str, ...], tuple[str, ...]]:
+                            robot_sigma: tuple[float, float], camera_cov: np.ndarray,
+                            setup: str) -> tuple[np.ndarray, tuple[str, ...], tuple[str, ...]]:
         from handeye.problems.axyb import planning
 
         return planning.station_information(A, B, dict(unknowns), robot_sigma, camera_cov), ("X", "Y"), ("X", "Y")
