@@ -203,20 +203,22 @@ def test_inputs_are_not_modified_and_the_answer_does_not_depend_on_the_unit():
 
 
 def test_auto_keeps_the_pose_only_answer_when_the_arm_has_no_errors_to_see():
-    """An arm without DH errors, 20 stations, the study's noise: fitting 17 more parameters only
-    adds variance. auto returns axyb's auto answer with the nominal arm and says why;
-    kinematic-lm fits anyway and warns."""
+    """An arm without DH errors, 20 stations, the study's noise: the likelihood ratio of the
+    estimated prior does not see errors, so auto returns axyb's auto answer with the nominal arm
+    and says why; kinematic-lm fits anyway (regularised) and warns; the free fit's F test agrees."""
     data, truth = PROBLEM.simulate(pairs=20, seed=11, noise=STUDY_NOISE, errors=np.zeros((6, 4)))
     sol = handeye.solve("axyb-kinematic", **data)
     assert sol.diagnostics["answer"] == "pose-only (auto of axyb)"
-    assert not sol.diagnostics["kinematics"]["used"] and sol.diagnostics["comparison"]["F_p"] > 0.01
+    assert not sol.diagnostics["kinematics"]["used"] and sol.diagnostics["prior"]["p"] > 0.01
+    assert sol.diagnostics["comparison"]["F_p"] > 0.01
     only = handeye.solve("axyb", A=data["A"], B=data["B"])
     np.testing.assert_allclose(sol.X, only.X, atol=1e-9)
     np.testing.assert_allclose(sol.links, data["dh"].links(), atol=1e-12)
-    assert any("do not show the arm's kinematic errors beyond what fitting them costs" in w for w in sol.warnings)
+    assert any("do not show the arm's kinematic errors (likelihood ratio test" in w for w in sol.warnings)
     fitted = handeye.solve("axyb-kinematic", solver="kinematic-lm", **data)
     assert fitted.diagnostics["answer"] == "kinematic"
     assert any("solver auto returns the pose-only answer" in w for w in fitted.warnings)
-    # the fit's reported 1-sigma covers its larger error: not a confident wrong answer
-    error = PROBLEM.errors(fitted.unknowns, truth)["Y"]["translation"]
-    assert error < 3 * fitted.diagnostics["std"]["Y"]["translation"]
+    # the fit's reported 1-sigma covers its error: not a confident wrong answer
+    for fit in (fitted, handeye.solve("axyb-kinematic", solver="kinematic-lm", prior="none", **data)):
+        error = PROBLEM.errors(fit.unknowns, truth)["Y"]["translation"]
+        assert error < 3 * fit.diagnostics["std"]["Y"]["translation"]

@@ -12,15 +12,22 @@ errors by Levenberg-Marquardt, from the pose-only answer.
    translation), re-estimated at every iteration (a stationary point of the profile likelihood
    over the two variances, `handeye.whitening.estimate_sigmas`). Lengths are in units of the
    data's RMS translation throughout, so the answer does not depend on the length unit.
-3. Covariance: the inverse information matrix at the answer, with the variance factor of the
-   estimated weights (6m / (6m - unknowns)); the standard deviations of X, Y (as refine's
-   ``diagnostics["std"]``) and of every identified parameter (``diagnostics["kinematics"]``).
-4. Does it pay? The same objective fitted over (X, Y) alone with the nominal arm, and `compare`:
-   an F test of the identified parameters, and the predicted error of each answer (the pose-only
-   one's bias estimated from the difference of the two). Where fitting the arm is predicted to
-   cost more precision than it removes bias (small DH errors, noisy camera, few stations),
-   ``kinematic-lm`` says so in a warning and ``auto`` returns the pose-only fit with the nominal
-   arm as ``links`` (``diagnostics["answer"]``), with a warning that says why.
+3. The corrections' prior (``prior="estimated"``, the default: `prior`): delta ~
+   N(0, diag(tau^2)), one tau for the angles and one for the lengths, tau and the two noise
+   sigmas by type-II maximum likelihood (the stations' marginal likelihood with delta, X and Y
+   integrated out, linearised at the fit), alternated with the MAP fit until they settle. It
+   shrinks the corrections to zero where the stations cannot see the arm's errors (tau -> 0:
+   the pose-only fit) and leaves them free where they can; ``prior="none"``: the free fit.
+4. Covariance: the posterior covariance at the answer (regularised), or the inverse information
+   matrix with the variance factor of the estimated weights (6m / (6m - unknowns)) (free); the
+   standard deviations of X, Y (as refine's ``diagnostics["std"]``) and of every identified
+   parameter (``diagnostics["kinematics"]``).
+5. Does it pay? The same objective fitted over (X, Y) alone with the nominal arm. ``auto``
+   returns axyb's answer (the start) with the nominal arm as ``links`` where the arm's errors
+   are not seen: the restricted likelihood ratio of the estimated prior against none has p >=
+   `SEEN_P` (``diagnostics["prior"]``); without the prior, where `compare` (an F test of the
+   identified parameters and the predicted error of each answer) says fitting them costs more
+   precision than it removes. ``kinematic-lm`` fits anyway and says so in a warning.
 
 Status: ``optimal`` when the steps vanish, ``not_converged`` at the iteration limit. Parameters the
 stations determine poorly (1-sigma beyond `WEAK_ANGLE` or `WEAK_LENGTH` of the data's scale) are
@@ -44,11 +51,14 @@ from handeye.framework.solution import standard_deviations
 from handeye.geometry import so3_fast
 from handeye.geometry.kinematics import DHArm
 from handeye.geometry.se3 import make_pose
+from handeye.plugins.kinematic_lm import prior
 from handeye.problems.axyb_kinematic import PROBLEM as KINEMATIC
 from handeye.problems.axyb_kinematic import model
 
 #: solvers of problem axyb that may give the start
 STARTS = ("auto", "refine", "kron-lstsq", "so3-sdp")
+#: the corrections' prior: estimated from the stations (the regularised fit) or none (free)
+PRIORS = ("estimated", "none")
 #: a step below this (largest parameter change: rad, and lengths in units of the data's RMS
 #: translation) ends the iterations
 STEP_TOL = 1e-12
@@ -59,17 +69,28 @@ WEAK_LENGTH = 1e-3
 #: the arm's errors count as seen in the stations when the F test of the identified parameters
 #: gives p below this (`compare`)
 SEEN_P = 0.01
+#: the regularised fit: at most this many rounds of (hyperparameters, MAP fit), ended when the
+#: hyperparameters' logarithms change by less than this
+HYPER_ROUNDS = 20
+#: why a fit's covariance does not exist
+UNDETERMINED = ("the stations do not determine X, Y and the kinematic parameters at the fitted answer: record more "
+                "stations that move every joint over a wide range")
+HYPER_TOL = 1e-4
 
 
 @dataclasses.dataclass(frozen=True)
 class Options:
-    """start: problem axyb's solver for the pose-only start; max_iterations: of the fit."""
+    """start: problem axyb's solver for the pose-only start; max_iterations: of the fit; prior:
+    ``estimated`` (the corrections' Gaussian prior, its spreads estimated from the stations:
+    `prior`) or ``none`` (the free fit)."""
 
     start: str = "auto"
     max_iterations: int = 100
+    prior: str = "estimated"
 
     def __post_init__(self) -> None:
         check_choice("start", self.start, STARTS)
+        check_choice("prior", self.prior, PRIORS)
         check_int("max_iterations", self.max_iterations, minimum=1, maximum=10000)
 
 
@@ -137,30 +158,24 @@ def _weights(e: np.ndarray) -> np.ndarray:
     return np.array([1 / s_rot] * 3 + [1 / s_trans] * 3)
 
 
-def fit(data: Any, X0: np.ndarray, Y0: np.ndarray, max_iterations: int = 100, kinematic: bool = True
-        ) -> dict[str, Any]:
-    """Levenberg-Marquardt over (X, Y, delta) from (X0, Y0, 0), or over (X, Y) alone with the
-    nominal arm (`kinematic` False: the pose-only fit of the same objective): {"X", "Y", "table"
-    (the fitted DH table, data units), "cov" (of the normalised parameters), "weights",
-    "iterations", "converged", "residuals" (m, 6, normalised), "jacobian" (m, 6, unknowns),
-    "state" (normalised X, Y, delta)}."""
-    f = _Fit(data, kinematic)
-
-    def scaled(T: np.ndarray) -> np.ndarray:
-        T = np.array(T, dtype=float)
-        T[:3, 3] /= f.scale
-        return T
-
-    state = _State(scaled(X0), scaled(Y0), np.zeros(len(f.chosen)))
+def _minimise(f: _Fit, state: _State, weights: Any, prior_std: np.ndarray | None, max_iterations: int
+              ) -> tuple[_State, np.ndarray, np.ndarray, int, bool]:
+    """Levenberg-Marquardt from `state` on the whitened sum of squares, weights(e) -> (6,) the
+    inverse sigmas (re-estimated every iteration), plus sum (delta / prior_std)^2 when a prior is
+    given: (state, residuals, Jacobian, iterations, converged)."""
     e, J = f.residuals(state)
+    precision = np.zeros(f.size)
+    if prior_std is not None:
+        precision[12:] = prior_std ** -2.0
     lam, converged, iterations = 0.0, False, 0
     for iterations in range(1, max_iterations + 1):
-        w = _weights(e)
+        w = weights(e)
         Jw = (J * w[None, :, None]).reshape(-1, f.size)
         ew = (e * w).ravel()
-        H, g = Jw.T @ Jw, Jw.T @ ew
+        theta = np.concatenate([np.zeros(12), state.delta])
+        H, g = Jw.T @ Jw + np.diag(precision), Jw.T @ ew + precision * theta
         diag = np.maximum(np.diag(H), 1e-300)
-        cost = float(ew @ ew)
+        cost = float(ew @ ew) + float(precision @ theta ** 2)
         for _ in range(30):
             try:
                 d = np.linalg.solve(H + lam * np.diag(diag), -g)
@@ -171,7 +186,8 @@ def fit(data: Any, X0: np.ndarray, Y0: np.ndarray, max_iterations: int = 100, ki
                 continue
             trial = f.step(state, d)
             e_new, _ = f.residuals(trial, jacobian=False)
-            if float(((e_new * w) ** 2).sum()) <= cost or np.max(np.abs(d)) < STEP_TOL:
+            new_cost = float(((e_new * w) ** 2).sum()) + float(precision[12:] @ trial.delta ** 2)
+            if new_cost <= cost or np.max(np.abs(d)) < STEP_TOL:
                 state, lam = trial, (0.0 if lam <= 1e-6 else lam / 10)
                 break
             lam = max(10 * lam, 1e-3)
@@ -182,21 +198,79 @@ def fit(data: Any, X0: np.ndarray, Y0: np.ndarray, max_iterations: int = 100, ki
         if np.max(np.abs(d)) < STEP_TOL:
             converged = True
             break
-    w = _weights(e)
-    Jw = (J * w[None, :, None]).reshape(-1, f.size)
-    dof = 6 * len(e) - f.size
-    try:
-        cov = np.linalg.inv(Jw.T @ Jw) * (6 * len(e) / max(dof, 1))
-    except np.linalg.LinAlgError:
-        raise DegenerateDataError("the stations do not determine X, Y and the kinematic parameters at the fitted "
-                                  "answer: record more stations that move every joint over a wide range") from None
+    return state, e, J, iterations, converged
+
+
+def _regularised(f: _Fit, state: _State, max_iterations: int) -> tuple[_State, np.ndarray, np.ndarray, int, bool,
+                                                                        prior.Hyper]:
+    """The fit with the corrections' prior, its spreads and the noise estimated from the stations
+    (`prior`): alternately the hyperparameters at the current linearisation and the
+    MAP fit at fixed hyperparameters, until the hyperparameters settle (`HYPER_TOL` in their
+    logarithms), from the pose-only `state`."""
+    is_length = model.length_mask(len(f.nominal) // 4)[f.chosen]
+    e, J = f.residuals(state)
+    h = prior.estimate(J, e, state.delta, is_length)
+    total, converged = 0, False
+    for _ in range(HYPER_ROUNDS):
+        state, e, J, iterations, converged = _minimise(f, state, lambda _e, h=h: 1.0 / h.noise(),
+                                                       h.spreads(is_length), max_iterations)
+        total += iterations
+        new = prior.estimate(J, e, state.delta, is_length, start=h)
+        settled = np.max(np.abs(new.as_log() - h.as_log())) < HYPER_TOL
+        h = new
+        if settled:
+            break
+    state, e, J, iterations, converged = _minimise(f, state, lambda _e: 1.0 / h.noise(), h.spreads(is_length),
+                                                   max_iterations)
+    return state, e, J, total + iterations, converged, h
+
+
+def fit(data: Any, X0: np.ndarray, Y0: np.ndarray, max_iterations: int = 100, kinematic: bool = True,
+        regularised: bool = False) -> dict[str, Any]:
+    """Levenberg-Marquardt over (X, Y, delta) from (X0, Y0, 0), or over (X, Y) alone with the
+    nominal arm (`kinematic` False: the pose-only fit of the same objective), or with the
+    corrections' prior estimated from the stations (`regularised`, `_regularised`): {"X", "Y",
+    "table" (the fitted DH table, data units), "cov" (of the normalised parameters), "weights",
+    "iterations", "converged", "residuals" (m, 6, normalised), "jacobian" (m, 6, unknowns),
+    "state" (normalised X, Y, delta), "hyper" (the prior's `Hyper` or None), "gamma" (how much
+    of each correction the stations determine, 1 without a prior), "seen" (the likelihood ratio
+    of the prior against none and its p, `prior.without_errors`; None without)}."""
+    f = _Fit(data, kinematic)
+
+    def scaled(T: np.ndarray) -> np.ndarray:
+        T = np.array(T, dtype=float)
+        T[:3, 3] /= f.scale
+        return T
+
+    state = _State(scaled(X0), scaled(Y0), np.zeros(len(f.chosen)))
+    h = None
+    if regularised and len(f.chosen):
+        state, e, J, iterations, converged, h = _regularised(f, state, max_iterations)
+        is_length = model.length_mask(data.joints)[f.chosen]
+        w = 1.0 / h.noise()
+        try:
+            cov = prior.posterior_covariance(J, h, is_length)
+        except np.linalg.LinAlgError:
+            raise DegenerateDataError(UNDETERMINED) from None
+        gamma = prior.effective_parameters(cov, h, is_length)
+        seen = prior.without_errors(J, e, state.delta, is_length, h)
+    else:
+        state, e, J, iterations, converged = _minimise(f, state, _weights, None, max_iterations)
+        w = _weights(e)
+        Jw = (J * w[None, :, None]).reshape(-1, f.size)
+        dof = 6 * len(e) - f.size
+        try:
+            cov = np.linalg.inv(Jw.T @ Jw) * (6 * len(e) / max(dof, 1))
+        except np.linalg.LinAlgError:
+            raise DegenerateDataError(UNDETERMINED) from None
+        gamma, seen = np.ones(len(f.chosen)), None
     X, Y = state.X.copy(), state.Y.copy()
     X[:3, 3] *= f.scale
     Y[:3, 3] *= f.scale
     table = f.table(state.delta) * f.unit.reshape(-1, 4)
     return {"X": X, "Y": Y, "table": table, "cov": cov, "unit": f.unit, "chosen": f.chosen, "weights": w,
             "iterations": iterations, "converged": converged, "residuals": e, "scale": f.scale, "jacobian": J,
-            "state": state}
+            "state": state, "hyper": h, "gamma": gamma, "seen": seen}
 
 
 def _rms(e: np.ndarray) -> dict[str, float]:
@@ -282,28 +356,61 @@ def _shown(error: dict[str, dict[str, float]]) -> str:
             f"Y {math.degrees(error['Y']['rotation']):.2g} deg / {error['Y']['translation']:.2g}")
 
 
-def solve(data: Any, options: Options, choose: bool) -> SolverOutput:
-    """The fit of the module docstring; with `choose` (``auto``) the pose-only answer (the start)
-    instead when fitting the arm's errors is predicted to cost more precision than it gains
-    (`compare`)."""
-    start = run_registered(options.start, data.pairs, problem="axyb")
-    full = fit(data, start.X, start.Y, options.max_iterations)
-    pose = fit(data, start.X, start.Y, options.max_iterations, kinematic=False)
-    comparison = compare(full, pose)
-    parameters, weak = _parameters(data, full)
+def _pose_only_warning(data: Any, comparison: dict[str, Any], full: dict[str, Any], use_pose: bool,
+                       options: Options) -> str:
+    """Why the pose-only answer is as good (`auto` returns it; kinematic-lm fits anyway)."""
+    then = (f"the answer is axyb's {options.start} on the poses with the nominal arm (links); use solver "
+            "kinematic-lm to fit the arm anyway" if use_pose else "solver auto returns the pose-only answer for "
+            "such data")
     predicted = comparison["predicted_error"]
-    use_pose = choose and not comparison["kinematic_better"]
+    if full["hyper"] is not None:
+        why = (f"the {data.m} stations do not show the arm's kinematic errors (likelihood ratio test of the "
+               f"estimated prior against none: p = {full['seen'][1]:.2g}; the regularised fit determines "
+               f"{float(full['gamma'].sum()):.2g} of {len(full['gamma'])} corrections' worth)")
+    else:
+        why = f"the {data.m} stations do not show the arm's kinematic errors beyond what fitting them costs"
+    return (f"{why} (predicted 1-sigma errors with the free fit: {_shown(predicted['kinematic'])}; with the "
+            f"nominal arm: {_shown(predicted['pose_only'])}): {then}; record more stations that move every joint "
+            "over a wide range for a kinematic calibration")
+
+
+def _fits(data: Any, options: Options, start: Any) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+    """(the answer's fit: regularised or free per `options.prior`; the free fit; the pose-only fit)."""
+    free = fit(data, start.X, start.Y, options.max_iterations)
+    pose = fit(data, start.X, start.Y, options.max_iterations, kinematic=False)
+    full = free if options.prior == "none" else fit(data, start.X, start.Y, options.max_iterations, regularised=True)
+    return full, free, pose
+
+
+def _pose_only_pays(full: dict[str, Any], comparison: dict[str, Any]) -> bool:
+    """Whether `auto` should return the pose-only answer: with the estimated prior when the
+    restricted likelihood ratio does not show the arm's errors (p >= `SEEN_P`,
+    `prior.without_errors`); without, `compare`'s verdict."""
+    if full["hyper"] is not None:
+        return full["seen"][1] >= SEEN_P
+    return not comparison["kinematic_better"]
+
+
+def solve(data: Any, options: Options, choose: bool) -> SolverOutput:
+    """The fit of the module docstring (regularised by default); with `choose` (``auto``) the
+    pose-only answer (the start) instead where the stations do not show the arm's errors
+    (`_pose_only_pays`)."""
+    start = run_registered(options.start, data.pairs, problem="axyb")
+    full, free, pose = _fits(data, options, start)
+    comparison = compare(free, pose)
+    parameters, weak = _parameters(data, full)
+    pose_pays = _pose_only_pays(full, comparison)
+    use_pose = choose and pose_pays
     warnings = []
-    if not comparison["kinematic_better"]:
-        then = (f"the answer is axyb's {options.start} on the poses with the nominal arm (links); use solver kinematic-lm to fit the "
-                "arm anyway" if use_pose else "solver auto returns the pose-only answer for such data")
-        warnings.append(f"the {data.m} stations do not show the arm's kinematic errors beyond what fitting them costs "
-                        f"(predicted 1-sigma errors with the fit: {_shown(predicted['kinematic'])}; with the nominal "
-                        f"arm: {_shown(predicted['pose_only'])}): {then}; record more stations that move every joint "
-                        "over a wide range for a kinematic calibration")
-    elif weak:
+    if pose_pays:
+        warnings.append(_pose_only_warning(data, comparison, full, use_pose, options))
+    elif weak and full["hyper"] is None:
         warnings.append(f"the {data.m} stations determine some kinematic parameters poorly (1 sigma): "
                         f"{', '.join(weak)}; record more stations that move every joint over a wide range")
+    elif weak:
+        warnings.append(f"the {data.m} stations determine some kinematic parameters poorly (1 sigma): "
+                        f"{', '.join(weak)}; the estimated prior holds them near nominal; record more stations "
+                        "that move every joint over a wide range")
     result = pose if use_pose else full
     start_e = KINEMATIC.residuals(data, {"X": start.X, "Y": start.Y})
     residuals = result["residuals"].copy()
@@ -325,6 +432,7 @@ def solve(data: Any, options: Options, choose: bool) -> SolverOutput:
                    "translation": float(result["scale"] / result["weights"][3])},
         "std": std,
         "comparison": comparison,
+        "prior": _prior_diagnostics(full),
         "kinematics": {"used": not use_pose, "parameters": parameters,
                        "not_identifiable": [model.parameter_name(k) for k, _ in data.identifiability.confounded],
                        "why": data.identifiability.words(data.dh.table),
@@ -336,6 +444,17 @@ def solve(data: Any, options: Options, choose: bool) -> SolverOutput:
     X, Y = (start.X, start.Y) if use_pose else (result["X"], result["Y"])
     return SolverOutput({"X": X, "Y": Y, "links": links},
                         status, diagnostics)
+
+
+def _prior_diagnostics(full: dict[str, Any]) -> dict[str, Any] | None:
+    """The estimated prior: its spreads (angle rad, length in data units), the noise it found and
+    how many corrections' worth the stations determine (None for the free fit)."""
+    h = full["hyper"]
+    if h is None:
+        return None
+    return {"tau_angle": h.tau[0], "tau_length": h.tau[1] * full["scale"], "sigma_rotation": h.sigma[0],
+            "sigma_translation": h.sigma[1] * full["scale"], "effective_parameters": float(full["gamma"].sum()),
+            "likelihood_ratio": full["seen"][0], "p": full["seen"][1]}
 
 
 def run(data: Any, options: Options, backend: str) -> SolverOutput:
