@@ -232,3 +232,47 @@ def test_cli_writes_the_stations_in_the_robots_format(tmp_path, capsys):
     assert WORKSPACE.holds(np.array(stack.poses))[0].all()
     assert main(args[:4] + ["1,2,3"] + args[5:] + ["--force"]) == 2  # --x with too few numbers
     assert "--x needs 6" in capsys.readouterr().err
+
+
+LR_MATE_LIMITS = np.radians([-170, -100, -70, -190, -125, -360]), np.radians([170, 145, 200, 190, 125, 360])
+
+
+def test_planned_with_the_arm_every_station_is_reached_within_its_joint_limits():
+    from handeye.geometry.kinematics import LR_MATE_200ID
+    from handeye.planning.reach import Reach
+
+    X, Y = CELLS["eye-in-hand"]
+    Y = make_pose(Y[:3, :3], [450.0, 0.0, 0.0])  # the board within the LR Mate's reach
+    p = plan(setup="eye-in-hand", X=X, Y=Y, camera=CAMERA, board=BOARD, count=6, limits=LIMITS,
+             reach=Reach(LR_MATE_200ID, *LR_MATE_LIMITS))
+    assert p.joints.shape == (6, 6)
+    assert np.all(p.joints >= LR_MATE_LIMITS[0]) and np.all(p.joints <= LR_MATE_LIMITS[1])
+    np.testing.assert_allclose(LR_MATE_200ID.forward(p.joints), p.A, atol=1e-6)
+    with pytest.raises(PlanningError, match="reaches only"):  # joints nearly locked: nothing usable is reached
+        plan(setup="eye-in-hand", X=X, Y=Y, camera=CAMERA, board=BOARD, count=6, limits=LIMITS, pool=100,
+             reach=Reach(LR_MATE_200ID, np.full(6, -0.01), np.full(6, 0.01)))
+
+
+def test_cli_plans_with_the_arm_and_writes_its_joints(tmp_path, capsys):
+    from handeye.examples import kinematic_example_dir
+    from handeye.geometry.kinematics import LR_MATE_200ID
+    from handeye.io.joint_files import read_joints
+
+    fs = cv2.FileStorage(str(tmp_path / "cam.yaml"), cv2.FILE_STORAGE_WRITE)
+    fs.write("camera_matrix", CAMERA.K)
+    fs.write("distortion_coefficients", np.zeros((1, 5)))
+    fs.write("image_width", 1280)
+    fs.write("image_height", 960)
+    fs.release()
+    args = ["plan", "--setup", "eye-in-hand", "--x", "60,-20,100,17.19,0,0", "--y", "450,0,0,0,0,180",
+            "--board", "chessboard:9x6:30mm", "--intrinsics", str(tmp_path / "cam.yaml"), "--count", "4",
+            "--arm", str(kinematic_example_dir() / "arm.yaml"),
+            "--joint-limits=-170:170,-100:145,-70:200,-190:190,-125:125,-360:360",
+            "-o", str(tmp_path / "st.csv"), "--joints-out", str(tmp_path / "joints.csv")]
+    assert main(args) == 0, capsys.readouterr().err
+    q = read_joints(tmp_path / "joints.csv", "deg")
+    poses = read_poses(tmp_path / "st.csv", "kuka-abc", unit="mm")
+    assert q.joints == ("J1", "J2", "J3", "J4", "J5", "J6") and len(q) == 4
+    np.testing.assert_allclose(LR_MATE_200ID.forward(np.array(q.q)), np.array(poses.poses), atol=1e-6)
+    assert main(args + ["--joint-limits=1:2", "--force"]) == 2
+    assert "--joint-limits needs" in capsys.readouterr().err

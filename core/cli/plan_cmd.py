@@ -25,9 +25,11 @@ import numpy as np
 from handeye.cli._common import add_force_flag, check_new_file
 from handeye.framework.errors import InputError
 from handeye.geometry.se3 import make_pose
+from handeye.io.arm_files import read_arm
 from handeye.io.pose_formats import parse_format
 from handeye.io.pose_readers import read_poses
 from handeye.planning.plan import Noise, plan
+from handeye.planning.reach import Reach
 from handeye.planning.stations import Workspace
 from handeye.planning.views import ViewLimits
 from handeye.vision.boards import parse_board
@@ -65,6 +67,13 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--pixel-noise", type=float, default=0.3, metavar="PX", help="expected corner noise (default 0.3)")
     parser.add_argument("--robot-noise", metavar="RAD,LENGTH",
                         help="expected robot pose noise per axis: rad, --unit (default 0.0002 rad, 0.05 mm)")
+    parser.add_argument("--arm", metavar="FILE",
+                        help="the arm's model (DH YAML or URDF, docs/formats.md): only stations it reaches within "
+                             "--joint-limits are planned, and their joints are written with --joints-out")
+    parser.add_argument("--joint-limits", metavar="LO:HI,...",
+                        help="with --arm: each joint's limits in deg, e.g. --joint-limits=-170:170,-100:145,-70:200,"
+                             "-190:190,-125:125,-360:360 (with '=': the value starts with '-'; default: +-180 each)")
+    parser.add_argument("--joints-out", metavar="FILE", help="with --arm: the stations' joints (deg) as a table")
     parser.add_argument("--recorded-robot", metavar="FILE", help="robot poses of stations already recorded")
     parser.add_argument("--recorded-camera", metavar="FILE", help="their camera poses (as A X = Y B takes them: docs/conventions.md)")
     parser.add_argument("--robot-format", help="format of --recorded-robot (default: --pose-format)")
@@ -80,8 +89,11 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    for flag, path in (("--output", args.output), ("--figure", args.figure), ("--json", args.json)):
+    for flag, path in (("--output", args.output), ("--figure", args.figure), ("--json", args.json),
+                       ("--joints-out", args.joints_out)):
         check_new_file(flag, path, args.force)
+    if (args.joint_limits or args.joints_out) and not args.arm:
+        raise InputError("--joint-limits and --joints-out need the arm's model (--arm FILE)")
     fmt = parse_format(args.pose_format)
     X, Y = (_pose(text, fmt, flag) for text, flag in ((args.x, "--x"), (args.y, "--y")))
     board = parse_board(args.board).in_unit(args.unit)
@@ -98,8 +110,10 @@ def run(args: argparse.Namespace) -> int:
         workspace = Workspace(low=box[:3], high=box[3:], max_tilt_deg=args.max_tilt)
     noise = Noise(pixel=args.pixel_noise, robot=_numbers(args.robot_noise, 2, "--robot-noise") if args.robot_noise else None)
     recorded = _recorded(args)
+    arm = read_arm(args.arm).in_unit(args.unit) if args.arm else None
+    reach = Reach(arm, *_limits(args.joint_limits, arm.joints), seed=args.seed) if arm is not None else None
     result = plan(args.problem, setup=args.setup, X=X, Y=Y, camera=camera, board=board, count=args.count,
-                  workspace=workspace, limits=limits, noise=noise, recorded=recorded, seed=args.seed)
+                  workspace=workspace, limits=limits, noise=noise, recorded=recorded, reach=reach, seed=args.seed)
     result.write(args.output, args.format or args.pose_format, args.unit)
     print(f"{len(result.A)} stations ({args.setup}) written to {args.output}, in the order to record them"
           + (f", after the {result.recorded} recorded" if result.recorded else ""))
@@ -108,6 +122,8 @@ def run(args: argparse.Namespace) -> int:
     for k, std in enumerate(result.progression, start=1):
         cells = "; ".join(f"{n} {s['rotation_deg']:.3g} deg / {s['translation']:.3g} {args.unit}" for n, s in std.items())
         print(f"  after station {k:2d}: {cells}")
+    if args.joints_out:
+        print(f"joints (deg): {result.write_joints(args.joints_out, arm.names)}")
     if args.figure:
         from handeye.planning.figure import draw
 
@@ -133,6 +149,20 @@ def _numbers(text: str, count: int, flag: str) -> tuple[float, ...]:
     if len(values) != count or not all(np.isfinite(values)):
         raise InputError(f"{flag} needs {count} comma-separated numbers, got {text!r}")
     return values
+
+
+def _limits(text: str | None, joints: int) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) rad from --joint-limits (deg, LO:HI per joint), +-180 deg each by default."""
+    if text is None:
+        return np.full(joints, -np.pi), np.full(joints, np.pi)
+    try:
+        pairs = [tuple(float(v) for v in item.split(":")) for item in text.split(",")]
+    except ValueError:
+        pairs = []
+    if len(pairs) != joints or any(len(p) != 2 for p in pairs):
+        raise InputError(f"--joint-limits needs LO:HI in deg for each of the arm's {joints} joints, got {text!r}")
+    low, high = np.radians(np.array(pairs)).T
+    return low, high
 
 
 def _recorded(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray] | None:

@@ -147,3 +147,19 @@ def _read_table(path: Path, src: str, unit: str) -> JointStack:
 
 
 __all__ = ["JOINT_UNITS", "JointStack", "read_joints"]
+
+
+def write_joints(path: str | Path, q: np.ndarray, joints: Sequence[str], *, unit: str = "deg",
+                 names: Sequence[str] | None = None, force: bool = False) -> Path:
+    """Joint values q (m, n) rad as a table `read_joints` reads back (a name column when `names`
+    are given, one column per joint named `joints`, in `unit`; floats in full)."""
+    from handeye.io.output_files import write_text
+
+    if unit not in JOINT_UNITS:
+        raise InputError(f"joint unit must be one of {', '.join(JOINT_UNITS)}, got {unit!r}")
+    q = np.asarray(q, dtype=float) / JOINT_UNITS[unit]
+    header = (["name"] if names is not None else []) + list(joints)
+    lines = [f"# joints in {unit}", ",".join(header)]
+    for i, row in enumerate(q):
+        lines.append(",".join(([str(names[i])] if names is not None else []) + [repr(float(v)) for v in row]))
+    return write_text(path, "\n".join(lines) + "\n", force=force, flag="joints output")

@@ -19,7 +19,7 @@ candidates' mean diagonal keeps the determinant defined (and unit invariant).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -67,42 +67,66 @@ def gains(total: np.ndarray, F: np.ndarray, interest: np.ndarray | None) -> np.n
 
 
 def greedy(candidates: np.ndarray, count: int, *, prior: np.ndarray | None = None,
-           interest: np.ndarray | None = None, candidate_factors: np.ndarray | None = None) -> list[int]:
+           interest: np.ndarray | None = None, candidate_factors: np.ndarray | None = None,
+           admissible: Callable[[int], bool] | None = None) -> list[int]:
     """Indices of `count` candidates (information (n, p, p)) that maximise `criterion` of
     prior + their sum: greedy, then EXCHANGE_PASSES exchange passes. Each candidate at most once.
     candidate_factors: their `factors`, where a caller chooses from one pool many times (the
-    eigen decompositions are most of a selection's cost)."""
+    eigen decompositions are most of a selection's cost). admissible(i): a test too costly to run
+    on every candidate (the arm reaching it: `reach.Reach`), asked of the best ones in turn and
+    only of those (each at most once); fewer than `count` come back when too few pass."""
     n, p, _ = candidates.shape
     scale = np.mean(np.diagonal(candidates, axis1=1, axis2=2), axis=0)
     ridge = np.diag(RIDGE * np.where(scale > 0, scale, 1.0))
     base = ridge + (np.zeros((p, p)) if prior is None else prior)
     F = factors(candidates) if candidate_factors is None else candidate_factors
+    allowed = _Admissible(admissible)
     chosen: list[int] = []
     total = base.copy()
     for _ in range(min(count, n)):
-        g = gains(total, F, interest)
-        g[chosen] = -np.inf
-        best = int(np.argmax(g))
+        best = allowed.best(gains(total, F, interest), chosen)
+        if best is None:
+            break
         chosen.append(best)
         total = total + candidates[best]
     for _ in range(EXCHANGE_PASSES):
-        if not _exchange(candidates, F, base, chosen, interest):
+        if not _exchange(candidates, F, base, chosen, interest, allowed):
             break
     return chosen
 
 
+class _Admissible:
+    """`greedy`'s admissibility test, each candidate asked at most once."""
+
+    def __init__(self, test: Callable[[int], bool] | None) -> None:
+        self.test, self.known = test, {}
+
+    def best(self, g: np.ndarray, taken: list[int]) -> int | None:
+        """The admissible candidate of largest gain g not in `taken`, or None."""
+        g = np.array(g)
+        g[taken] = -np.inf
+        for i in np.argsort(-g, kind="stable"):
+            if not np.isfinite(g[i]):
+                return None
+            if self.test is None:
+                return int(i)
+            if int(i) not in self.known:
+                self.known[int(i)] = bool(self.test(int(i)))
+            if self.known[int(i)]:
+                return int(i)
+        return None
+
+
 def _exchange(candidates: np.ndarray, F: np.ndarray, base: np.ndarray, chosen: list[int],
-              interest: np.ndarray | None) -> bool:
-    """One exchange pass in place: each chosen station in turn is replaced by the candidate that
-    raises `criterion` most without it, where one does; whether any was."""
+              interest: np.ndarray | None, allowed: _Admissible) -> bool:
+    """One exchange pass in place: each chosen station in turn is replaced by the admissible
+    candidate that raises `criterion` most without it, where one does; whether any was."""
     changed = False
     for k in range(len(chosen)):
         without = base + candidates[[c for j, c in enumerate(chosen) if j != k]].sum(axis=0)
         current = criterion(without + candidates[chosen[k]], interest)
-        g = gains(without, F, interest)
-        g[chosen] = -np.inf
-        best = int(np.argmax(g))
-        if criterion(without + candidates[best], interest) > current + 1e-9:
+        best = allowed.best(gains(without, F, interest), chosen)
+        if best is not None and criterion(without + candidates[best], interest) > current + 1e-9:
             chosen[k] = best
             changed = True
     return changed

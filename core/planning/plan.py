@@ -23,6 +23,7 @@ from handeye.checks.validation import pose_stack
 from handeye.framework.errors import InputError
 from handeye.framework.registry import get_registry
 from handeye.planning import design, stations, views
+from handeye.planning.reach import Reach
 from handeye.planning.stations import Workspace
 from handeye.planning.views import ViewLimits
 from handeye.vision.boards import Board
@@ -67,7 +68,8 @@ class Plan:
     planned stations (rotation_deg, translation in the data's unit), and progression: the same
     after each planned station in turn (1-sigma of inf while the stations cannot determine it);
     recorded: how many stations were given as recorded; information: the predicted Fisher
-    information of the unknowns `names` after them all (`covariance`)."""
+    information of the unknowns `names` after them all (`covariance`); joints: (n, joints) rad
+    the arm's joints at each station when planned with its model (`reach`), else None."""
 
     problem: str
     setup: str
@@ -81,6 +83,7 @@ class Plan:
     robot_sigma: tuple[float, float]
     information: np.ndarray
     names: tuple[str, ...]
+    joints: np.ndarray | None = None
 
     def covariance(self) -> np.ndarray:
         """The predicted covariance (6k, 6k) of the unknowns `names` after recorded and planned
@@ -90,7 +93,17 @@ class Plan:
     def to_dict(self) -> dict[str, Any]:
         return {"problem": self.problem, "setup": self.setup, "stations": self.A.tolist(),
                 "camera_poses": self.B.tolist(), "predicted_std": self.std, "progression": list(self.progression),
-                "recorded": self.recorded, "noise": {"pixel": self.noise.pixel, "robot": self.robot_sigma}}
+                "recorded": self.recorded, "noise": {"pixel": self.noise.pixel, "robot": self.robot_sigma},
+                "joints_rad": None if self.joints is None else self.joints.tolist()}
+
+    def write_joints(self, path: str | Path, joint_names: tuple[str, ...], unit: str = "deg") -> Path:
+        """The stations' joint values (planned with an arm, `reach`), named station01, ..."""
+        from handeye.io.joint_files import write_joints
+
+        if self.joints is None:
+            raise InputError("this plan has no joint values: plan with the arm's model and joint limits (reach=)")
+        names = tuple(f"station{i + 1:02d}" for i in range(len(self.A)))
+        return write_joints(path, self.joints, joint_names, unit=unit, names=names, force=True)
 
     def write(self, path: str | Path, format: str, unit: str) -> Path:
         """The stations in a robot's pose format (`handeye.pose_formats`, e.g. "kuka-abc",
@@ -104,14 +117,16 @@ class Plan:
 def plan(problem: str | None = None, *, setup: str, X: np.ndarray, Y: np.ndarray, camera: Camera, board: Board,
          count: int, workspace: Workspace | None = None, limits: ViewLimits | None = None, noise: Noise | None = None,
          recorded: tuple[np.ndarray, np.ndarray] | None = None, rough: tuple[float, float] | None = None,
-         pool: int = POOL, seed: int = 0) -> Plan:
+         reach: Reach | None = None, pool: int = POOL, seed: int = 0) -> Plan:
     """Plan `count` stations (module docstring) for `problem` (default: the problem of a cell's
     stations, A X = Y B; one whose unknowns are fewer plans for those). X, Y: rough poses as A X = Y B takes them
     (docs/conventions.md); board in the data's length unit (`board.unit`); limits default to
     0.5-2x the distance at which the board fills half the image's width, at most 45 deg off its
     normal; recorded: (A, B) of stations already recorded; rough: how far X and Y may be off
     (deg, length; default 1 deg and 1% of the farthest viewing distance): the planned views keep
-    the board that far inside the image (`views.tightened`), so the real ones show all of it."""
+    the board that far inside the image (`views.tightened`), so the real ones show all of it;
+    reach: the arm's model and joint limits (`reach.Reach`): only stations it reaches are planned,
+    and `Plan.joints` holds their joints."""
     if setup not in SETUPS:
         raise InputError(f"setup must be one of {', '.join(SETUPS)}, got {setup!r}")
     if count < 1:
@@ -135,13 +150,17 @@ def plan(problem: str | None = None, *, setup: str, X: np.ndarray, Y: np.ndarray
         new = ~_near(A, A0, np.radians(rough_deg), rough_length)  # a station again adds no new geometry
         A, seen, info = A[new], seen[new], info[new]
         prior = _information(spec, problem, A0, B0, views.views_of(B0, setup), board, camera, setup, X, Y, noise)[0].sum(0)
-    chosen = design.greedy(info, count, prior=prior, interest=mask)
+    admissible = None if reach is None else (lambda i: reach.joints_for(A[i], key=i) is not None)
+    chosen = design.greedy(info, count, prior=prior, interest=mask, admissible=admissible)
+    if len(chosen) < count:
+        raise stations.PlanningError(f"the arm reaches only {len(chosen)} of the usable stations within its joint "
+                                     "limits; widen the limits or the workspace, or plan fewer stations")
     base = np.zeros(info.shape[1:]) if prior is None else prior
     totals = base + np.cumsum(info[chosen], axis=0)
     progression = tuple(_std(T, names, interest) for T in totals)
     return Plan(problem, setup, A[chosen], stations.camera_poses(seen[chosen], setup), seen[chosen], progression[-1],
                 progression, 0 if recorded is None else len(recorded[0]), noise, noise.robot_sigma(board.unit), totals[-1],
-                names)
+                names, None if reach is None else np.array([reach.solved[i] for i in chosen]))
 
 
 def default_limits(board: Board, camera: Camera) -> ViewLimits:
