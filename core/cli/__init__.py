@@ -1,4 +1,4 @@
-"""The ``handeye`` command line: ``handeye list | simulate | solve | calibrate | plan`` (see ``handeye --help``).
+"""The ``handeye`` command line: ``handeye list | simulate | solve | calibrate | plan | watch`` (see ``handeye --help``).
 
 Each subcommand is one module of this package with ``add_parser(subparsers)`` (which registers
 the subcommand and its arguments) and ``run(args) -> int`` (the exit code). `COMMANDS` lists
@@ -32,12 +32,13 @@ from handeye.cli import (
     plan_cmd,
     simulate_cmd,
     solve_cmd,
+    watch_cmd,
 )
 from handeye.cli._common import in_cli_words
 from handeye.framework.errors import HandEyeError, SolverError
 
 #: the subcommand modules, in the order ``handeye --help`` shows them
-COMMANDS = [list_cmd, simulate_cmd, solve_cmd, calibrate_cmd, plan_cmd, compare, bench_cmd]
+COMMANDS = [list_cmd, simulate_cmd, solve_cmd, calibrate_cmd, plan_cmd, watch_cmd, compare, bench_cmd]
 
 EXIT_OK, EXIT_SOLVER_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 
