@@ -159,14 +159,29 @@ def rotation_cost(RA: np.ndarray, RB: np.ndarray, RC: np.ndarray, RX: np.ndarray
                   RZ: np.ndarray) -> np.ndarray:
     """C = sum_i |R_Ai R_X R_Bi - R_Y R_Ci R_Z|_F^2 for RA, RB, RC: (m, 3, 3) and one or a stack
     of iterates RX, RY, RZ: (..., 3, 3) -> (...)."""
-    RX, RY, RZ = (R[..., None, :, :] for R in (RX, RY, RZ))
-    return np.sum((RA @ RX @ RB - RY @ RC @ RZ) ** 2, axis=(-3, -2, -1))
+    L, N = _sides(*_contiguous(RA, RB, RC), RX, RY, RZ)
+    return np.sum((L - N) ** 2, axis=(-3, -2, -1))
 
 
-def _cross_gram(P: np.ndarray, Q: np.ndarray) -> np.ndarray:
-    """sum_k [p_k]^T [q_k] = tr(P^T Q) I - Q P^T for stacks P, Q: (..., 3, 3) of columns p_k, q_k."""
-    tr = np.einsum("...ij,...ij->...", P, Q)
-    return tr[..., None, None] * np.eye(3) - Q @ np.swapaxes(P, -1, -2)
+def _contiguous(*stacks: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The stacks as contiguous float arrays (the rotation blocks of (m, 4, 4) poses are views
+    whose products are several times slower)."""
+    return tuple(np.ascontiguousarray(R, dtype=float) for R in stacks)
+
+
+def _sides(RA: np.ndarray, RB: np.ndarray, RC: np.ndarray, RX: np.ndarray, RY: np.ndarray,
+           RZ: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """L = R_A R_X R_B and N = R_Y R_C R_Z: (..., m, 3, 3) for one or a stack of iterates (RA,
+    RB, RC contiguous). R_A R_X, R_Y R_C and (R_Y R_C) R_Z are BLAS products per iterate over the
+    stacked triples (R_C side by side for the product from the left): a batched product of the
+    (m, 3, 3) stack with each iterate took 4x longer."""
+    RX, RY, RZ = (np.asarray(R, dtype=float) for R in (RX, RY, RZ))
+    m = RA.shape[0]
+    lead = RX.shape[:-2]
+    L = (RA.reshape(3 * m, 3) @ RX).reshape(lead + (m, 3, 3)) @ RB
+    W = RY @ RC.transpose(1, 0, 2).reshape(3, 3 * m)  # [a, (i, b)] = (R_Y R_Ci)[a, b]
+    N = (W.reshape(lead + (3 * m, 3)) @ RZ).reshape(lead + (3, m, 3))
+    return L, np.ascontiguousarray(np.swapaxes(N, -3, -2))
 
 
 def normal_equations(RA: np.ndarray, RB: np.ndarray, RC: np.ndarray, RX: np.ndarray, RY: np.ndarray,
@@ -182,28 +197,44 @@ def normal_equations(RA: np.ndarray, RB: np.ndarray, RC: np.ndarray, RX: np.ndar
                        [.,                 G(N, N),        G(N, N) W       ],
                        [.,                 .,              W^T G(N, N) W   ]]   (symmetric),
         F^T E = sum_i [R_A^T s; -s; -W^T s].
+
+    L and N are rotations, so G(L, L) = G(N, N) = 2 I and those blocks are 2 sum R_A^T R_A, 2m I,
+    2 R_Y sum R_C and 2 sum R_C^T R_C; per triple and iterate only Q = N L^T (tr(L^T N) = tr Q,
+    G(L, N) = tr(Q) I - Q) and R_A^T G(L, N) are formed, and the sums over the triples are BLAS
+    products (`_linearisation`). Measured (m = 1000, 8 starts, one thread): the linearisation
+    and C in 3.5 ms instead of 12.5, `wang` in 16 ms instead of 43. The data's rotations are
+    orthonormal to `handeye.se3.ORTHONORMALITY_TOL`, which makes the constant blocks exact to
+    that order; F^T E, which decides where Gauss-Newton stops, is exact.
     """
-    RX, RY, RZ = (R[..., None, :, :] for R in (RX, RY, RZ))
-    L = RA @ RX @ RB
-    W = RY @ RC
-    N = W @ RZ
-    RAt, Wt = np.swapaxes(RA, -1, -2), np.swapaxes(W, -1, -2)
-    GLL, GLN, GNN = _cross_gram(L, L), _cross_gram(L, N), _cross_gram(N, N)
-    AtGLN = RAt @ GLN
-    GNNW = GNN @ W
-    H = np.empty(L.shape[:-3] + (9, 9))
-    H[..., :3, :3] = (RAt @ GLL @ RA).sum(axis=-3)
-    H[..., :3, 3:6] = -AtGLN.sum(axis=-3)
-    H[..., :3, 6:] = -(AtGLN @ W).sum(axis=-3)
-    H[..., 3:6, 3:6] = GNN.sum(axis=-3)
-    H[..., 3:6, 6:] = GNNW.sum(axis=-3)
-    H[..., 6:, 6:] = (Wt @ GNNW).sum(axis=-3)
+    return _linearisation(*_contiguous(RA, RB, RC), RX, RY, RZ)[:2]
+
+
+def _linearisation(RA: np.ndarray, RB: np.ndarray, RC: np.ndarray, RX: np.ndarray, RY: np.ndarray,
+                   RZ: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`normal_equations` and the rotation cost C at the iterates (`rotation_cost`), which shares
+    its products L and N (`_sides`); RA, RB, RC contiguous."""
+    RY = np.asarray(RY, dtype=float)
+    L, N = _sides(RA, RB, RC, RX, RY, RZ)
+    m, lead = RA.shape[0], L.shape[:-3]
+    cost = np.sum((L - N) ** 2, axis=(-3, -2, -1))
+    Q = N @ np.ascontiguousarray(np.swapaxes(L, -1, -2))
+    RAt = np.ascontiguousarray(np.swapaxes(RA, -1, -2))
+    D = np.einsum("...ii->...", Q)[..., None, None] * RAt - RAt @ Q  # R_A^T G(L, N)
+    DY = (D.reshape(lead + (3 * m, 3)) @ RY).reshape(lead + (m, 3, 3))  # R_A^T G(L, N) R_Y
+    C3 = RC.reshape(3 * m, 3)
+    H = np.empty(lead + (9, 9))
+    H[..., :3, :3] = 2.0 * np.einsum("nki,nkj->ij", RA, RA)
+    H[..., :3, 3:6] = -D.sum(axis=-3)
+    H[..., :3, 6:] = -(np.ascontiguousarray(np.swapaxes(DY, -3, -2)).reshape(lead + (3, 3 * m)) @ C3)
+    H[..., 3:6, 3:6] = 2.0 * m * np.eye(3)
+    H[..., 3:6, 6:] = 2.0 * (RY @ RC.sum(axis=0))
+    H[..., 6:, 6:] = 2.0 * np.einsum("nki,nkj->ij", RC, RC)
     H[..., 3:, :3] = np.swapaxes(H[..., :3, 3:], -1, -2)
     H[..., 6:, 3:6] = np.swapaxes(H[..., 3:6, 6:], -1, -2)
-    s = 2.0 * vee(N @ np.swapaxes(L, -1, -2))  # (..., m, 3)
-    g = np.concatenate([np.einsum("...nij,...nj->...i", RAt, s), -s.sum(axis=-2),
-                        -np.einsum("...nij,...nj->...i", Wt, s)], axis=-1)
-    return H, g
+    s = 2.0 * vee(Q)  # (..., m, 3)
+    g = np.concatenate([s.reshape(lead + (3 * m,)) @ RA.reshape(3 * m, 3), -s.sum(axis=-2),
+                        -((s @ RY).reshape(lead + (3 * m,)) @ C3)], axis=-1)
+    return H, g, cost
 
 
 def iterate_rotations(RA: np.ndarray, RB: np.ndarray, RC: np.ndarray, RX: np.ndarray, RY: np.ndarray,
@@ -215,13 +246,14 @@ def iterate_rotations(RA: np.ndarray, RB: np.ndarray, RC: np.ndarray, RX: np.nda
     "diverged" (a non-finite step), "joined" (stopped because each of its rotations came within
     `JOIN_ANGLE` of those of a start that has converged, or of a better-ranked start still
     running: the two are in one basin and would end at one point) and "sigma_ratio"
-    (sigma_min / sigma_max of the stacked F at its last linearisation).
+    (sigma_min / sigma_max of the stacked F at its last linearisation). C at an iterate comes
+    with its linearisation (`_linearisation`); only the end points' C is evaluated apart.
     """
+    RA, RB, RC = _contiguous(RA, RB, RC)
     R = np.stack([RX, RY, RZ], axis=1).astype(float)  # (S, 3, 3, 3)
     S = len(R)
-    records = [{"costs": [float(c)], "step": float("nan"), "iterations": 0, "converged": False,
-                "diverged": False, "joined": False, "H": None}
-               for c in rotation_cost(RA, RB, RC, R[:, 0], R[:, 1], R[:, 2])]
+    records = [{"costs": [], "step": float("nan"), "iterations": 0, "converged": False,
+                "diverged": False, "joined": False, "H": None} for _ in range(S)]
     active = np.ones(S, dtype=bool)
     finished = np.zeros(S, dtype=bool)  # converged: others may join it
     cos_join = np.cos(JOIN_ANGLE)
@@ -229,7 +261,9 @@ def iterate_rotations(RA: np.ndarray, RB: np.ndarray, RC: np.ndarray, RX: np.nda
         idx = np.flatnonzero(active)
         if not len(idx):
             break
-        H, g = normal_equations(RA, RB, RC, R[idx, 0], R[idx, 1], R[idx, 2])
+        H, g, cost = _linearisation(RA, RB, RC, R[idx, 0], R[idx, 1], R[idx, 2])
+        for k, j in enumerate(idx):
+            records[j]["costs"].append(float(cost[k]))  # C where this step starts
         with np.errstate(invalid="ignore", over="ignore"):
             try:
                 delta = np.linalg.solve(H, g[..., None])[..., 0]
@@ -239,8 +273,6 @@ def iterate_rotations(RA: np.ndarray, RB: np.ndarray, RC: np.ndarray, RX: np.nda
             step = np.linalg.norm(delta, axis=1)
         ok = np.isfinite(step)
         R[idx[ok]] = so3_exp(delta[ok].reshape(-1, 3, 3)) @ R[idx[ok]]
-        cost = np.full(len(idx), np.nan)
-        cost[ok] = rotation_cost(RA, RB, RC, R[idx[ok], 0], R[idx[ok], 1], R[idx[ok], 2])
         for k, j in enumerate(idx):
             rec = records[j]
             rec.update(iterations=iteration, step=float(step[k]), H=H[k])
@@ -248,7 +280,6 @@ def iterate_rotations(RA: np.ndarray, RB: np.ndarray, RC: np.ndarray, RX: np.nda
                 rec["diverged"] = True
                 active[j] = False
                 continue
-            rec["costs"].append(float(cost[k]))
             if step[k] < tol:
                 rec["converged"] = True
                 active[j], finished[j] = False, True
@@ -261,6 +292,9 @@ def iterate_rotations(RA: np.ndarray, RB: np.ndarray, RC: np.ndarray, RX: np.nda
             for j in running[near.any(axis=1)]:
                 records[j]["joined"] = True
                 active[j] = False
+    stepped = [j for j, rec in enumerate(records) if not rec["diverged"]]  # C after their last step
+    for j, c in zip(stepped, rotation_cost(RA, RB, RC, R[stepped, 0], R[stepped, 1], R[stepped, 2])):
+        records[j]["costs"].append(float(c))
     for j, rec in enumerate(records):
         rec["R"] = tuple(R[j])
         H = rec.pop("H")
