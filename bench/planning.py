@@ -13,8 +13,9 @@ a rough X and Y (the truth off by 2 deg and 10 mm) and recorded with the truth.
 Compared at N stations, RMS over trials of the errors of `auto`'s answer (X and Y, rotation deg
 and translation mm):
 - ``planned``: the plan's N stations (fixed; the noise drawn anew per trial);
-- ``random 2N``: 2N stations drawn per trial from the same usable stations in the same box
-  (usable with the rough X and Y, and with the true ones);
+- ``random 2N``: 2N stations drawn per trial from the stations the plan chooses from (usable
+  with the rough X and Y under the plan's constraints, in the same box), and usable with the
+  true X and Y;
 - ``pattern``: N stations of an easy_handeye-like pattern about a start pose looking straight at
   the board (rotations of the camera about its own x, y, z by +-20, +-20, +-40 deg, moves of +-80
   mm along them, then the same at half and 1.5x those), the usable ones in order.
@@ -46,6 +47,8 @@ CAMERA = Camera(np.array([[1000.0, 0, 640], [0, 1000, 480], [0, 0, 1]]), np.zero
 BOARD = Board(kind="chessboard", cols=9, rows=6, spacing=30.0)
 NOISE = Noise(pixel=0.3, robot=(0.0002, 0.05))
 LIMITS = ViewLimits(distance=(300.0, 900.0), max_angle_deg=45.0)
+#: how far off the rough X and Y are (deg, mm): `rough` draws them so, and the plan is told
+ROUGH = (2.0, 10.0)
 
 
 def cell(setup: str) -> tuple[np.ndarray, np.ndarray, Workspace]:
@@ -126,7 +129,8 @@ def study(setup: str, sizes: list[int], trials: int) -> None:
     X, Y, workspace = cell(setup)
     rng = np.random.default_rng(1)
     Xr, Yr = rough(X, rng), rough(Y, rng)
-    pool, _ = stations.candidates(BOARD, CAMERA, Xr, Yr, setup, LIMITS, workspace, 3000, np.random.default_rng(2))
+    planned_limits = views.tightened(LIMITS, math.radians(ROUGH[0]), ROUGH[1])  # the plan's own constraints
+    pool, _ = stations.candidates(BOARD, CAMERA, Xr, Yr, setup, planned_limits, workspace, 3000, np.random.default_rng(2))
     pool = pool[views.usable(BOARD, CAMERA, views.views_of(inverse(Y) @ pool @ X, setup), LIMITS)]  # the board seen
     print(f"\n{setup}: RMS over {trials} trials, X rot deg / X mm / Y rot deg / Y mm")
     print("| N | planned | random 2N | pattern N | planned z RMS | plan time |")
@@ -134,7 +138,7 @@ def study(setup: str, sizes: list[int], trials: int) -> None:
     for n in sizes:
         t0 = time.perf_counter()
         p = plan("axyb", setup=setup, X=Xr, Y=Yr, camera=CAMERA, board=BOARD, count=n, workspace=workspace,
-                 limits=LIMITS, noise=NOISE, rough=(2.0, 10.0))
+                 limits=LIMITS, noise=NOISE, rough=ROUGH)
         seconds = time.perf_counter() - t0
         L = np.linalg.cholesky(p.covariance())
         fixed = pattern(X, Y, setup, workspace, n)
