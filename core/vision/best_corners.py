@@ -65,12 +65,15 @@ SWITCH = 0.2
 class Choice:
     """What `choose` kept: per image the detection (None where the board was not found), the
     detector / flag set of each kept one, the camera calibration of the last round (None when
-    intrinsics were given or too few images), and how many rounds it took."""
+    intrinsics were given or too few images), and how many rounds it took. calibrated_kept: the
+    calibration is that of exactly the detections kept (the picks repeated), so a caller
+    calibrating from them can take it instead of calibrating again."""
 
     detections: tuple[Detection | None, ...]
     methods: tuple[str, ...]
     calibration: CameraCalibration | None
     rounds: int
+    calibrated_kept: bool = False
 
 
 def plausible(candidates: Sequence[Detection]) -> list[Detection]:
@@ -135,7 +138,7 @@ def choose(detections: Sequence[Detection | None], camera: Camera | None,
     calibrate them here from the images (`image_size`: (width, height))."""
     candidates = [None if d is None else plausible(d.candidates()) for d in detections]
     kept = [None if c is None else c[0] for c in candidates]
-    calibration, rounds = None, 0
+    calibration, rounds, changed = None, 0, True
     judged = [k for k, c in enumerate(candidates) if c is not None and len(c) > 1]
     for rounds in range(1, ROUNDS + 1):
         if not judged:
@@ -157,4 +160,5 @@ def choose(detections: Sequence[Detection | None], camera: Camera | None,
         kept = new
         if camera is not None or not changed:
             break
-    return Choice(tuple(kept), tuple(d.method for d in kept if d is not None), calibration, rounds)
+    current = calibration is not None and not changed
+    return Choice(tuple(kept), tuple(d.method for d in kept if d is not None), calibration, rounds, current)

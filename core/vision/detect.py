@@ -11,7 +11,8 @@ image the one fitting its calibrated camera best (`handeye.vision.best_corners`,
   ``cv2.findChessboardCornersSB`` that finds the board (else ``findChessboardCorners``), then SB's
   own corners with each of `SB_FLAG_SETS` that finds it (``CALIB_CB_EXHAUSTIVE`` only when none
   did). The order is OpenCV's; on a board with `Board.orientation_ambiguous` two images may number
-  it 180 deg apart, which this module reports (the flag) but does not guess away.
+  it 180 deg apart, which this module reports (the flag) but does not guess away. An image set
+  runs only the flag sets its probe images kept (``flag_sets``, `handeye.vision.detection_plan`).
 - charuco: ``cv2.aruco.CharucoDetector`` (ids are ChArUco corner ids; sub-pixel by OpenCV) with the
   markers refined by ``CORNER_REFINE_SUBPIX``, then by ``CORNER_REFINE_CONTOUR``, then OpenCV's
   corners refined again by ``cornerSubPix`` in a small window (`CHARUCO_WINDOW`).
@@ -53,20 +54,23 @@ CHARUCO_WINDOW = 0.1
 
 
 def detect(image: np.ndarray, board: Board | str, *, min_corners: int | None = None,
-           camera: Camera | None = None) -> Detection:
+           camera: Camera | None = None, flag_sets: tuple[str, ...] | None = None) -> Detection:
     """The points of `board` (a Board or a spec for parse_board) in `image` (uint8, gray or BGR/BGRA).
     `min_corners`: fewest points accepted (default: all of them for chessboard and circle boards,
     CHARUCO_MIN_CORNERS for charuco, APRILGRID_MIN_CORNERS for aprilgrid). `camera`: intrinsics to
     judge the candidates with (`handeye.vision.best_corners.pick`); without, the first candidate,
-    the others as its `alternatives`. Raises BoardNotFound when the board is absent, too little of
-    it is seen or its orientation cannot be told."""
+    the others as its `alternatives`. `flag_sets` (chessboard only): the names of the `SB_FLAG_SETS`
+    to run (an image set's plan, `handeye.vision.detection_plan`); when none of them finds the
+    board every other one runs, so the candidates are then those of a full run. Raises
+    BoardNotFound when the board is absent, too little of it is seen or its orientation cannot be
+    told."""
     board = parse_board(board) if isinstance(board, str) else board
     if not isinstance(board, Board):
         raise InputError(f"board must be a handeye.vision.boards.Board or a spec text, got {type(board).__name__}")
     gray = grayscale(image)
     needed = _needed(board, min_corners)
     if board.kind == "chessboard":
-        found = _chessboard(gray, board)
+        found = _chessboard(gray, board, _planned(flag_sets))
     elif board.kind == "charuco":
         found = _charuco(gray, board)
     elif board.kind in ("circles", "circlegrid"):
@@ -124,15 +128,24 @@ def _point_name(board: Board) -> str:
 
 
 # -- chessboard --------------------------------------------------------------------------------
-def _chessboard(gray: np.ndarray, board: Board) -> Detection:
-    """cornerSubPix on the first corners found, then SB's own corners of each flag set that finds
-    the board (module docstring); all in the canonical order."""
+def _planned(flag_sets: tuple[str, ...] | None) -> tuple[tuple[str, int], ...]:
+    """The `SB_FLAG_SETS` named in `flag_sets`, in their own order (all of them for None)."""
+    if flag_sets is None:
+        return SB_FLAG_SETS
+    unknown = sorted(set(flag_sets) - {name for name, _ in SB_FLAG_SETS})
+    if unknown:
+        raise InputError(f"unknown chessboard flag sets {unknown}; use names of {[n for n, _ in SB_FLAG_SETS]}")
+    return tuple(s for s in SB_FLAG_SETS if s[0] in flag_sets)
+
+
+def _chessboard(gray: np.ndarray, board: Board, planned: tuple[tuple[str, int], ...] = SB_FLAG_SETS) -> Detection:
+    """cornerSubPix on the first corners found, then SB's own corners of each flag set of `planned`
+    that finds the board, or of every other flag set when none does (module docstring); all in the
+    canonical order."""
     size, ids = (board.cols, board.rows), np.arange(board.point_count)
-    sb = []
-    for method, flags in SB_FLAG_SETS:
-        found, corners = cv2.findChessboardCornersSB(gray, size, flags=flags)
-        if found:
-            sb.append(Detection.of(board, ids, _canonical_order(gray, corners.reshape(-1, 2), board), method))
+    sb = _sb_candidates(gray, board, planned)
+    if not sb and len(planned) < len(SB_FLAG_SETS):
+        sb = _sb_candidates(gray, board, tuple(s for s in SB_FLAG_SETS if s not in planned))
     if not sb:
         found, corners = cv2.findChessboardCornersSB(gray, size, flags=SB_EXHAUSTIVE[1])
         if found:
@@ -148,6 +161,17 @@ def _chessboard(gray: np.ndarray, board: Board) -> Detection:
         start, method = _canonical_order(gray, corners.reshape(-1, 2), board), "cornerSubPix on classic"
     refined = Detection.of(board, ids, _refine_corners(gray, start, board), method)
     return refined.with_alternatives(tuple(sb))
+
+
+def _sb_candidates(gray: np.ndarray, board: Board, flag_sets: tuple[tuple[str, int], ...]) -> list[Detection]:
+    """SB's corners of each of `flag_sets` that finds the board, in that order."""
+    size, ids = (board.cols, board.rows), np.arange(board.point_count)
+    sb = []
+    for method, flags in flag_sets:
+        found, corners = cv2.findChessboardCornersSB(gray, size, flags=flags)
+        if found:
+            sb.append(Detection.of(board, ids, _canonical_order(gray, corners.reshape(-1, 2), board), method))
+    return sb
 
 
 def _canonical_order(gray: np.ndarray, corners: np.ndarray, board: Board) -> np.ndarray:

@@ -38,14 +38,13 @@ from handeye.vision.best_corners import choose
 from handeye.vision.board_set import Detector, check_distinct, detect_boards
 from handeye.vision.boards import UNITS, Board
 from handeye.vision.camera_poses import board_pose, flag_outliers
+from handeye.vision.image_files import read_any, to_8bit
 from handeye.vision.image_set import (
     Dropped,
     _majority_size,
-    _read_any,
     list_images,
     pair_images,
     pose_names,
-    to_8bit,
 )
 from handeye.vision.intrinsics import CameraCalibration, calibrate_camera
 from handeye.vision.observations import Camera
@@ -102,7 +101,7 @@ def camera_observations(folder: str | Path, boards: Mapping[str, Board], camera:
     found, sizes = [], []
     for k, path in enumerate(used):
         try:
-            image = to_8bit(_read_any(path), path.name)
+            image = to_8bit(read_any(path), path.name)
         except InputError as exc:
             dropped.append(Dropped(path.stem, names[rows[k]], str(exc).removeprefix(f"{path.name}: ")))
             found.append({})

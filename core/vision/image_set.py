@@ -14,7 +14,8 @@ which robot pose, the board's pose in each kept image, and why the others were d
 3. reads each image (`read_image`: grayscale; 16-bit and float images scaled to 8 bits by their
    own range) and detects the board; unreadable images, images of another size than most
    (`_majority_size`) and images where the board is not found are dropped with their robot pose
-   and the reason;
+   and the reason (over the cores, and from the detection cache for images seen before:
+   `handeye.vision.detection_plan`);
    where the detector offers several detections of an image (OpenCV detectors or flag sets), the
    one fitting the camera best is kept (`handeye.vision.best_corners.choose`: with the given
    intrinsics, or with intrinsics calibrated from the images);
@@ -32,15 +33,13 @@ message; an `InputError` is raised only when no usable station remains.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import re
 from collections import Counter
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
 from handeye.framework.errors import InputError
@@ -50,6 +49,7 @@ from handeye.streams.station_matching import default_max_dt, match_by_time
 from handeye.vision.best_corners import choose
 from handeye.vision.boards import UNITS, Board
 from handeye.vision.camera_poses import board_pose, flag_outliers
+from handeye.vision.image_files import depth_name, read_any, read_image, to_8bit  # noqa: F401 (re-exported)
 from handeye.vision.intrinsics import CameraCalibration, calibrate_camera
 from handeye.vision.observations import BoardObservations, Camera
 
@@ -65,10 +65,6 @@ _STAMP_KEYS = ("stamp", "time", "t", "timestamp")
 #: integer stamps with at least this many digits are nanoseconds (ROS' sec * 1e9 + nanosec)
 _NANOSECOND_DIGITS = 18
 _NUMBER = re.compile(r"\d+(?:\.\d+)?")
-#: imread flags: one grey channel at the file's own depth (8, 16 bit, float). Unlike IMREAD_UNCHANGED
-#: this still turns a JPEG by its EXIF orientation; IMREAD_UNCHANGED is the fallback for what it
-#: cannot convert (a float colour TIFF)
-_READ_FLAGS = cv2.IMREAD_GRAYSCALE | cv2.IMREAD_ANYDEPTH
 #: images named in a warning before "and N more"
 _NAMED = 5
 
@@ -161,68 +157,6 @@ def list_images(source: str | Path | Sequence[str | Path]) -> list[Path]:
     if twice:
         raise InputError(f"images {twice[:3]} appear twice (same name, other extension); keep one file per station")
     return sorted(files, key=lambda p: natural_key(p.name))
-
-
-def read_image(path: str | Path) -> np.ndarray:
-    """The image file `path` as an 8-bit grey array (`to_8bit` of `_read_any`). InputError (one
-    line, naming the file) when it cannot be read or holds no usable values."""
-    return to_8bit(_read_any(Path(path)), Path(path).name)
-
-
-def _read_any(path: Path) -> np.ndarray:
-    """The image as stored, grey (2-D), at its own depth. OpenCV's warnings are silenced: a file it
-    cannot read is reported here, once, as an InputError."""
-    with _opencv_quiet():
-        image = cv2.imread(str(path), _READ_FLAGS)
-        if image is None:
-            image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if image is None:
-        raise InputError(f"{path.name}: unreadable image file (not an image, damaged, or a kind OpenCV cannot "
-                         "decode); save it as 8- or 16-bit PNG")
-    if image.ndim == 3 and image.shape[2] in (3, 4):
-        code = cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
-        work = image if image.dtype in (np.uint8, np.uint16, np.float32) else image.astype(np.float32)
-        image = cv2.cvtColor(work, code)
-    elif image.ndim == 3 and image.shape[2] == 1:
-        image = image[..., 0]
-    if image.ndim != 2:
-        raise InputError(f"{path.name}: an image of shape {image.shape} is neither grey nor colour")
-    return image
-
-
-@contextlib.contextmanager
-def _opencv_quiet() -> Iterator[None]:
-    """OpenCV's own log (its "[ WARN ]" lines on stderr) off for the block, restored after."""
-    level = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
-    try:
-        yield
-    finally:
-        cv2.utils.logging.setLogLevel(level)
-
-
-def to_8bit(image: np.ndarray, name: str = "image") -> np.ndarray:
-    """A grey image as uint8: 8-bit passed through; any other depth (16-bit, e.g. 12-bit data in a
-    16-bit PNG, or float) scaled linearly from its own range (min..max) to 0..255, as the detectors
-    need 8 bits and only contrast matters to them (OpenCV's own 16 -> 8 bit conversion divides by
-    256, which leaves 12-bit data at 0..15, too dark to find a board). InputError for NaN or
-    infinite pixels."""
-    if image.dtype == np.uint8:
-        return image
-    values = image.astype(np.float64)
-    if not np.all(np.isfinite(values)):
-        raise InputError(f"{name}: a {_depth_name(image.dtype)} image with NaN or infinite pixels; save it with "
-                         "finite values (or as 8- or 16-bit PNG)")
-    low, high = float(values.min()), float(values.max())
-    scaled = (values - low) * (255.0 / (high - low)) if high > low else np.zeros_like(values)
-    return np.rint(scaled).astype(np.uint8)
-
-
-def _depth_name(dtype: np.dtype) -> str:
-    """'16-bit', '32-bit float', ... for an image's dtype."""
-    dtype = np.dtype(dtype)
-    kind = {"f": " float", "i": " signed"}.get(dtype.kind, "")
-    return f"{dtype.itemsize * 8}-bit{kind}"
 
 
 def image_stamp(path: str | Path) -> float | None:
@@ -365,28 +299,28 @@ def _refuse_shifted_numbers(image_names: Sequence[str], robot: PoseStack) -> Non
 # ----------------------------------------------------------------------------- the stations
 
 
-def _default_detector() -> Detector:
-    from handeye.vision.detect import detect
-
-    return detect
-
-
-def _detect_all(files: Sequence[Path], board: Board,
-                detector: Detector) -> tuple[list, list[str | None], tuple | None, list[str]]:
+def _detect_all(files: Sequence[Path], board: Board, detector: Detector | None, camera: Camera | None,
+                workers: int | None, cache: bool | str | Path | None
+                ) -> tuple[list, list[str | None], tuple | None, list[str]]:
     """Per file: the detection or None, the reason it failed or None; the set's image size (the
     one most readable images have, None when none is readable); warnings (images scaled to 8 bits,
-    images of another size dropped)."""
-    found: list = []
-    reasons: list[str | None] = []
-    sizes: list[tuple[int, int] | None] = []
+    images of another size dropped). The default detector runs over the cores with the cache and,
+    for chessboards, a flag-set plan (`handeye.vision.detection_plan`); another one file by file."""
+    if detector is None:
+        from handeye.vision.detection_plan import detect_set
+
+        outcomes = detect_set(files, board, camera, workers=workers, cache=cache)
+    else:
+        from handeye.vision.image_detection import detect_file
+
+        outcomes = [detect_file(Path(f), board, detector) for f in files]
+    found: list = [o.detection for o in outcomes]
+    reasons: list[str | None] = [o.reason for o in outcomes]
+    sizes = [o.size for o in outcomes]
     converted: dict[str, list[tuple[str, float]]] = {}
-    for path in files:
-        detection, reason, size, depth = _read_and_detect(path, board, detector)
-        found.append(detection)
-        reasons.append(reason)
-        sizes.append(size)
-        if depth is not None:
-            converted.setdefault(depth[0], []).append((path.name, depth[1]))
+    for path, outcome in zip(files, outcomes):
+        if outcome.depth is not None:
+            converted.setdefault(outcome.depth[0], []).append((path.name, outcome.depth[1]))
     size = _majority_size(sizes)
     odd = [k for k, s in enumerate(sizes) if s is not None and s != size]
     for k in odd:
@@ -396,23 +330,6 @@ def _detect_all(files: Sequence[Path], board: Board,
     warnings = [_converted_warning(depth, named, len(files)) for depth, named in converted.items()]
     warnings += [f"dropped image {files[k].name}: {reasons[k]} (another camera or resolution?)" for k in odd]
     return found, reasons, size, warnings
-
-
-def _read_and_detect(path: Path, board: Board, detector: Detector) -> tuple[Any, str | None, tuple[int, int] | None,
-                                                                               tuple[str, float] | None]:
-    """One image: its detection or None, why not (or None), its size (width, height; None when
-    unreadable) and, when it was not 8-bit, its depth and largest value."""
-    try:
-        raw = _read_any(path)
-        image = to_8bit(raw, path.name)
-    except InputError as exc:
-        return None, str(exc).removeprefix(f"{path.name}: "), None, None
-    size = (image.shape[1], image.shape[0])
-    depth = None if raw.dtype == np.uint8 else (_depth_name(raw.dtype), float(raw.max()))
-    try:
-        return detector(image, board), None, size, depth
-    except InputError as exc:
-        return None, f"board not found: {exc}", size, depth
 
 
 def _majority_size(sizes: Sequence[tuple[int, int] | None]) -> tuple[int, int] | None:
@@ -439,7 +356,8 @@ def _names(names: Sequence[str]) -> str:
 
 def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, camera: Camera | None = None, *,
                      setup: str, robot: PoseStack | None = None, match: str = "name", max_dt: float | None = None,
-                     unit: str | None = None, detector: Detector | None = None) -> ImageSet:
+                     unit: str | None = None, detector: Detector | None = None, workers: int | None = None,
+                     cache: bool | str | Path | None = None) -> ImageSet:
     """The stations of a set of board images (module docstring).
 
     images: a folder or a list of image files. board: the calibration board. camera: the
@@ -447,7 +365,9 @@ def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, ca
     ``eye-to-hand`` (recorded in the observations). robot: the robot's poses to pair with, or None.
     match / max_dt: how images pair with robot poses (`pair_images`). unit: the length unit of the
     board poses (default: the robot's, else the board's). detector: ``(image, board) -> Detection``
-    (default `handeye.vision.detect.detect`).
+    (default `handeye.vision.detect.detect`, run on `workers` threads, default the cores, and
+    its detections kept in the detection cache: `cache` None / True the environment's, False none,
+    a folder that one; `handeye.vision.detection_plan`).
     """
     files = list_images(images)
     unit = unit or (robot.unit if robot is not None else board.unit)
@@ -467,7 +387,7 @@ def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, ca
     def pose_of(k: int) -> str | None:
         return None if robot_names is None else robot_names[robot_rows[k]]
 
-    found, reasons, size, warnings = _detect_all(files_used, board, detector or _default_detector())
+    found, reasons, size, warnings = _detect_all(files_used, board, detector, camera, workers, cache)
     keep = [k for k, d in enumerate(found) if d is not None]
     dropped += [Dropped(files_used[k].stem, pose_of(k), reasons[k]) for k in range(len(found)) if found[k] is None]
     if size is None:
@@ -482,14 +402,16 @@ def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, ca
         warnings.append(f"the board ({board.describe()}) looks the same after a half turn (cols + rows even): "
                         "its corner order may flip 180 deg between images, which spoils the board poses; prefer "
                         "cols + rows odd or a ChArUco board")
-    for k, detection in zip(keep, choose([found[k] for k in keep], camera, size).detections):
+    choice = choose([found[k] for k in keep], camera, size)
+    for k, detection in zip(keep, choice.detections):
         found[k] = detection
     scale = UNITS[board.unit] / UNITS[unit]
-    calibration = None
+    calibration, calibrated = None, choice.calibration if choice.calibrated_kept else None  # once per set
     while True:
         names = [files_used[k].stem for k in keep]
         if camera is None or calibration is not None:
-            calibration = calibrate_camera([found[k] for k in keep], size, names=names)
+            calibration = calibrated or calibrate_camera([found[k] for k in keep], size, names=names)
+            calibrated = None
             camera_used = calibration.camera
         else:
             camera_used = camera

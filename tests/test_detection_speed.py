@@ -1,0 +1,211 @@
+"""The fast image path (handeye.vision.detection_pool, detection_cache, detection_plan): detections
+on several threads are those of the serial path to the last bit and in the images' order; a cache
+hit gives the same detections as detecting, and a changed image or board misses; damaged entries
+are ignored; the chessboard flag-set plan keeps the corners the full run keeps; the camera is
+calibrated once per image set."""
+
+from __future__ import annotations
+
+import dataclasses
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from handeye.io.examples import image_example_dir
+from handeye.vision import detection_cache, detection_plan, detection_pool
+from handeye.vision import image_set as image_set_module
+from handeye.vision.best_corners import choose
+from handeye.vision.boards import parse_board
+from handeye.vision.detection_cache import DetectionCache
+from handeye.vision.image_detection import Outcome
+from handeye.vision.image_set import images_and_poses, list_images
+from handeye.vision.observations import Camera
+from handeye.vision.render import render, view_pose
+
+CIRCLES = "circlegrid:10x10:25.4mm"
+CHESS = parse_board("chessboard:9x6:25mm")
+CAMERA = Camera(np.array([[600.0, 0.0, 320.0], [0.0, 600.0, 240.0], [0.0, 0.0, 1.0]]),
+                np.array([-0.1, 0.04, 0.0, 0.0, 0.0]), (640, 480))
+
+
+def same(a: Outcome, b: Outcome) -> bool:
+    """Outcomes equal to the last bit: every candidate's ids, pixels and method, the reason, size."""
+    if (a.detection is None) != (b.detection is None) or (a.reason, a.size, a.depth) != (b.reason, b.size, b.depth):
+        return False
+    if a.detection is None:
+        return True
+    ca, cb = a.detection.candidates(), b.detection.candidates()
+    return len(ca) == len(cb) and all(x.method == y.method and np.array_equal(x.ids, y.ids)
+                                      and np.array_equal(x.image_points, y.image_points)
+                                      and np.array_equal(x.object_points, y.object_points) for x, y in zip(ca, cb))
+
+
+@pytest.fixture(scope="module")
+def chess_folder(tmp_path_factory) -> Path:
+    """Eight rendered 640 x 480 chessboard views (blur, noise, distortion) and one without a board."""
+    folder = tmp_path_factory.mktemp("chess")
+    rng = np.random.default_rng(3)
+    for i in range(8):
+        T = view_pose(CHESS, rng.uniform(380, 520), tilt=tuple(rng.uniform(-0.35, 0.35, 3)), roll=rng.uniform(-0.6, 0.6))
+        cv2.imwrite(str(folder / f"{i}.png"), render(CHESS, CAMERA, T, blur=0.7, noise=1.5, rng=rng))
+    cv2.imwrite(str(folder / "8.png"), np.full((480, 640), 128, np.uint8))
+    return folder
+
+
+def test_parallel_and_serial_detection_are_identical_and_in_order(chess_folder):
+    """Circle grids (bundled real images) and chessboards (every flag set; one image without a
+    board): two detecting threads give the serial outcomes, bit for bit, in order."""
+    items = [(str(f), parse_board(CIRCLES), None) for f in list_images(image_example_dir() / "images")[:6]]
+    items += [(str(f), CHESS, None) for f in list_images(chess_folder)[-4:]]
+    serial = detection_pool.run(items, 1)
+    finished: list[int] = []
+    parallel = detection_pool.run(items, 2, done=lambda: finished.append(1))
+    assert len(parallel) == len(items) and all(same(a, b) for a, b in zip(serial, parallel))
+    assert len(finished) == len(items)
+    assert sum(o.detection is None for o in parallel) == 1 and parallel[-1].reason.startswith("board not found")
+    assert parallel[0].detection.image_points.flags.writeable is False
+
+
+def test_workers_must_be_a_whole_number(monkeypatch):
+    from handeye.framework.errors import InputError
+
+    with pytest.raises(InputError, match="whole number >= 1"):
+        detection_pool.run([], 0)
+    monkeypatch.setenv(detection_pool.WORKERS_VARIABLE, "3")
+    assert detection_pool.default_workers() == 3
+
+
+def test_a_cache_hit_is_identical_and_a_changed_image_or_board_misses(tmp_path, monkeypatch):
+    """Second run: every image from the cache (detection never called), the same outcomes; one
+    image changed by one pixel, another board and changed detector code each miss; a damaged
+    entry is a miss, not an error; HANDEYE_NO_CACHE writes nothing."""
+    folder = tmp_path / "images"
+    shutil.copytree(image_example_dir() / "images", folder)
+    files = list_images(folder)[:5]
+    board = parse_board(CIRCLES)
+    cache = tmp_path / "cache"
+    first = detection_plan.detect_set(files, board, cache=cache, workers=1)
+    entries = sorted((cache / "detections").rglob("*.npz"))
+    assert len(entries) == 5
+
+    ran: list[int] = []
+    real_run = detection_pool.run
+
+    def counting(items, *args, **kwargs):
+        ran.append(len(items))
+        return real_run(items, *args, **kwargs)
+
+    monkeypatch.setattr(detection_pool, "run", counting)
+    again = detection_plan.detect_set(files, board, cache=cache, workers=1)
+    assert sum(ran) == 0 and all(same(a, b) for a, b in zip(first, again))
+
+    image = cv2.imread(str(files[2]), cv2.IMREAD_GRAYSCALE)
+    image[0, 0] ^= 1
+    cv2.imwrite(str(files[2]), image)
+    store = DetectionCache(cache)
+    store._path(store.key(detection_cache.file_digest(files[0]), board, ("flag sets", None))).write_bytes(b"not npz")
+    changed = detection_plan.detect_set(files, board, cache=cache, workers=1)
+    assert sum(ran) == 2  # the changed image and the damaged entry's image
+    assert all(same(a, b) for a, b in zip(first, changed))  # one pixel moves no circle centre here
+
+    ran.clear()
+    other = dataclasses.replace(board, spacing=25.0)
+    detection_plan.detect_set(files, other, cache=cache, workers=1)
+    assert sum(ran) == 5
+
+    ran.clear()  # another detector's code: every entry is stale
+    monkeypatch.setattr(detection_cache, "_code", lambda: "changed detector")
+    detection_plan.detect_set(files, board, cache=cache, workers=1)
+    assert sum(ran) == 5
+
+    monkeypatch.setenv("HANDEYE_NO_CACHE", "1")
+    off = tmp_path / "off"
+    monkeypatch.setenv("HANDEYE_CACHE_DIR", str(off))
+    detection_plan.detect_set(files, board, workers=1)
+    assert not off.exists()
+
+
+def test_under_pytest_the_users_cache_is_never_used(monkeypatch):
+    from handeye.vision.detection_cache import default_dir
+
+    monkeypatch.delenv("HANDEYE_CACHE_DIR", raising=False)
+    monkeypatch.delenv("HANDEYE_NO_CACHE", raising=False)
+    assert default_dir() is None and DetectionCache.resolve(None) is None
+    assert DetectionCache.resolve(False) is None
+
+
+def test_the_flag_set_plan_keeps_the_corners_of_the_full_run(chess_folder, monkeypatch):
+    """The eight chessboard views: the probe (4 images) plans the flag sets; the corners `choose`
+    then keeps on every image are those it keeps with every flag set run on every image."""
+    files = [f for f in list_images(chess_folder) if f.stem != "8"]
+    full = [detection_pool.run([(str(f), CHESS, None)], 1)[0] for f in files]
+    monkeypatch.setattr(detection_plan, "PLAN_MIN_IMAGES", 6)
+    planned = detection_plan.detect_set(files, CHESS, cache=False, workers=1)
+    probe = detection_plan.probe_indices(len(files))
+    plan = detection_plan.flag_set_plan([full[k] for k in probe], None)
+    assert plan is not None and len(plan) < 4  # something was left out
+    assert any(len(p.detection.candidates()) < len(f.detection.candidates()) for p, f in zip(planned, full))
+    kept_full = choose([o.detection for o in full], None, (640, 480)).detections
+    kept_planned = choose([o.detection for o in planned], None, (640, 480)).detections
+    for a, b in zip(kept_full, kept_planned):
+        assert a.method == b.method
+        np.testing.assert_array_equal(a.image_points, b.image_points)
+
+
+def test_the_camera_is_calibrated_once_per_image_set(monkeypatch):
+    """The bundled circle grid: choose's calibration of the kept corners is the one the stations
+    use (no second calibration of the same corners), equal to calibrating them afresh."""
+    from handeye.vision import best_corners
+    from handeye.vision.intrinsics import calibrate_camera
+
+    calls: list[int] = []
+
+    def counted(detections, size, **kwargs):
+        calls.append(len(detections))
+        return calibrate_camera(detections, size, **kwargs)
+
+    monkeypatch.setattr(best_corners, "calibrate_camera", counted)
+    monkeypatch.setattr(image_set_module, "calibrate_camera", counted)
+    images = images_and_poses(image_example_dir() / "images", parse_board(CIRCLES), None, setup="eye-in-hand",
+                              cache=False, workers=1)
+    assert len(images) == 15 and calls == [15] * len(calls)
+    choice_rounds = len(calls)
+    fresh = calibrate_camera([_Points(u, o) for u, o in zip(images.observations.image_points,
+                                                            images.observations.object_points)], (640, 480))
+    assert np.array_equal(fresh.camera.K, images.camera.K) and fresh.rms == images.calibration.rms
+    assert choice_rounds <= 2  # choose's rounds only; images_and_poses took the last
+
+
+@dataclasses.dataclass
+class _Points:
+    image_points: np.ndarray
+    object_points: np.ndarray
+
+
+def test_the_progress_bar_shows_on_a_terminal_only(capfd):
+    """Under pytest stderr is no terminal: no bar, nothing written."""
+    with detection_pool.progress_bar(3) as bar:
+        bar.update()
+        assert bar.disable
+    with detection_pool.progress_bar(3, show=False) as bar:
+        assert bar.disable
+    assert capfd.readouterr().err == ""
+
+
+def test_an_image_the_plan_numbers_wrongly_runs_every_flag_set(chess_folder):
+    """A chessboard numbered wrongly (its first two rows swapped; what the planned flag sets could
+    agree on) fits the camera far worse than the others: `doubtful` names it, and only it, with the
+    intrinsics given and calibrated."""
+    from handeye.vision.detection import Detection
+
+    files = [f for f in list_images(chess_folder) if f.stem != "8"][:5]
+    outcomes = dict(enumerate(detection_pool.run([(str(f), CHESS, ("SB",)) for f in files], 1)))
+    assert detection_plan.doubtful(outcomes, None) == [] and detection_plan.doubtful(outcomes, CAMERA) == []
+    d = outcomes[3].detection
+    swapped = d.image_points.reshape(CHESS.rows, CHESS.cols, 2)[[1, 0, *range(2, CHESS.rows)]].reshape(-1, 2)
+    outcomes[3] = dataclasses.replace(outcomes[3], detection=Detection.of(CHESS, d.ids, swapped, d.method))
+    assert detection_plan.doubtful(outcomes, CAMERA) == [3]
+    assert detection_plan.doubtful(outcomes, None) == [3]
