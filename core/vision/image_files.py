@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import contextlib
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -44,15 +45,30 @@ def read_any(path: Path) -> np.ndarray:
     return image
 
 
+_quiet_lock = threading.Lock()
+_quiet_depth = 0
+_quiet_saved: int | None = None
+
+
 @contextlib.contextmanager
 def _opencv_quiet() -> Iterator[None]:
-    """OpenCV's own log (its "[ WARN ]" lines on stderr) off for the block, restored after."""
-    level = cv2.utils.logging.getLogLevel()
-    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    """OpenCV's own log (its "[ WARN ]" lines on stderr) off for the block, restored after. Its
+    level is one global setting and images are read on several threads at once
+    (`handeye.vision.detection_pool`): the first block to enter turns it off, the last to leave
+    restores it."""
+    global _quiet_depth, _quiet_saved
+    with _quiet_lock:
+        if _quiet_depth == 0:
+            _quiet_saved = cv2.utils.logging.getLogLevel()
+            cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+        _quiet_depth += 1
     try:
         yield
     finally:
-        cv2.utils.logging.setLogLevel(level)
+        with _quiet_lock:
+            _quiet_depth -= 1
+            if _quiet_depth == 0 and _quiet_saved is not None:
+                cv2.utils.logging.setLogLevel(_quiet_saved)
 
 
 def to_8bit(image: np.ndarray, name: str = "image") -> np.ndarray:
