@@ -46,6 +46,16 @@ CELLS = {
 }
 
 
+def write_camera(path) -> None:
+    """CAMERA as an OpenCV YAML intrinsics file."""
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    fs.write("camera_matrix", CAMERA.K)
+    fs.write("distortion_coefficients", np.zeros((1, 5)))
+    fs.write("image_width", 1280)
+    fs.write("image_height", 960)
+    fs.release()
+
+
 def rough(T: np.ndarray) -> np.ndarray:
     return make_pose(T[:3, :3] @ so3_exp([0.02, -0.02, 0.01]), T[:3, 3] + [6.0, -5.0, 5.0])
 
@@ -214,12 +224,7 @@ def test_bad_input_is_refused_in_one_line():
 
 
 def test_cli_writes_the_stations_in_the_robots_format(tmp_path, capsys):
-    fs = cv2.FileStorage(str(tmp_path / "cam.yaml"), cv2.FILE_STORAGE_WRITE)
-    fs.write("camera_matrix", CAMERA.K)
-    fs.write("distortion_coefficients", np.zeros((1, 5)))
-    fs.write("image_width", 1280)
-    fs.write("image_height", 960)
-    fs.release()
+    write_camera(tmp_path / "cam.yaml")
     args = ["plan", "--setup", "eye-in-hand", "--x", "60,-20,100,17.19,0,0", "--y", "600,0,0,0,0,180",
             "--board", "chessboard:9x6:30mm", "--intrinsics", str(tmp_path / "cam.yaml"), "--count", "6",
             "--workspace", "200,-500,50,1000,500,1000", "--max-tilt", "70", "-o", str(tmp_path / "st.csv"),
@@ -258,12 +263,7 @@ def test_cli_plans_with_the_arm_and_writes_its_joints(tmp_path, capsys):
     from handeye.geometry.kinematics import LR_MATE_200ID
     from handeye.io.joint_files import read_joints
 
-    fs = cv2.FileStorage(str(tmp_path / "cam.yaml"), cv2.FILE_STORAGE_WRITE)
-    fs.write("camera_matrix", CAMERA.K)
-    fs.write("distortion_coefficients", np.zeros((1, 5)))
-    fs.write("image_width", 1280)
-    fs.write("image_height", 960)
-    fs.release()
+    write_camera(tmp_path / "cam.yaml")
     args = ["plan", "--setup", "eye-in-hand", "--x", "60,-20,100,17.19,0,0", "--y", "450,0,0,0,0,180",
             "--board", "chessboard:9x6:30mm", "--intrinsics", str(tmp_path / "cam.yaml"), "--count", "4",
             "--arm", str(kinematic_example_dir() / "arm.yaml"),

@@ -117,6 +117,15 @@ def skew(v: np.ndarray) -> np.ndarray:
     return (v @ _SKEW).reshape(v.shape[:-1] + (3, 3))
 
 
+def jl_products(theta2: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(beta, gamma, delta) at theta^2 = |r|^2, the coefficients of the products of the inverse
+    Jacobians of SO(3) that closed-form normal equations need: Jl^-T Jl^-1 = Jl^-1 Jl^-T =
+    I + beta [r]_x^2 and Jl^-T Jl^-T = I + gamma [r]_x + delta [r]_x^2, with beta = 2c - 1/4 -
+    c^2 theta^2, gamma = 1 - c theta^2, delta = 1/4 + 2c - c^2 theta^2 (c: `jl_coefficient`)."""
+    c = jl_coefficient(theta2)
+    return 2.0 * c - 0.25 - c * c * theta2, 1.0 - c * theta2, 0.25 + 2.0 * c - c * c * theta2
+
+
 def jl_coefficient(theta2: np.ndarray) -> np.ndarray:
     """c(theta) = 1/theta^2 - (1 + cos theta) / (2 theta sin theta) = (1 - (theta/2) cot(theta/2)) /
     theta^2 at theta^2 = |r|^2: (m,), the coefficient of [r]_x^2 in the inverse Jacobians of SO(3)

@@ -172,10 +172,7 @@ def _rotation_terms(model: AXBYCZModel, RX: np.ndarray, RY: np.ndarray, RZ: np.n
     theta^2) R_C + R_Y^T sum d beta r w^T) R_Z."""
     RA, RC, m = model.RA, model.RC, model.m
     theta2 = np.einsum("ni,ni->n", r, r)
-    cc = so3_fast.jl_coefficient(theta2)
-    beta = 2.0 * cc - 0.25 - cc * cc * theta2
-    gamma = 1.0 - cc * theta2
-    delta = 0.25 + 2.0 * cc - cc * cc * theta2
+    beta, gamma, delta = so3_fast.jl_products(theta2)
     u = np.einsum("nji,nj->ni", RA, r)  # R_A^T r
     w = np.einsum("nji,nj->ni", RC, r @ RY)  # R_C^T R_Y^T r
     db, dd = (d * beta)[:, None], (d * delta)[:, None]

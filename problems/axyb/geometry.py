@@ -150,10 +150,7 @@ class AXYBModel(PoseModel):
         RA = self.RA9.reshape(m, 3, 3)
         dr, dt = d[:, None] * r, d[:, None] * t
         theta2 = np.einsum("ni,ni->n", r, r)
-        cc = so3_fast.jl_coefficient(theta2)
-        beta = 2.0 * cc - 0.25 - cc * cc * theta2
-        gamma = 1.0 - cc * theta2
-        delta = 0.25 + 2.0 * cc - cc * cc * theta2
+        beta, gamma, delta = so3_fast.jl_products(theta2)
         u = np.einsum("nji,nj->ni", RA, r)  # R_A^T r
         sum_d = float(np.sum(d))
         # gradient
