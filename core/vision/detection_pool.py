@@ -23,6 +23,7 @@ import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
+from typing import TypeVar
 
 from handeye.framework.errors import InputError
 from handeye.vision.boards import Board
@@ -32,6 +33,8 @@ from handeye.vision.image_detection import Outcome, read_and_detect
 WORKERS_VARIABLE = "HANDEYE_WORKERS"
 
 Item = tuple[str, Board, "tuple[str, ...] | None"]
+T = TypeVar("T")
+R = TypeVar("R")
 
 
 def default_workers() -> int:
@@ -57,16 +60,23 @@ def run(items: Sequence[Item], workers: int | None = None, *,
         done: Callable[[], object] | None = None) -> list[Outcome]:
     """The outcome of each item ``(path, board, flag_sets)``, in order (module docstring); `done` is
     called once per item finished (a progress bar's update)."""
+    return map_in_order(_work, items, workers, done=done)
+
+
+def map_in_order(work: Callable[[T], R], items: Sequence[T], workers: int | None = None, *,
+                 done: Callable[[], object] | None = None) -> list[R]:
+    """[work(item) for item in items] on `workers` threads (default `default_workers`), in the
+    items' order; serial for one worker or one item. `work` must hold no lock OpenCV waits on."""
     workers = default_workers() if workers is None else check_workers(workers)
     done = done or (lambda: None)
     if workers < 2 or len(items) < 2:
         out = []
         for item in items:
-            out.append(_work(item))
+            out.append(work(item))
             done()
         return out
     with ThreadPoolExecutor(min(workers, len(items)), thread_name_prefix="handeye-detect") as pool:
-        futures = [pool.submit(_work, item) for item in items]
+        futures = [pool.submit(work, item) for item in items]
         for _ in as_completed(futures):
             done()
         return [f.result() for f in futures]

@@ -38,6 +38,7 @@ from handeye.vision.best_corners import choose
 from handeye.vision.board_set import Detector, check_distinct, detect_boards
 from handeye.vision.boards import UNITS, Board
 from handeye.vision.camera_poses import board_pose, flag_outliers
+from handeye.vision.detection_pool import map_in_order
 from handeye.vision.image_files import read_any, to_8bit
 from handeye.vision.image_set import (
     Dropped,
@@ -85,7 +86,8 @@ def camera_observations(folder: str | Path, boards: Mapping[str, Board], camera:
     """The observations of the images in `folder` (module docstring). boards: the targets this
     camera may see, by name; camera: its intrinsics, or None to calibrate them from the boards
     found; robot: the stations' robot poses; match / max_dt: how images pair with them; unit: the
-    poses' length unit (default the robot's); detector: ``(image, board) -> Detection``."""
+    poses' length unit (default the robot's); detector: ``(image, board) -> Detection`` (called on
+    one image at a time; the built-in detectors run on several threads)."""
     if not boards:
         raise InputError("a camera's images need at least one target (board) to look for")
     check_distinct(boards)
@@ -99,16 +101,16 @@ def camera_observations(folder: str | Path, boards: Mapping[str, Board], camera:
     used = [files[i] for i in pairing.image_rows]
     rows = [int(r) for r in pairing.robot_rows]
     found, sizes = [], []
-    for k, path in enumerate(used):
-        try:
-            image = to_8bit(read_any(path), path.name)
-        except InputError as exc:
-            dropped.append(Dropped(path.stem, names[rows[k]], str(exc).removeprefix(f"{path.name}: ")))
+    # the images on several threads with the built-in detectors; a detector of the caller's one at a time
+    outcomes = map_in_order(lambda p: _detect_image(p, boards, detector), used, None if detector is None else 1)
+    for k, (path, outcome) in enumerate(zip(used, outcomes)):
+        if isinstance(outcome, InputError):
+            dropped.append(Dropped(path.stem, names[rows[k]], str(outcome).removeprefix(f"{path.name}: ")))
             found.append({})
             sizes.append(None)
             continue
-        sizes.append((image.shape[1], image.shape[0]))
-        result = detect_boards(image, boards, detector)
+        size_k, result = outcome
+        sizes.append(size_k)
         dropped += [Dropped(path.stem, None, f"{name} not found: {why}") for name, why in result.missing.items()]
         found.append(result.found)
     size = _majority_size(sizes)
@@ -186,3 +188,13 @@ def summary(name: str, folder: Any, obs: CameraObservations) -> list[str]:
         lines.append(f"  intrinsics calibrated from {len(cal.per_image_rms)} board views ({cal.model}): RMS "
                      f"{cal.rms:.3f} px, fx {K[0, 0]:.2f} fy {K[1, 1]:.2f} cx {K[0, 2]:.2f} cy {K[1, 2]:.2f}")
     return lines
+
+
+def _detect_image(path: Path, boards: Any, detector: Any) -> tuple[tuple[int, int], Any] | InputError:
+    """One image's (size, boards found) or the InputError that makes it unreadable: the work item
+    the detecting threads run (`handeye.vision.detection_pool.map_in_order`)."""
+    try:
+        image = to_8bit(read_any(path), path.name)
+    except InputError as exc:
+        return exc
+    return (image.shape[1], image.shape[0]), detect_boards(image, boards, detector)
