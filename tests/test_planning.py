@@ -276,3 +276,9 @@ def test_cli_plans_with_the_arm_and_writes_its_joints(tmp_path, capsys):
     np.testing.assert_allclose(LR_MATE_200ID.forward(np.array(q.q)), np.array(poses.poses), atol=1e-6)
     assert main(args + ["--joint-limits=1:2", "--force"]) == 2
     assert "--joint-limits needs" in capsys.readouterr().err
+
+
+def test_x_and_y_in_another_unit_than_the_board_are_refused():
+    X, Y = CELLS["eye-in-hand"]
+    with pytest.raises(InputError, match="one length unit"):  # X, Y in mm, the board in m
+        plan(setup="eye-in-hand", X=X, Y=Y, camera=CAMERA, board=BOARD.in_unit("m"), count=4)

@@ -135,6 +135,7 @@ def plan(problem: str | None = None, *, setup: str, X: np.ndarray, Y: np.ndarray
     problem = problem or registry.cell_problem()
     spec = registry.problem(problem)
     X, Y = (_pose(T, name) for T, name in ((X, "X"), (Y, "Y")))
+    _check_reach(X, Y, board.unit)
     noise = noise or Noise()
     limits = limits or default_limits(board, camera)
     rough_deg, rough_length = rough if rough is not None else (ROUGH_DEG, ROUGH_SHARE * limits.distance[1])
@@ -206,6 +207,21 @@ def _near(A: np.ndarray, recorded: np.ndarray, angle: float, length: float) -> n
         cos = (np.einsum("nij,ij->n", A[:, :3, :3], T[:3, :3]) - 1.0) / 2.0
         near |= (cos > np.cos(angle)) & (np.linalg.norm(A[:, :3, 3] - T[:3, 3], axis=1) < length)
     return near
+
+
+#: farthest a rough X (from the flange) and Y (from the base) can be, metres: beyond, they are in
+#: another length unit than the board
+MAX_X_METRES, MAX_Y_METRES = 3.0, 20.0
+
+
+def _check_reach(X: np.ndarray, Y: np.ndarray, unit: str) -> None:
+    """InputError when X or Y lies farther than any cell puts them (MAX_X_METRES, MAX_Y_METRES)."""
+    metres = {"mm": 1e-3, "m": 1.0}[unit]
+    for name, T, limit in (("X", X, MAX_X_METRES), ("Y", Y, MAX_Y_METRES)):
+        distance = float(np.linalg.norm(T[:3, 3])) * metres
+        if distance > limit:
+            raise InputError(f"the rough {name} is {distance:.3g} m from its parent frame (lengths read in {unit}, the "
+                             f"board's unit); no cell is that large: give X, Y and the board in one length unit")
 
 
 def _pose(T: Any, name: str) -> np.ndarray:
