@@ -35,7 +35,8 @@ The statistic (docs/calibrate.md, "Plausibility checks"), two parts:
    `SCREEN_STATIONS` stations evenly spaced over the sequence, and on all stations only where it
    may explain the data there (`_scored_hypotheses`): a fit costs time in proportion to the
    stations (AX=XB's default pairing: to their square), and 20-30 hypotheses fitted on 500
-   stations took 10-20 s. The verdict and the mistakes named are those of the full fits.
+   stations took 10-20 s. The verdict and the mistakes named are those of the deciding fits,
+   on all stations up to `FULL_STATIONS` and on that many evenly spaced beyond.
 
 The fit is unreliable when part 1 fails or part 2 finds an explanation. Nothing is switched:
 the caller keeps the user's answer and reports `Status.UNRELIABLE` with the message.
@@ -86,6 +87,12 @@ VIEW_DISTANCE_M = (0.02, 50.0)
 #: AX=XB, 500 stations, a loaded machine): a clean file 0.65 s instead of 12.4 s on all stations,
 #: inverted camera poses 3.3 s instead of 6.4 s (three hypotheses explain them), same verdicts.
 SCREEN_STATIONS = 40
+#: ... and the fits that decide (the as-given data's, and a hypothesis that may explain them) on at
+#: most this many stations evenly spaced over the sequence: a trimmed RMS over 200 stations is
+#: known to a few per cent, while AX=XB's default pairing of every two of 500 stations makes
+#: 124,750 motions to validate and fit (measured, 500 stations with the camera poses inverted:
+#: 1.9-3.3 s for the check before, most of it four such fits)
+FULL_STATIONS = 200
 #: a screening fit may explain the data on all stations when its score is below this, and its
 #: ratio above EXPLAIN_FACTOR divided by it: a fit on 40 stations scores within ~30% of the
 #: fit on all on the simulator, so this leaves a wide margin
@@ -134,7 +141,8 @@ class Hypothesis:
     score: float
     ratio: float
     #: the stations of the fit when it was screened on a subsample only and could not explain
-    #: the data there (`_scored_hypotheses`); None: fitted on all stations
+    #: the data there, or when a long stream's deciding fit took FULL_STATIONS of them
+    #: (`_scored_hypotheses`); None: fitted on all stations
     stations: int | None = None
 
 
@@ -337,7 +345,8 @@ def check(streams: Streams, residuals: Mapping[str, np.ndarray], *, hypotheses: 
         return max(r / ROT_LIMIT_DEG, t / trans_limit)
 
     floor_ok = score(rot, trans) <= 1.0
-    baseline = _fit(streams, streams.robot, streams.camera, streams.setup) if hypotheses else None
+    full = full_rows(len(streams.robot))
+    baseline = _fit(streams, streams.robot[full], streams.camera[full], streams.setup) if hypotheses else None
     found: list[Hypothesis] = []
     if baseline is not None:
         found = _scored_hypotheses(streams, score, max(score(*baseline), score(rot, trans)), score(rot, trans))
@@ -379,6 +388,14 @@ def screen_rows(n: int) -> np.ndarray | None:
     return np.unique(np.linspace(0, n - 1, k).round().astype(np.intp))
 
 
+def full_rows(n: int) -> np.ndarray | slice:
+    """The rows of a stream of n stations its deciding fits use: all of them up to FULL_STATIONS,
+    else FULL_STATIONS evenly spaced (as `screen_rows`)."""
+    if n <= FULL_STATIONS:
+        return slice(None)
+    return np.unique(np.linspace(0, n - 1, FULL_STATIONS).round().astype(np.intp))
+
+
 def _may_explain(s: float, ratio: float) -> bool:
     """Whether a hypothesis whose screening fit scores s, ratio may explain the data on all
     stations (score below 1, ratio at least EXPLAIN_FACTOR), within the screen's margin."""
@@ -413,10 +430,12 @@ def _scored_hypotheses(streams: Streams, score: Callable[[float, float], float],
                 s = score(*fit)
                 out.append(Hypothesis(text, sugg, fit[0], fit[1], s, base_score / max(s, 1e-300), len(sub)))
                 continue
-        fit = _fit(streams, robot, camera, setup)
+        full = full_rows(len(robot))
+        fit = _fit(streams, robot[full], camera[full], setup)
         if fit is not None:
             s = score(*fit)
-            out.append(Hypothesis(text, sugg, fit[0], fit[1], s, base_score / max(s, 1e-300)))
+            out.append(Hypothesis(text, sugg, fit[0], fit[1], s, base_score / max(s, 1e-300),
+                                  None if isinstance(full, slice) else len(full)))
     return out
 
 
