@@ -206,3 +206,14 @@ def test_a_far_board_seen_from_few_stations_is_not_taken_for_millimetres():
     report = P.check(streams, residuals)
     assert report.explanation is None or "not m" not in report.explanation.description
     assert not any("1000" in h.description or "not m" in h.description for h in report.hypotheses)
+
+
+def test_a_failed_solve_still_gets_the_setup_mistake_named(tmp_path, capsys):
+    """A solve that ends without an answer (here refine stopped after one iteration) is checked
+    too: shifted pairs are the usual reason a solve fails, and the user needs to hear it."""
+    robot, camera, fmt, unit = write_cell(tmp_path, "shift")
+    code, r, _ = calibrate(capsys, robot, camera, fmt, unit, "eye-in-hand", "--solver", "refine",
+                           "--option", "max_iter=1", "--option", "init=kron-lstsq")
+    assert code == 1 and r["status"] == "not_converged"  # its own status is kept
+    named = [w for w in r["warnings"] if "did you mean" in w]
+    assert named and "starts one station late" in named[0]

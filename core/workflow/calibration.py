@@ -102,7 +102,7 @@ def calibrate(cell: Cell, *, log: Log | None = None) -> CalibrationResult:
     problem = get_registry().problem(cell.problem)
     residuals = problem.residuals(measured_data(problem, solution, pose_file.data, facts), solution.unknowns)
     report = None
-    if cell.checks and solution.status not in UNUSABLE:
+    if cell.checks:  # also when the solve failed: a setup mistake (pairs shifted by one) is often why
         report = check(Streams(robot.poses, camera.poses, robot.unit, cell.setup, cell.problem,
                                pose_file.metadata.get("pairing"), facts=facts, robot_format=robot.format,
                                camera_format=camera_read.format, camera_unit=camera_read.unit,
@@ -114,7 +114,7 @@ def calibrate(cell: Cell, *, log: Log | None = None) -> CalibrationResult:
                                    stations.camera_rows, invert)),
                        residuals)
         warnings += list(report.warnings)
-        if not report.plausible:
+        if not report.plausible and solution.status not in UNUSABLE:
             solution = dataclasses.replace(solution, status=Status.UNRELIABLE)
     if not reliable(stations.matching) and solution.status not in UNUSABLE:  # the clock offset is not trusted
         solution = dataclasses.replace(solution, status=Status.UNRELIABLE)
