@@ -97,9 +97,10 @@ def read_joints(path: str | Path, unit: str | None = None, *, topic: str | None 
 
 
 def _read_table(path: Path, src: str, unit: str) -> JointStack:
-    from handeye.io.pose_readers import NAME_COLUMNS, STAMP_COLUMNS, _number, _read_text
+    from handeye.io.pose_readers import NAME_COLUMNS, STAMP_COLUMNS
+    from handeye.io.pose_tables import number, read_text
 
-    table = _read_text(path, src, None)
+    table = read_text(path, src, None)
     if table.header is None:
         raise InputError(f"{src}: the first line must be a header naming each column (name or t, then one column "
                          "per joint, e.g. name,J1,J2,J3,J4,J5,J6)")
@@ -121,12 +122,12 @@ def _read_table(path: Path, src: str, unit: str) -> JointStack:
     stamps = np.empty(len(table.rows)) if "t" in kinds else None
     for r, (row, where) in enumerate(zip(table.rows, table.where)):
         for c, i in enumerate(joint_cols):
-            v = _number(row[i], text=True)
+            v = number(row[i], text=True)
             if v is None or not math.isfinite(v):
                 raise InputError(f"{src} {where}, column {header[i]!r}: {shown(row[i])} is not a finite number")
             q[r, c] = v
         if stamps is not None:
-            t = _number(row[kinds.index("t")], text=True)
+            t = number(row[kinds.index("t")], text=True)
             if t is None or not math.isfinite(t):
                 raise InputError(f"{src} {where}, column {header[kinds.index('t')]!r}: {shown(row[kinds.index('t')])} "
                                  "is not a time stamp in seconds")

@@ -36,10 +36,10 @@ from handeye.io.pose_formats import normalise_header
 from handeye.io.pose_readers import (
     TEXT_EXTENSIONS,
     PoseStack,
-    _read_text,
     poses_from_rows,
     read_poses,
 )
+from handeye.io.pose_tables import read_text
 
 #: the id columns of a table and the header names each is found by (case-insensitive)
 ID_COLUMNS = {"station": ("station", "station_id", "stationid"),
@@ -114,7 +114,7 @@ def _column(header: Sequence[str], key: str) -> int | None:
 
 def _text_table(path: Path, src: str, format: str, unit: str | None, orthonormalize: bool,
                 columns: Sequence[str] | None) -> ObservationTable:
-    raw = _read_text(path, src, None)
+    raw = read_text(path, src, None)
     header = tuple(columns) if columns is not None else raw.header
     if header is None:
         raise InputError(f"table of observations {src}: no header line; name its columns (station, camera, target, "
@@ -141,7 +141,7 @@ def _is_robot(header: str) -> bool:
 def _robot_columns(path: Path, src: str, columns: Sequence[str] | None, format: str | None, unit: str | None,
                    orthonormalize: bool) -> PoseStack | None:
     """The robot poses of a text table's ``robot_*`` columns (None when it has none)."""
-    header = tuple(columns) if columns is not None else _read_text(path, src, None).header
+    header = tuple(columns) if columns is not None else read_text(path, src, None).header
     if not any(_is_robot(h) for h in header):
         return None
     if format is None:

@@ -6,6 +6,9 @@ camera's board poses) written in one of the representations of `handeye.pose_for
 read-only (n, 4, 4) float64 array, the length unit, and the index / name / time-stamp column
 when the file has one. docs/formats.md ("Pose files of robots and cameras") is the reference.
 
+The file's raw content (text table, JSON / YAML document, NPZ arrays) is read by
+`handeye.io.pose_tables`; this module turns it into poses.
+
 Why a module of its own: the files people have are vendor exports with headers such as
 ``index,x_mm,...,r_deg``, tab-aligned text, or JSON lists; turning them into validated poses
 (columns by name or position, units stated, rotation blocks exported with few decimals
@@ -46,10 +49,21 @@ from handeye.geometry.se3 import (
     orthonormality_error,
     project_to_so3,
 )
-from handeye.io.input_files import TEXT_NUMBER, check_not_looping, load_json, load_yaml
-from handeye.io.npz import load_npz
+from handeye.io.input_files import check_not_looping
 from handeye.io.output_files import new_file, write_text
 from handeye.io.pose_formats import PoseFormat, normalise_header, parse_format
+from handeye.io.pose_tables import (
+    POSES_KEY,
+    Table,
+    check_pose_shape,
+    load_structured,
+    not_a_number,
+    number,
+    read_npz,
+    read_text,
+    structure,
+    yaml_module,
+)
 
 Array = NDArray[np.float64]
 
@@ -65,11 +79,6 @@ EXTENSIONS = (*TEXT_EXTENSIONS, ".json", ".yaml", ".yml", ".npz")
 #: header names (after `normalise_header`) of an extra column kept as `PoseStack.names` / `.stamps`
 NAME_COLUMNS = ("index", "idx", "i", "n", "no", "nr", "#", "id", "name", "label", "pose", "station", "point")
 STAMP_COLUMNS = ("t", "time", "stamp", "timestamp", "time_stamp", "sec", "secs", "seconds")
-#: key of the pose list in a JSON / YAML object and of the array in an NPZ file
-POSES_KEY = "poses"
-_DELIMITERS = {",": ",", ";": ";", "\t": "\t", "tab": "\t", " ": None, "whitespace": None}
-#: shapes of one pose beside a row of numbers: a 4x4 or 3x4 matrix (format matrix / matrix34)
-MATRIX_SHAPES = ((4, 4), (3, 4))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,20 +118,6 @@ class PoseStack:
         return dataclasses.replace(self, poses=T, unit=unit)
 
 
-@dataclasses.dataclass
-class _Table:
-    """A file's content before conversion: header (or None), rows of cells, row locations."""
-
-    header: tuple[str, ...] | None
-    rows: list[list[Any]]
-    where: list[str]
-    unit: str | None = None
-    names: tuple[str, ...] | None = None
-    stamps: Any = None
-    #: cells are the strings of a text file (parsed by `TEXT_NUMBER`), not typed values
-    text: bool = False
-
-
 # ----------------------------------------------------------------------------- public API
 
 
@@ -159,14 +154,14 @@ def read_poses(path: str | Path, format: str | PoseFormat, *, unit: str | None =
     if not path.is_file():
         raise InputError(f"pose file not found: {src}")
     if ext in TEXT_EXTENSIONS:
-        table = _read_text(path, src, delimiter)
+        table = read_text(path, src, delimiter)
     elif delimiter is not None:
         raise InputError(f"{src}: delimiter applies to text files ({', '.join(TEXT_EXTENSIONS)}); drop it")
     elif ext == ".npz":
-        table = _read_npz(path, src)
+        table = read_npz(path, src)
     else:
         try:
-            table = _structure(_load_structured(path, src, ext), src)
+            table = structure(load_structured(path, src, ext), src)
         except RecursionError:  # json and yaml recurse once per level of nesting
             raise InputError(f"{src}: nested too deeply to read; a pose is a row of numbers or a 4x4 "
                              "list of lists") from None
@@ -218,7 +213,7 @@ class _Layout:
     stamp: int | None
 
 
-def _width(table: _Table) -> int:
+def _width(table: Table) -> int:
     return len(table.header) if table.header else len(table.rows[0])
 
 
@@ -230,8 +225,8 @@ def poses_from_rows(rows: ArrayLike, format: str | PoseFormat, *, unit: str | No
         raise InputError(f"{source}: a masked array with {masked_count(rows)}, and masks are not used; "
                          "remove the rows with masked entries and pass a plain array")
     arr = np.asarray(rows, dtype=object)
-    _check_pose_shape(arr.shape, source)
-    table = _Table(None, [list(r) for r in arr.reshape(len(arr), -1)], [f"pose {i + 1}" for i in range(len(arr))])
+    check_pose_shape(arr.shape, source)
+    table = Table(None, [list(r) for r in arr.reshape(len(arr), -1)], [f"pose {i + 1}" for i in range(len(arr))])
     return _convert(table, parse_format(format), source, unit=unit, columns=None, degrees=degrees,
                     orthonormalize=orthonormalize)
 
@@ -306,7 +301,7 @@ def write_poses(path: str | Path, poses: ArrayLike | PoseStack, format: str | Po
         if ext == ".json":
             write_text(path, json.dumps(doc, indent=1) + "\n", force=True)
         else:
-            write_text(path, _yaml().safe_dump(doc, sort_keys=False), force=True)
+            write_text(path, yaml_module().safe_dump(doc, sort_keys=False), force=True)
     elif ext == ".npz":
         extra = {"units": np.array(unit)}
         if names:
@@ -323,179 +318,6 @@ def write_poses(path: str | Path, poses: ArrayLike | PoseStack, format: str | Po
 # ----------------------------------------------------------------------------- file readers
 
 
-def _number(cell: Any, text: bool) -> float | None:
-    """`cell` as a float, or None when it is not a number: a string of a text file (`text`) must
-    match `TEXT_NUMBER`; a typed value (JSON / YAML / NPZ / memory) must be a real number, not a
-    bool and not text."""
-    if text and isinstance(cell, str):
-        return float(cell) if TEXT_NUMBER.fullmatch(cell) else None
-    if isinstance(cell, (bool, np.bool_)) or not isinstance(cell, numbers.Real):
-        return None
-    try:
-        return float(cell)
-    except OverflowError:  # an integer of hundreds of digits: refused as not finite
-        return math.inf if cell > 0 else -math.inf
-
-
-def _looks_numeric(cell: Any) -> bool:
-    """A number, or text that is one (a JSON "1.5", refused later with a hint, not taken as a header)."""
-    return _number(cell, text=isinstance(cell, str)) is not None
-
-
-def _not_a_number(cell: Any) -> str:
-    """Why `cell` is no number, with a hint when it is one written the wrong way."""
-    if isinstance(cell, str) and TEXT_NUMBER.fullmatch(cell.strip()):
-        return f"{shown(cell)} is text, not a number; write numbers without quotes"
-    try:
-        float(cell)
-    except (TypeError, ValueError, OverflowError):
-        return f"{shown(cell)} is not a number"
-    if isinstance(cell, str):  # Python's float() takes it: 1_000, full-width digits, ...
-        return (f"{shown(cell)} is not a number as written: use ASCII digits 0-9 with an optional sign, decimal "
-                "point and exponent, without digit separators")
-    return f"{shown(cell)} is not a number"
-
-
-def _read_text(path: Path, src: str, delimiter: str | None) -> _Table:
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{src}: not a UTF-8 text file ({exc.reason} at byte {exc.start}); export it as CSV text") from None
-    lines = [(n, line) for n, line in enumerate(text.splitlines(), 1)
-             if line.strip() and not line.lstrip().startswith("#")]
-    if not lines:
-        raise InputError(f"{src}: no poses (the file is empty or holds only comments)")
-    if delimiter is not None and delimiter not in _DELIMITERS:
-        raise InputError(f"delimiter must be one of {list(_DELIMITERS)}, got {delimiter!r}")
-    first = lines[0][1]
-    sep = _DELIMITERS[delimiter] if delimiter is not None else (";" if ";" in first else "," if "," in first else None)
-    cells = [[c.strip() for c in line.split(sep)] if sep else line.split() for _, line in lines]
-    header = None
-    if not any(_looks_numeric(c) for c in cells[0]):
-        header = tuple(cells[0])
-        cells, lines = cells[1:], lines[1:]
-        if not cells:
-            raise InputError(f"{src}: a header line ({', '.join(header)}) but no poses; "
-                             "if that line is a pose, check the delimiter (delimiter=...)")
-    width = len(header) if header else len(cells[0])
-    for (n, _), row in zip(lines, cells):
-        if len(row) != width:
-            what = "the header has" if header else f"line {lines[0][0]} has"
-            raise InputError(f"{src}: line {n} has {len(row)} cells, {what} {width}; "
-                             "check the delimiter (delimiter=...) and missing values")
-    return _Table(header, cells, [f"line {n}" for n, _ in lines], text=True)
-
-
-def _yaml():
-    try:
-        import yaml
-    except ImportError:  # pragma: no cover - PyYAML is a dependency
-        raise InputError("reading YAML pose files needs PyYAML: pip install pyyaml") from None
-    return yaml
-
-
-def _load_structured(path: Path, src: str, ext: str) -> Any:
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{src}: not UTF-8 text ({exc.reason} at byte {exc.start}); "
-                         f"a {ext} pose file is text") from None
-    if not text.strip():
-        raise InputError(f"{src}: no poses (the file is empty)")
-    return load_json(text, src) if ext == ".json" else load_yaml(text, src)
-
-
-def _pose_row(value: list | tuple, where: str, src: str) -> list[Any]:
-    """The numbers of one pose of a JSON / YAML list: a row as is, a 4x4 / 3x4 matrix (a list of
-    rows of 4) flattened row by row; any other nesting is refused, not flattened."""
-    if not any(isinstance(v, (list, tuple)) for v in value):
-        return list(value)
-    shape = (len(value), len(value[0])) if all(isinstance(v, (list, tuple)) for v in value) else None
-    if (shape in MATRIX_SHAPES and all(len(v) == shape[1] for v in value)
-            and not any(isinstance(x, (list, tuple)) for v in value for x in v)):
-        return [x for v in value for x in v]
-    raise InputError(f"{src}: {where} is a list of lists that is not a 4x4 or 3x4 matrix; a pose is a row of "
-                     "numbers or a matrix of 4 (or 3) rows of 4 numbers")
-
-
-def _structure(obj: Any, src: str) -> _Table:
-    """A JSON / YAML document: a list of rows, of 4x4 (3x4) matrices, or of objects (keys as
-    header), or an object holding such a list under `POSES_KEY` (and optionally ``units``)."""
-    unit = None
-    if (isinstance(obj, dict) and POSES_KEY not in obj and any(_looks_numeric(v) for v in obj.values())
-            and not any(isinstance(v, (dict, list)) for v in obj.values())):
-        obj = [obj]  # one pose as an object of numbers (ROS-Industrial's poses/N.yaml: x, y, z, qx, ...)
-    if isinstance(obj, dict):
-        if POSES_KEY not in obj:
-            raise InputError(f"{src}: an object must hold the pose list under the key {POSES_KEY!r}; "
-                             f"found keys {sorted(map(str, obj))}")
-        unit = obj.get("units", obj.get("unit"))
-        obj = obj[POSES_KEY]
-    if not isinstance(obj, list):
-        raise InputError(f"{src}: expected a list of poses (rows, matrices or objects), got {type(obj).__name__}")
-    if not obj:
-        raise InputError(f"{src}: no poses (the pose list is empty)")
-    where = [f"pose {i + 1}" for i in range(len(obj))]
-    if all(isinstance(r, dict) for r in obj):
-        header = tuple(str(k) for k in obj[0])
-        for w, r in zip(where, obj):
-            if tuple(str(k) for k in r) != header:
-                raise InputError(f"{src}: {w} has keys {list(map(str, r))}, pose 1 has {list(header)}; "
-                                 "every pose needs the same keys")
-        return _Table(header, [list(r.values()) for r in obj], where, unit=unit)
-    rows = []
-    for w, r in zip(where, obj):
-        if not isinstance(r, (list, tuple)):
-            raise InputError(f"{src}: {w} is {shown(r)}, expected a list of numbers or a matrix")
-        rows.append(_pose_row(r, w, src))
-    width = len(rows[0])
-    for w, r in zip(where, rows):
-        if len(r) != width:
-            raise InputError(f"{src}: {w} has {len(r)} numbers, pose 1 has {width}; every pose needs the same")
-    return _Table(None, rows, where, unit=unit)
-
-
-def _read_npz(path: Path, src: str) -> _Table:
-    arrays = load_npz(path, src)
-    if POSES_KEY in arrays:
-        rows = arrays[POSES_KEY]
-    elif len(arrays) == 1:
-        rows = next(iter(arrays.values()))
-    else:
-        raise InputError(f"{src}: an NPZ of several arrays must hold the poses under {POSES_KEY!r}; found {sorted(arrays)}")
-    _check_pose_shape(rows.shape, src)
-    if rows.dtype.kind not in "iuf":
-        raise InputError(f"{src}: the pose array holds {rows.dtype} values, expected numbers")
-    unit = names = stamps = None
-    if "units" in arrays:
-        if arrays["units"].size != 1:
-            raise InputError(f"{src}: 'units' must be one string, 'mm' or 'm'; got {shown(arrays['units'].tolist())}")
-        unit = str(arrays["units"].item())
-    if "names" in arrays:
-        if arrays["names"].ndim != 1:
-            raise InputError(f"{src}: 'names' must be a 1-D array of one name per pose, got shape {arrays['names'].shape}")
-        names = tuple(str(s) for s in arrays["names"])
-    if "stamps" in arrays:
-        value = arrays["stamps"]
-        if value.ndim != 1 or value.dtype.kind not in "biuf" or not np.all(np.isfinite(value)):
-            raise InputError(f"{src}: 'stamps' must be a 1-D array of finite numbers (seconds), one per pose")
-        stamps = value
-    for key, value in (("names", names), ("stamps", stamps)):
-        if value is not None and len(value) != len(rows):
-            raise InputError(f"{src}: {key!r} has {len(value)} entries for {len(rows)} poses")
-    return _Table(None, rows.reshape(len(rows), -1).tolist(), [f"pose {i + 1}" for i in range(len(rows))],
-                  unit=unit, names=names, stamps=stamps)
-
-
-def _check_pose_shape(shape: tuple[int, ...], src: str) -> None:
-    """InputError unless `shape` is rows (n, k) or matrices (n, 4, 4) / (n, 3, 4), n >= 1: other
-    shapes, e.g. (n, 2, 3), would fit a format only by flattening, which guesses the layout."""
-    if len(shape) == 2 and shape[0] > 0 or len(shape) == 3 and shape[0] > 0 and shape[1:] in MATRIX_SHAPES:
-        return
-    raise InputError(f"{src}: poses of shape {shape}; expected rows (n, k) of the format's numbers or matrices "
-                     "(n, 4, 4) / (n, 3, 4); other shapes are not flattened: reshape the array to one of these")
-
-
 # ----------------------------------------------------------------------------- conversion
 
 
@@ -504,7 +326,7 @@ def _check_unit(unit: Any, src: str) -> None:
         raise InputError(f"{src}: unit must be one of {list(UNITS)}, got {unit!r}")
 
 
-def _columns(table: _Table, fmt: PoseFormat, columns: Sequence[str | int] | None,
+def _columns(table: Table, fmt: PoseFormat, columns: Sequence[str | int] | None,
              src: str) -> tuple[list[int], int | None, int | None]:
     """(indices of the format's fields, index of the names column, index of the stamps column)."""
     header, width = table.header, _width(table)
@@ -555,29 +377,29 @@ def _columns(table: _Table, fmt: PoseFormat, columns: Sequence[str | int] | None
         elif (label in NAME_COLUMNS or label == "" or (norm is None and len(rest) == 1)) and name_i is None:
             name_i = i
     if norm is None and name_i is not None:  # headerless extra column: non-integer numbers are time stamps
-        values = [_number(r[name_i], table.text) for r in table.rows]
+        values = [number(r[name_i], table.text) for r in table.rows]
         if all(v is not None for v in values) and not all(v.is_integer() for v in values):
             name_i, stamp_i = None, name_i
     return idx, name_i, stamp_i
 
 
-def _numbers(table: _Table, idx: list[int], src: str) -> Array:
+def _numbers(table: Table, idx: list[int], src: str) -> Array:
     out = np.empty((len(table.rows), len(idx)))
     names = table.header
     for r, (row, where) in enumerate(zip(table.rows, table.where)):
         for k, j in enumerate(idx):
             cell = row[j]
             col = f"column {j + 1}" + (f" ({names[j]})" if names else "")
-            v = _number(cell, table.text)
+            v = number(cell, table.text)
             if v is None:
-                raise InputError(f"{src}: {where}, {col}: {_not_a_number(cell)}")
+                raise InputError(f"{src}: {where}, {col}: {not_a_number(cell)}")
             if not math.isfinite(v):
                 raise InputError(f"{src}: {where}, {col}: {shown(cell)} is not finite; poses must not hold NaN or inf")
             out[r, k] = v
     return out
 
 
-def _convert(table: _Table, fmt: PoseFormat, src: str, *, unit: str | None, columns: Sequence[str | int] | None,
+def _convert(table: Table, fmt: PoseFormat, src: str, *, unit: str | None, columns: Sequence[str | int] | None,
              degrees: bool | None, orthonormalize: bool) -> PoseStack:
     if table.unit is not None:
         _check_unit(table.unit, f"{src}: units in the file")
@@ -613,12 +435,12 @@ def _convert(table: _Table, fmt: PoseFormat, src: str, *, unit: str | None, colu
     return PoseStack(poses, unit, fmt.name, names, stamps, correction, src)
 
 
-def _quaternion_hint(table: _Table, fmt: PoseFormat, idx: list[int]) -> str:
+def _quaternion_hint(table: Table, fmt: PoseFormat, idx: list[int]) -> str:
     """Where else the file holds unit quaternions, when four consecutive columns other than the
     format's do (a quaternion-first file read as quaternion-last, say): the layout to give."""
     columns = []
     for j in range(_width(table)):
-        values = [_number(r[j], table.text) for r in table.rows]
+        values = [number(r[j], table.text) for r in table.rows]
         columns.append(None if any(v is None for v in values) else np.array(values, dtype=float))
     mine = sorted(idx[k] for k, f in enumerate(fmt.fields) if f.startswith("q"))
     for s in range(len(columns) - 3):
