@@ -67,7 +67,7 @@ from handeye.framework.errors import (
     SolverError,
 )
 from handeye.framework.options import check_choice
-from handeye.framework.problem import Problem, unflatten
+from handeye.framework.problem import Problem, item_listing, unflatten
 from handeye.framework.solution import jsonable
 from handeye.plugins import _auto_steps as steps
 from handeye.plugins import refine as _refine
@@ -418,7 +418,7 @@ def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, d
         new_poses, new_status, new_diag = _refine.fit(_refine.model_of(subset), subset, fit, sub_settings, ropts.noise)
     except DegenerateDataError:
         return poses, status, diag, [], (
-            f"{what} {_listing(np.flatnonzero(flagged), data)} are far off the others, but the rest do not determine "
+            f"{what} {item_listing(np.flatnonzero(flagged), data)} are far off the others, but the rest do not determine "
             "the unknowns: least squares on every pair")
     e = model.residuals(new_poses)
     rot = np.rad2deg(np.linalg.norm(e[:, :3], axis=1))
@@ -428,7 +428,7 @@ def _reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, d
     worst = idx[np.argmax(trans[idx] / max(float(np.median(trans[inliers])), 1e-300)
                           + rot[idx] / max(float(np.median(rot[inliers])), 1e-300))]
     label = what if k > 1 else what[:-1]  # "pairs 3, 17 are", "pair 3 is"
-    note = (f"{label} {_listing(idx, data)} {'is' if k == 1 else 'are'} far off the others (residual "
+    note = (f"{label} {item_listing(idx, data)} {'is' if k == 1 else 'are'} far off the others (residual "
             f"{'up to ' if k > 1 else ''}{rot[worst]:.3g} deg / {trans[worst]:.3g} against a typical "
             f"{np.median(rot[inliers]):.2g} deg / {np.median(trans[inliers]):.2g}, translations in the data's "
             f"length unit) and {'was' if k == 1 else 'were'} left out; outliers='keep' uses every pair")
@@ -462,8 +462,6 @@ def _better_robust_fit(data: Any, model: Any, fit: tuple[np.ndarray, ...], robus
 #: is struck by something systematic (`_concentrated`): 1e-6, so that random gross items, 40% of
 #: them included, are left out as before
 CONCENTRATION_P = 1e-6
-#: at most this many items named in a warning (then "and N more"; diagnostics["outliers"] has all)
-LISTED = 8
 
 
 def _concentrated(data: Any, flagged: np.ndarray) -> tuple[str, int, int] | None:
@@ -488,15 +486,6 @@ def _concentrated(data: Any, flagged: np.ndarray) -> tuple[str, int, int] | None
         if binom.sf(k_g - 1, n_g, p_rest) < CONCENTRATION_P:
             return name, k_g, n_g
     return None
-
-
-def _listing(idx: np.ndarray, data: Any = None) -> str:
-    """Indices as the user counts them: from 1 (row k of a file), with the 0-based index of the
-    arrays beside them, e.g. "no. 4 (index 3)", and what the item is where the data can say
-    (`item_label`, e.g. axyb-multi's "marker3 with cam5 at station 4"); at most LISTED."""
-    label = getattr(data, "item_label", None)
-    items = [f"no. {int(i) + 1} (index {int(i)}{': ' + label(int(i)) if label else ''})" for i in idx[:LISTED]]
-    return ", ".join(items) + (f" and {len(idx) - LISTED} more" if len(idx) > LISTED else "")
 
 
 def _diagnostics(pipeline: list[str], start: str, init_status: Status, init_diag: dict[str, Any],

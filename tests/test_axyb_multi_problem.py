@@ -264,3 +264,16 @@ def test_errors_that_strike_one_camera_or_marker_are_not_left_out_as_gross():
     sol = handeye.solve("axyb-multi", **gross.data)
     assert sol.status is handeye.Status.OPTIMAL and relative_error(sol, gross.truth) < 0.01
     assert sorted(o["index"] for o in sol.diagnostics["outliers"]) == sorted(gross.gross.tolist())
+
+
+def test_the_self_checks_far_off_observations_are_named_by_camera_and_marker():
+    """An answer that kept gross observations (outliers="keep") fails the self-check, which lists
+    them by camera, marker and station, as auto's warning does."""
+    from handeye.estimation.noise import NoiseModel
+    from handeye.problems.axyb_multi import simulate_cell
+
+    cell = simulate_cell(20, seed=1, gross=0.03, noise=NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)}))
+    sol = handeye.solve("axyb-multi", **cell.data, outliers="keep")
+    failure = next(f for f in sol.diagnostics["self_check"]["failures"] if "far off the others" in f)
+    first = int(sorted(cell.gross)[0])
+    assert f"no. {first + 1} (index {first}: {cell.data['x_names'][cell.data['x_index'][first]]} with " in failure

@@ -82,6 +82,7 @@ from handeye.checks.validation import AGREEMENT_ANGLE
 from handeye.estimation.robust import MAD_TO_SIGMA
 from handeye.estimation.whitening import CHI3_MEDIAN
 from handeye.framework.errors import DegenerateDataError
+from handeye.framework.problem import item_listing
 from handeye.geometry import so3_fast
 from handeye.geometry.linalg import median
 
@@ -300,8 +301,9 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
     figures["far_off_pairs"] = np.flatnonzero(flagged).tolist()
     why = ""
     if used:
-        listing = ", ".join(f"no. {i + 1} (index {i})" for i in used[:8]) + (" ..." if len(used) > 8 else "")
-        why = (f"; {len(used)} of the {model.m} {'stations' if model.m != problem_pairs(data) else 'pairs'} "
+        on_rows = model.m == problem_pairs(data)  # the model's rows are the data's: their labels apply
+        listing = item_listing(used, data if on_rows else None)
+        why = (f"; {len(used)} of the {model.m} {'stations' if not on_rows else 'pairs'} "
                f"({listing}) are far off the others (gross errors: a failed detection, a mismatched pair) and "
                "this solver used them")
     if d > DISTANCE_FAIL:

@@ -437,3 +437,18 @@ def unflatten(problem: Problem, data: Any, poses: tuple[np.ndarray, ...] | list[
     if k != len(poses):
         raise ValueError(f"{len(poses)} poses for unknowns {flat_names(problem, data)}")
     return out
+
+
+#: items an `item_listing` names before "and N more"
+LISTED_ITEMS = 8
+
+
+def item_listing(indices: Any, data: Any = None) -> str:
+    """Rows of a problem's data as the user counts them: from 1 (row k of a file), with the 0-based
+    index beside them, e.g. "no. 4 (index 3)", and what the row is where the data can say (their
+    ``item_label``, e.g. the multi-camera cell's "marker3 with cam5 at station 4"); at most
+    LISTED_ITEMS, then "and N more"."""
+    idx = [int(i) for i in np.asarray(indices).ravel()]
+    label = getattr(data, "item_label", None)
+    items = [f"no. {i + 1} (index {i}{': ' + label(i) if label else ''})" for i in idx[:LISTED_ITEMS]]
+    return ", ".join(items) + (f" and {len(idx) - LISTED_ITEMS} more" if len(idx) > LISTED_ITEMS else "")
