@@ -83,3 +83,16 @@ def test_a_cell_of_exact_cameras_gets_no_scale_warning(setup):
         cell = simulate_cell(20, seed=seed, setup=setup, noise=NOISE)
         sol = handeye.solve("axyb-multi", **cell.data)
         assert not scale_warnings(sol), sol.warnings
+
+
+def test_calibrate_says_what_a_scale_a_little_off_would_do_where_it_exceeds_the_1_sigma():
+    from handeye.cli.calibrate_cmd import _scale_sensitivity
+
+    data, _ = AXYB.simulate(pairs=60, seed=0, noise=NOISE)
+    sol = handeye.solve("axyb", **data)
+    figures = sol.diagnostics["self_check"]
+    sigma = figures["std"]["Y"]["translation"]
+    (line,) = _scale_sensitivity(sol.diagnostics, "Y", sigma, "mm")
+    shift = figures["camera_scale"]["per_permille"]["Y"]
+    assert shift > sigma and f"would move it by {shift:.3g} mm" in line
+    assert _scale_sensitivity(sol.diagnostics, "Y", 10 * shift, "mm") == []  # within its 1-sigma: nothing said

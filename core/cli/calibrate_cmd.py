@@ -344,6 +344,17 @@ def _write(result: dict[str, Any], json_path: str | None, yaml_path: str | None,
     return written
 
 
+def _scale_sensitivity(diagnostics: dict[str, Any], name: str, sigma: float, unit: str) -> list[str]:
+    """A line saying how far a camera scale 0.1% off (a board size or focal length a little wrong)
+    would move the unknown `name`, where that exceeds its 1-sigma `sigma`: the 1-sigma takes the
+    camera's scale as exact (self-check 5, docs/camera-scale.md)."""
+    shift = ((diagnostics.get("self_check") or {}).get("camera_scale") or {}).get("per_permille", {}).get(name)
+    if shift is None or not shift > sigma:
+        return []
+    return [f"  a camera scale 0.1% off (board size, focal length) would move it by {shift:.3g} {unit}, "
+            f"{shift / sigma:.2g}x its 1-sigma, which takes the scale as exact"]
+
+
 def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: dict[str, Any]) -> str:
     unit = r["units"]["translation"]
     inp = r["inputs"]
@@ -376,6 +387,7 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
         if p["std"] is not None:
             lines.append(f"  1-sigma  rotation {p['std']['rotation_deg']:.3g} deg, translation "
                          f"{p['std']['translation']:.3g} {unit} (root of the 3 axes' variances)")
+            lines += _scale_sensitivity(diagnostics, name, p["std"]["translation"], unit)
         else:
             lines.append(f"  1-sigma  not reported by solver {r['solver']} (solver auto or refine reports it)")
     res = r["residuals"]
