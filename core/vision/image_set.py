@@ -442,7 +442,8 @@ def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, ca
     T.setflags(write=False)
     observations = BoardObservations(tuple(found[k].image_points for k in keep),
                                      tuple(found[k].object_points * scale for k in keep), camera_used, setup,
-                                     kept_names)
+                                     kept_names, intrinsics_std=None if calibration is None else
+                                     tuple(float(v) for v in calibration.std_fx_fy_cx_cy))
     rows = None if robot is None else np.array([robot_rows[k] for k in keep], dtype=np.intp)
     return ImageSet(kept_names, tuple(str(files_used[k]) for k in keep), T, observations, np.array(errors), rows,
                     None if rows is None else tuple(robot_names[r] for r in rows), tuple(dropped), camera_used,

@@ -54,14 +54,19 @@ class Camera:
 @dataclasses.dataclass(frozen=True)
 class BoardObservations:
     """Per station i: image_points[i] (n_i, 2) pixels and object_points[i] (n_i, 3) in the board
-    frame (the pose data's length unit), the camera, the setup, and the stations' names (e.g. the
-    image files) or None. Arrays are read-only copies."""
+    frame (the pose data's length unit), the camera, the setup, the stations' names (e.g. the
+    image files) or None, and whether the intrinsics came from these images. Arrays are
+    read-only copies."""
 
     image_points: tuple[np.ndarray, ...]
     object_points: tuple[np.ndarray, ...]
     camera: Camera
     setup: str
     names: tuple[str, ...] | None = None
+    #: the 1-sigma (px) of fx, fy, cx, cy where the intrinsics were calibrated from these images
+    #: (`handeye.vision.intrinsics.CameraCalibration`); None: given apart, taken as exact. A fit
+    #: to the corners owes them part of its uncertainty (the `reprojection` solver adds it)
+    intrinsics_std: tuple[float, float, float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.setup not in SETUPS:
