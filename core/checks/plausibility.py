@@ -385,15 +385,18 @@ def screen_rows(n: int) -> np.ndarray | None:
     k = SCREEN_STATIONS
     if not k or n < 2 * k:
         return None
+    return _spread(n, k)
+
+
+def _spread(n: int, k: int) -> np.ndarray:
+    """k rows of n evenly spaced, the first and the last included."""
     return np.unique(np.linspace(0, n - 1, k).round().astype(np.intp))
 
 
 def full_rows(n: int) -> np.ndarray | slice:
     """The rows of a stream of n stations its deciding fits use: all of them up to FULL_STATIONS,
     else FULL_STATIONS evenly spaced (as `screen_rows`)."""
-    if n <= FULL_STATIONS:
-        return slice(None)
-    return np.unique(np.linspace(0, n - 1, FULL_STATIONS).round().astype(np.intp))
+    return slice(None) if n <= FULL_STATIONS else _spread(n, FULL_STATIONS)
 
 
 def _may_explain(s: float, ratio: float) -> bool:

@@ -139,3 +139,21 @@ def check_new_results(flag: str, outdir: str | Path, files: Iterable[str], force
     if existing:
         raise InputError(f"{flag} {str(outdir)!r} already holds {existing[0]!r} from an earlier run; pass --force "
                          "to overwrite its results, or name another folder (or --name)")
+
+
+def workspace_of(box: str | None, max_tilt: float | None) -> Any:
+    """The `handeye.planning.stations.Workspace` of ``--workspace X0,Y0,Z0,X1,Y1,Z1`` (the box's
+    corners; absent: no box) and ``--max-tilt DEG`` (absent: no limit), or None without either."""
+    from handeye.planning.stations import Workspace
+
+    if box is None and max_tilt is None:
+        return None
+    if box is None:
+        return Workspace(low=(-np.inf,) * 3, high=(np.inf,) * 3, max_tilt_deg=max_tilt)
+    try:
+        values = [float(v) for v in box.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 6 or not all(np.isfinite(values)):
+        raise InputError(f"--workspace expects six numbers X0,Y0,Z0,X1,Y1,Z1 (the box's corners), got {box!r}")
+    return Workspace(low=tuple(values[:3]), high=tuple(values[3:]), max_tilt_deg=max_tilt)

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.cli._common import add_force_flag, check_new_file
+from handeye.cli._common import add_force_flag, check_new_file, workspace_of
 from handeye.framework.errors import InputError
 from handeye.geometry.se3 import make_pose
 from handeye.io.arm_files import read_arm
@@ -30,7 +30,6 @@ from handeye.io.pose_formats import parse_format
 from handeye.io.pose_readers import read_poses
 from handeye.planning.plan import Noise, plan
 from handeye.planning.reach import Reach
-from handeye.planning.stations import Workspace
 from handeye.planning.views import ViewLimits
 from handeye.vision.boards import parse_board
 from handeye.vision.intrinsics import load_camera
@@ -104,10 +103,7 @@ def run(args: argparse.Namespace) -> int:
         from handeye.planning.plan import default_limits
 
         limits = ViewLimits(distance=default_limits(board, camera).distance, max_angle_deg=args.max_angle)
-    workspace = None
-    if args.workspace or args.max_tilt is not None:
-        box = _numbers(args.workspace, 6, "--workspace") if args.workspace else (-1e12,) * 3 + (1e12,) * 3
-        workspace = Workspace(low=box[:3], high=box[3:], max_tilt_deg=args.max_tilt)
+    workspace = workspace_of(args.workspace, args.max_tilt)
     noise = Noise(pixel=args.pixel_noise, robot=_numbers(args.robot_noise, 2, "--robot-noise") if args.robot_noise else None)
     recorded = _recorded(args)
     arm = read_arm(args.arm).in_unit(args.unit) if args.arm else None

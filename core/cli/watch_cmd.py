@@ -34,12 +34,16 @@ from typing import Any
 
 import numpy as np
 
-from handeye.cli._common import add_force_flag, check_new_file, in_cli_words
+from handeye.cli._common import (
+    add_force_flag,
+    check_new_file,
+    in_cli_words,
+    workspace_of,
+)
 from handeye.framework.errors import InputError
 from handeye.io.pose_formats import format_names, parse_format
 from handeye.planning.plan import Noise, planners
 from handeye.planning.session import Session, Tolerance, Update
-from handeye.planning.stations import Workspace
 from handeye.planning.watch_source import MATCHES, PoseFilePair, Station
 from handeye.workflow.cell_parts import (
     CAMERA_POSES,
@@ -211,23 +215,10 @@ def _session(args: argparse.Namespace, unit: str, camera: Any, board: Any, targe
     tolerance = None if target is None else Tolerance(target[0], _in_unit(target[1], target[2], unit))
     sigma = None if camera_noise is None else (math.radians(camera_noise[0]),
                                               _in_unit(camera_noise[1], camera_noise[2], unit))
-    workspace = None
-    if args.workspace is not None or args.max_tilt is not None:
-        box = _box(args.workspace) if args.workspace is not None else ((-math.inf,) * 3, (math.inf,) * 3)
-        workspace = Workspace(*box, max_tilt_deg=args.max_tilt)
+    workspace = workspace_of(args.workspace, args.max_tilt)
     return Session(args.problem, setup=args.setup, target=tolerance, camera=camera,
                    board=None if board is None else board.in_unit(unit), unit=unit, workspace=workspace,
                    noise=Noise(args.pixel_noise), camera_sigma=sigma, suggest=args.suggest)
-
-
-def _box(text: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    try:
-        values = [float(v) for v in text.split(",")]
-    except ValueError:
-        values = []
-    if len(values) != 6 or not all(math.isfinite(v) for v in values):
-        raise InputError(f"--workspace expects six numbers X0,Y0,Z0,X1,Y1,Z1 (the box's corners), got {text!r}")
-    return tuple(values[:3]), tuple(values[3:])
 
 
 def _std_text(std: dict[str, dict[str, float]], unit: str) -> str:

@@ -25,8 +25,10 @@ an InputError naming the bag.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import struct
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -79,33 +81,23 @@ def parse_topic(spec: str) -> tuple[str, tuple[str, str] | None]:
 def read_bag_poses(path: str | Path, topic: str) -> PoseStack:
     """The poses of `topic` (see the module docstring for the spec) in the bag at `path`, sorted
     by header stamp, metres, format ``xyz-quat-xyzw``."""
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
-
     p, src, paths = _bag(path)
     name, frames = parse_topic(topic)
-    try:
-        with AnyReader(paths, default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
-            available = {c.topic: c.msgtype for c in reader.connections}
-            if name not in available:
-                raise InputError(f"{src} has no topic {name!r}; it has {_listing(available)}")
-            wanted = available[name]
-            if frames is None and wanted not in POSE_TYPES:
-                hint = f"; for tf write {name}:PARENT,CHILD" if wanted == TF_TYPE else ""
-                raise InputError(f"{src}: topic {name!r} is a {wanted}, not one of {', '.join(POSE_TYPES)}{hint}; "
-                                 f"the bag has {_listing(available)}")
-            if frames is not None and wanted != TF_TYPE:
-                raise InputError(f"{src}: topic {name!r} is a {wanted}, not a {TF_TYPE}; /TOPIC:PARENT,CHILD is for "
-                                 f"tf topics; the bag has {_listing(available)}")
-            topics = [name] + (["/tf_static"] if frames is not None and available.get("/tf_static") == TF_TYPE
-                               and name != "/tf_static" else [])
-            conns = [c for c in reader.connections if c.topic in topics]
-            messages = [(c.topic, reader.deserialize(raw, c.msgtype)) for c, _, raw in reader.messages(connections=conns)]
-    except InputError:
-        raise
-    except _damaged_bag_errors() as exc:
-        reason = " ".join(str(exc).split())[:200] or type(exc).__name__
-        raise InputError(f"{src} could not be read as a ROS bag (damaged?): {reason}") from None
+    with _open_bag(paths, src) as (reader, available):
+        if name not in available:
+            raise InputError(f"{src} has no topic {name!r}; it has {_listing(available)}")
+        wanted = available[name]
+        if frames is None and wanted not in POSE_TYPES:
+            hint = f"; for tf write {name}:PARENT,CHILD" if wanted == TF_TYPE else ""
+            raise InputError(f"{src}: topic {name!r} is a {wanted}, not one of {', '.join(POSE_TYPES)}{hint}; "
+                             f"the bag has {_listing(available)}")
+        if frames is not None and wanted != TF_TYPE:
+            raise InputError(f"{src}: topic {name!r} is a {wanted}, not a {TF_TYPE}; /TOPIC:PARENT,CHILD is for "
+                             f"tf topics; the bag has {_listing(available)}")
+        topics = [name] + (["/tf_static"] if frames is not None and available.get("/tf_static") == TF_TYPE
+                           and name != "/tf_static" else [])
+        conns = [c for c in reader.connections if c.topic in topics]
+        messages = [(c.topic, reader.deserialize(raw, c.msgtype)) for c, _, raw in reader.messages(connections=conns)]
     source = f"{src} {topic}"
     if frames is None:
         stamps, T = _pose_messages([m for _, m in messages], POSE_TYPES[wanted], source)
@@ -144,25 +136,15 @@ def read_bag_joints(path: str | Path, topic: str) -> Any:
     (q (m, n) radians, the joints' names ordered as the first message names them, the header
     stamps (m,) seconds), sorted by stamp, for `handeye.io.joint_files.read_joints`. Every message must name the same joints
     (in any order) with a position each."""
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import Stores, get_typestore
-
     p, src, paths = _bag(path)
     name = str(topic).strip()
-    try:
-        with AnyReader(paths, default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
-            available = {c.topic: c.msgtype for c in reader.connections}
-            if available.get(name) != JOINT_STATE:
-                what = f"is a {available[name]}" if name in available else "is not in it"
-                raise InputError(f"{src}: topic {name!r} {what}; the joint readings are a {JOINT_STATE} topic; the bag "
-                                 f"has {_listing(available)}")
-            conns = [c for c in reader.connections if c.topic == name]
-            messages = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=conns)]
-    except InputError:
-        raise
-    except _damaged_bag_errors() as exc:
-        reason = " ".join(str(exc).split())[:200] or type(exc).__name__
-        raise InputError(f"{src} could not be read as a ROS bag (damaged?): {reason}") from None
+    with _open_bag(paths, src) as (reader, available):
+        if available.get(name) != JOINT_STATE:
+            what = f"is a {available[name]}" if name in available else "is not in it"
+            raise InputError(f"{src}: topic {name!r} {what}; the joint readings are a {JOINT_STATE} topic; the bag "
+                             f"has {_listing(available)}")
+        conns = [c for c in reader.connections if c.topic == name]
+        messages = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(connections=conns)]
     source = f"{src} {name}"
     if not messages:
         raise InputError(f"{source}: no joint readings (the topic has no messages)")
@@ -189,6 +171,24 @@ def read_bag_joints(path: str | Path, topic: str) -> Any:
 # ----------------------------------------------------------------------------- damaged bags
 
 
+@contextlib.contextmanager
+def _open_bag(paths: list[Path], src: str) -> Iterator[tuple[Any, dict[str, str]]]:
+    """(the rosbags reader of the bag at `paths`, its topics and their message types) for the
+    block; whatever a damaged bag makes rosbags raise in it (`_damaged_bag_errors`) becomes one
+    InputError naming `src`, and the block's own InputErrors pass as they are."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    try:
+        with AnyReader(paths, default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+            yield reader, {c.topic: c.msgtype for c in reader.connections}
+    except InputError:
+        raise
+    except _damaged_bag_errors() as exc:
+        reason = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise InputError(f"{src} could not be read as a ROS bag (damaged?): {reason}") from None
+
+
 def _damaged_bag_errors() -> tuple[type[BaseException], ...]:
     """What reading a damaged bag raises, found by truncating and corrupting bags of each storage:
     rosbags' own errors (opening, ROS 1 / ROS 2 readers, deserialisation), its sqlite library's
@@ -196,7 +196,7 @@ def _damaged_bag_errors() -> tuple[type[BaseException], ...]:
     struct.error, EOFError, IndexError, KeyError, ValueError (UnicodeDecodeError), TypeError (a
     garbled QoS profile read as text), OverflowError (a length field beyond ssize_t),
     AssertionError (its consistency asserts), MemoryError (a damaged 64-bit length field makes it
-    ask for terabytes, refused at once). Only rosbags' calls sit in the try block that catches them."""
+    ask for terabytes, refused at once). Only the readers' blocks over an open bag (`_open_bag`) catch them."""
     from rosbags.highlevel import AnyReaderError
     from rosbags.rosbag1 import ReaderError as Ros1ReaderError
     from rosbags.rosbag2 import ReaderError as Ros2ReaderError
