@@ -31,14 +31,6 @@ class Outcome:
     def readable(self) -> bool:
         return self.size is not None
 
-    def frozen(self) -> Outcome:
-        """This outcome with its detections' arrays read-only again (as `Detection` makes them; a
-        detection that crossed a process boundary by pickle comes back writable)."""
-        if self.detection is None:
-            return self
-        alternatives = tuple(dataclasses.replace(a) for a in self.detection.alternatives)
-        return dataclasses.replace(self, detection=dataclasses.replace(self.detection, alternatives=alternatives))
-
 
 def read_and_detect(path: str | Path, board: Board, flag_sets: tuple[str, ...] | None = None) -> Outcome:
     """`Outcome` of the file `path` with the default detector (`handeye.vision.detect.detect`;
