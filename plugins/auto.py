@@ -275,11 +275,13 @@ def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: 
     reason = _sources_skipped(data, status, ropts, report, stations)
     if reason is None:
         model = _refine.model_of(kept)
-        count = model.noise_factors(kept, poses).count
+        factors = model.noise_factors(kept, poses)  # poses: the per-group fit of the pairs kept
+        count = factors.count
         if options.noise is None and 6 * kept.m < RESIDUALS_PER_VARIANCE * count:
             return poses, status, {**diag, "noise_sources_skipped": f"{kept.m} observations are too few for {count} variances"}
         try:
-            new, new_status, new_diag = _refine.fit(model, kept, poses, _refine.settings_of(ropts, kept.m), "sources")
+            new, new_status, new_diag = _refine.fit(model, kept, poses, _refine.settings_of(ropts, kept.m), "sources",
+                                                    per_group_fit=factors)
         except DegenerateDataError:
             reason = "the pairs kept do not determine the fit with the noise sources"
     if reason is not None:
@@ -314,6 +316,8 @@ def _sources_skipped(data: Any, status: Status, ropts: _refine.Options, report: 
 
 def _kept(data: Any, inliers: np.ndarray) -> Any:
     """The validated data restricted to the pairs (triples) `inliers` (keeps the planar mode)."""
+    if inliers.all():  # the data themselves, whose model and factors are built already
+        return data
     stacks = _refine.problem_for(data).data_fields
     return dataclasses.replace(data, **{f: getattr(data, f)[inliers] for f in stacks})
 

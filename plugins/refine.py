@@ -361,13 +361,13 @@ def refine(data: Any, poses0: tuple[np.ndarray, ...], options: Options) -> tuple
 
 
 def fit(model: nlls.PoseModel, data: Any, poses0: tuple[np.ndarray, ...], settings: nlls.Settings,
-        noise: str = "groups") -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
+        noise: str = "groups", per_group_fit: Any = None) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """The engine's fit of `model` (of `data`) from `poses0` with `settings`: `handeye.nlls`, or
-    with noise="sources" `handeye.noise_sources`; with the camera's scale profiled out
-    (`handeye.camera_scale`) that scale and its standard deviation added to the diagnostics.
-    Shared by `refine` and `auto`'s refit without the pairs it leaves out."""
+    with noise="sources" `handeye.noise_sources` (`per_group_fit`: as there); with the camera's
+    scale profiled out (`handeye.camera_scale`) that scale and its standard deviation added to the
+    diagnostics. Shared by `refine` and `auto`'s refit without the pairs it leaves out."""
     if noise == "sources":
-        return noise_sources.fit(model, data, poses0, settings)
+        return noise_sources.fit(model, data, poses0, settings, per_group_fit)
     poses, status, diagnostics = nlls.refine(model, poses0, settings)
     if isinstance(model, camera_scale.ScaledCameraModel):
         W = settings.W

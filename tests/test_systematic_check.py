@@ -169,3 +169,32 @@ def test_noise_free_data_get_no_systematic_warning(seed):
     sol = handeye.solve("axyb", **data)
     assert "systematic" not in sol.diagnostics["self_check"]
     assert not [w for w in sol.warnings if "arm's configuration" in w]
+
+
+def test_many_stations_test_their_subset_with_the_subsets_jacobian():
+    """Beyond MAX_STATIONS the test runs on a spread subset; its Jacobian comes from the model on
+    those rows alone (`AXYBModel.rows`), and the figures are those of the full Jacobian's rows."""
+    from handeye.checks.best_fit import best_fit
+    from handeye.problems.axyb import PROBLEM
+
+    data, truth = PROBLEM.simulate(pairs=systematic.MAX_STATIONS + 700, seed=3,
+                                   noise=NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)}))
+    validated = PROBLEM.validate(**data)
+    model, poses, _ = PROBLEM.check_model(validated, truth)
+    _, _, flagged, res, _, _ = best_fit(model, poses)
+
+    class WithoutRows:  # the same model, seen by the check as one that cannot take rows
+        def __init__(self, inner):
+            self.inner = inner
+
+        def __getattr__(self, name):
+            if name == "rows":
+                raise AttributeError(name)
+            return getattr(self.inner, name)
+
+    figures = [{}, {}]
+    for which, out in zip((model, WithoutRows(model)), figures):
+        systematic.assess_configuration(validated.A, which, res, flagged, [], out)
+    assert figures[0]["systematic"]["tested_stations"] == systematic.MAX_STATIONS
+    for key in ("F", "p_value", "explained"):
+        assert figures[0]["systematic"][key] == pytest.approx(figures[1]["systematic"][key], rel=1e-10)

@@ -359,7 +359,7 @@ def _precision(problem: Any, data: Any, model: Any, fit: tuple[np.ndarray, ...],
     """1-sigma per unknown (rotation deg, translation; the worst direction in the frame the
     unknown is expressed in: R v for the principal eigenvector v of its 3x3 covariance block in
     its own frame) from the covariance of the best fit; warnings beyond the precision."""
-    axes = problem.rotation_axes(data)
+    axes: dict[str, np.ndarray] = {}
     out: dict[str, Any] = {}
     chosen = [j for j, name in enumerate(model.unknowns) if name in interest]
     blocks = np.stack([cov[i:i + 3, i:i + 3] for j in chosen for i in (6 * j, 6 * j + 3)])
@@ -372,6 +372,8 @@ def _precision(problem: Any, data: Any, model: Any, fit: tuple[np.ndarray, ...],
         out[name] = {"rotation_deg": rot_deg, "rotation_axis": rot_dir.tolist(),
                      "translation": trans, "translation_direction": trans_dir.tolist()}
         limit = PRECISION_TRANSLATION * model.scale
+        if (rot_deg > PRECISION_ROTATION_DEG or trans > limit) and not axes:
+            axes = problem.rotation_axes(data)  # only a warning names them
         if rot_deg > PRECISION_ROTATION_DEG:
             warnings.append(f"the data determine the rotation of {name} only to {rot_deg:.2g} deg (1-sigma, about "
                             f"{_direction(rot_dir, axes.get(name))} in the frame {name} is expressed in); "

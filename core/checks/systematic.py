@@ -40,7 +40,8 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy.stats import f as f_distribution
+from scipy.linalg.lapack import dgeqp3, dorgqr
+from scipy.special import fdtrc
 
 #: the warning's significance level. Measured (bench/systematic.py): no false alarm in 900 tests
 #: of simulated perfect arms (camera, robot and camera, lever-arm and heavy noise, 15-60
@@ -49,7 +50,7 @@ from scipy.stats import f as f_distribution
 P_WARN = 1e-3
 #: fewest stations (rows) for the test: 6m residuals against 12 unknowns and 18 coefficients
 MIN_STATIONS = 12
-#: singular values of the projected regressors below this share of the largest are dropped
+#: columns whose pivoted-QR diagonal is below this share of the largest are dropped (rank)
 RANK_TOL = 1e-8
 #: residuals whose RMS is below this (rotation rad; translation as a share of the data's lever
 #: arm) are rounding, not noise: noise-free data leave ~1e-13, whose structure follows the
@@ -87,20 +88,16 @@ def configuration_test(ew: np.ndarray, J: np.ndarray, Z: np.ndarray,
     runs on the stations, its denominator's degrees of freedom 6S - k less what the fit's
     projection took from the sums (the squared norm of the summed projector's columns)."""
     m = len(ew)
-    S = ew.T @ ew / m
-    w, V = np.linalg.eigh(0.5 * (S + S.T))
+    w, V = np.linalg.eigh(ew.T @ ew / m)
     if not w[-1] > 0:
         return None
     w = np.maximum(w, 1e-12 * w[-1])
     T = (V / np.sqrt(w)).T  # S^(-1/2): decorrelates the six components
     y = (ew @ T.T).ravel()
-    Jf = np.einsum("ab,mbk->mak", T, J).reshape(6 * m, -1)
-    U, s, _ = np.linalg.svd(Jf, full_matrices=False)
-    Q = U[:, s > RANK_TOL * s[0]] if s.size and s[0] > 0 else U[:, :0]
+    Q = _column_basis((T @ J).reshape(6 * m, -1))
     q = Z.shape[1]
-    D = np.zeros((m, 6, 6, q))
-    D[:, np.arange(6), np.arange(6), :] = Z[:, None, :]
-    D = np.einsum("ab,mbcq->macq", T, D).reshape(6 * m, 6 * q)
+    # the regressors of row (i, a), coefficient (c, k): T[a, c] Z[i, k] (B Z_i, then decorrelated)
+    D = (T[None, :, :, None] * Z[:, None, None, :]).reshape(6 * m, 6 * q)
     D -= Q @ (Q.T @ D)
     y = y - Q @ (Q.T @ y)
     removed = float(Q.shape[1])
@@ -109,8 +106,7 @@ def configuration_test(ew: np.ndarray, J: np.ndarray, Z: np.ndarray,
         y, D = sums(y.reshape(m, 6)).ravel(), sums(D.reshape(m, 6, -1)).reshape(-1, D.shape[1])
         removed = float(np.sum(sums(Q.reshape(m, 6, -1)) ** 2))
         m = int(np.max(station)) + 1
-    U2, s2, _ = np.linalg.svd(D, full_matrices=False)
-    U2 = U2[:, s2 > RANK_TOL * s2[0]] if s2.size and s2[0] > 0 else U2[:, :0]
+    U2 = _column_basis(D)
     k = U2.shape[1]
     dof = int(round(6 * m - removed)) - k
     if k == 0 or dof < 2 * k:
@@ -119,8 +115,23 @@ def configuration_test(ew: np.ndarray, J: np.ndarray, Z: np.ndarray,
     explained = float(np.sum((U2.T @ y) ** 2))
     rss1 = max(rss0 - explained, 1e-300)
     F = (explained / k) / (rss1 / dof)
-    return {"F": F, "p_value": float(f_distribution.sf(F, k, dof)), "dof_num": k, "dof_den": dof,
+    return {"F": F, "p_value": float(fdtrc(k, dof, F)), "dof_num": k, "dof_den": dof,
             "explained": explained / rss0 if rss0 > 0 else 0.0}
+
+
+def _column_basis(M: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of the column space of M (rows, n): the leading columns of its
+    pivoted QR whose diagonal exceeds RANK_TOL of the first (rank-revealing; a third of the time
+    of the SVD on these small matrices, which the self-check runs on every answer)."""
+    n = M.shape[1]
+    if n == 0:
+        return M[:, :0]
+    qr, _, tau, _, _ = dgeqp3(M)  # LAPACK directly: scipy.linalg.qr's checks double the time here
+    d = np.abs(np.diag(qr))
+    if not d[0] > 0:
+        return M[:, :0]
+    Q, _, _ = dorgqr(qr[:, :n], tau)
+    return Q[:, :int(np.count_nonzero(d > RANK_TOL * d[0]))]
 
 
 def _station_sums(station: np.ndarray):
@@ -136,12 +147,16 @@ def _station_sums(station: np.ndarray):
     return sums
 
 
+#: the fixed random projection of a pose's 12 entries that `_stations` keys stations by
+_KEY_WEIGHTS = np.random.default_rng(0).uniform(0.5, 1.5, 12)
+
+
 def _stations(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(the first row of each station, the station of each row) for poses (m, 4, 4): rows with
     the very same pose are one station. Unique over one number per pose, a fixed random
     projection of its 12 entries (equal poses give equal bits; others collide with probability
     ~0): 30x faster than unique rows at 10^5 poses."""
-    weights = np.random.default_rng(0).uniform(0.5, 1.5, 12)
+    weights = _KEY_WEIGHTS
     entries = poses[:, :3, :].reshape(len(poses), 12)
     key = np.zeros(len(poses))
     for k in range(12):  # elementwise in a fixed order, not BLAS: equal rows must give equal bits
@@ -184,7 +199,9 @@ def assess_configuration(configurations: np.ndarray | None, model: Any, res: Any
     if Z is None:
         return
     ew = res.W.residual(res.e)[keep]
-    J = res.W.jacobian(model.jacobian(res.poses, res.e))[keep]
+    rows = getattr(model, "rows", None)  # the Jacobian of the rows tested only, where the model can
+    J = res.W.jacobian(rows(np.flatnonzero(keep)).jacobian(res.poses, res.e[keep]) if rows is not None
+                       else model.jacobian(res.poses, res.e)[keep])
     out = configuration_test(ew, J, Z, station if int(station.max()) + 1 < len(station) else None)
     if out is None:
         return

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from handeye.framework.errors import DegenerateDataError, InputError
+from handeye.geometry.linalg import median
 from handeye.geometry.se3 import ORTHONORMALITY_TOL, orthonormality_error
 
 LAST_ROW_TOL = 1e-9
@@ -192,7 +193,7 @@ def check_motion_beyond_noise(angle_A: np.ndarray, angle_B: np.ndarray, what: st
     angle_A, angle_B = np.asarray(angle_A, dtype=float), np.asarray(angle_B, dtype=float)
     if not len(angle_A):
         return
-    noise = float(np.median(np.abs(angle_A - angle_B)))
+    noise = median(np.abs(angle_A - angle_B))
     largest = float(np.max(np.minimum(angle_A, angle_B)))
     if noise > 0 and largest <= MOTION_NOISE_FACTOR * noise and largest < MOTION_NOISE_MAX_ANGLE:
         raise DegenerateDataError(

@@ -153,7 +153,8 @@ def rotation_blocks(r: np.ndarray) -> list[np.ndarray]:
 def signed_rotations(cost: RotationCost, r: np.ndarray,
                      orthogonalize: Callable[[np.ndarray], np.ndarray] = project_to_so3
                      ) -> tuple[list[np.ndarray], bool]:
-    """The rotations of r or of -r, made rotations by `orthogonalize`, whichever costs less.
+    """The rotations of r or of -r, made rotations by `orthogonalize` (batched: (n, 3, 3) in, out;
+    both signs in one call), whichever costs less.
 
     With the scale of r fixed by a norm (|r|^2 = 3k) rather than by the data, r and -r are equally
     feasible, and where the translation rows carry no scale information (a camera rotating about
@@ -161,12 +162,10 @@ def signed_rotations(cost: RotationCost, r: np.ndarray,
     sign is close to rotations (det(-R) = -det R), and the rotations of the other cost far more.
     Returns (rotations, flipped); ties keep r.
     """
-    candidates: list[list[np.ndarray]] = []
-    costs: list[float] = []
-    for sign in (1.0, -1.0):
-        Rs = [orthogonalize(M) for M in rotation_blocks(sign * r)]
-        candidates.append(Rs)
-        costs.append(cost.value(rotations_vector(*Rs)))
+    blocks = np.stack(rotation_blocks(r))
+    both = orthogonalize(np.concatenate([blocks, -blocks]))  # one batched call for both signs
+    candidates = [list(both[:len(blocks)]), list(both[len(blocks):])]
+    costs = [cost.value(rotations_vector(*Rs)) for Rs in candidates]
     flipped = costs[1] < costs[0]
     return candidates[int(flipped)], bool(flipped)
 

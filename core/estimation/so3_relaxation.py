@@ -30,6 +30,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+from scipy.linalg import lapack
 
 from handeye.estimation.rotation_cost import (
     RotationCost,
@@ -158,7 +159,7 @@ def polish(cost: RotationCost, rotations: list[np.ndarray]) -> tuple[list[np.nda
         D = np.zeros((9 * k, 3 * k))
         for j, R in enumerate(Rs):
             D[9 * j:9 * j + 9, 3 * j:3 * j + 3] = (R @ _GENERATORS).transpose(0, 2, 1).reshape(3, 9).T  # vec(R [e]_x)
-        delta, *_ = np.linalg.lstsq(cost.S @ D, -e, rcond=None)
+        delta = _gauss_newton_step(cost.S @ D, e)
         new_Rs = [R @ so3_fast.exp(delta[3 * j:3 * j + 3]) for j, R in enumerate(Rs)]
         new = cost.value(rotations_vector(*new_Rs))
         if new > current and np.max(np.abs(delta)) > POLISH_SMALL_STEP:
@@ -168,6 +169,16 @@ def polish(cost: RotationCost, rotations: list[np.ndarray]) -> tuple[list[np.nda
         if np.max(np.abs(delta)) < POLISH_STEP_TOL:
             break
     return Rs, steps
+
+
+def _gauss_newton_step(J: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """The least-squares step d minimising |J d + e|: by Cholesky on the normal equations (LAPACK
+    directly: a fifth of ``lstsq``'s time on these 18 x 6 systems, run at every solve), by
+    ``lstsq`` where J^T J is not positive definite."""
+    _, d, info = lapack.dposv(J.T @ J, -(J.T @ e))
+    if info != 0:
+        d = np.linalg.lstsq(J, -e, rcond=None)[0]
+    return d
 
 
 def certificate(M: np.ndarray, y: np.ndarray, nu: np.ndarray, redundant: bool) -> dict[str, float]:

@@ -203,8 +203,10 @@ def station_angles(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray
     station and between consecutive stations (2m - 3 motions), over at most MOTION_CHECK_STATIONS
     evenly spread stations: A_j^-1 A_i = X (B_j^-1 B_i) X^-1, so each motion turns by the same
     angle on both sides."""
-    k = np.unique(np.linspace(0, len(A) - 1, min(len(A), MOTION_CHECK_STATIONS)).astype(int))
-    A, B, m = A[k], B[k], len(k)
+    if len(A) > MOTION_CHECK_STATIONS:
+        k = np.unique(np.linspace(0, len(A) - 1, MOTION_CHECK_STATIONS).astype(int))
+        A, B = A[k], B[k]
+    m = len(A)
     i = np.r_[np.arange(1, m), np.arange(2, m)]
     j = np.r_[np.zeros(m - 1, dtype=int), np.arange(1, m - 1)]
 
