@@ -91,7 +91,7 @@ def test_suggestions_in_the_robot_format(tmp_path, capsys):
     intrinsics.write_text(json.dumps({"camera_matrix": camera.K.tolist(), "distortion_coefficients": [0, 0, 0, 0, 0],
                                       "image_width": 1280, "image_height": 1024}))
     out_file = tmp_path / "next.csv"
-    code = main(["watch", *flags, "--once", "--camera-intrinsics", str(intrinsics), "--board", "chessboard:9x6:25mm",
+    code = main(["watch", *flags, "--once", "--intrinsics", str(intrinsics), "--board", "chessboard:9x6:25mm",
                  "--suggest", "2", "--workspace", "200,-500,100,1000,500,1200", "--max-tilt", "60",
                  "--next-out", str(out_file)])
     assert code == 0
@@ -127,7 +127,8 @@ def test_follows_a_growing_file_pair(tmp_path, stations):
     (["--target", "0.1deg"], "--target needs a rotation and a translation"),
     (["--target", "fast"], "--target expects a rotation and a translation"),
     (["--workspace", "1,2,3"], "--workspace expects six numbers"),
-    (["--board", "chessboard:9x6:25mm"], "--camera-intrinsics and --board go together"),
+    (["--board", "chessboard:9x6:25mm"], "--intrinsics and --board go together"),
+    (["--camera-intrinsics", "camera.yaml"], "--intrinsics and --board go together"),  # the older name
     (["--match", "time"], "invalid choice"),
     (["--problem", "axbycz"], "--problem 'axbycz' cannot plan stations"),
 ])

@@ -7,7 +7,7 @@ seconds, and prints one line per new station: its name, how many stations are in
 1-sigma of each unknown (rotation deg, translation in the robot's unit; the noise estimated from
 the residuals from 8 stations on, before that the expected noise), ``enough`` once every 1-sigma
 is within ``--target``, a station that disagrees with the others (left out of the answer), and,
-with ``--camera-intrinsics`` and ``--board``, the next robot poses to record, in the robot file's
+with ``--intrinsics`` and ``--board``, the next robot poses to record, in the robot file's
 format (``--next-out FILE`` also writes them as a pose file for the robot program).
 
 Stations pair by row (row k of both files, as far as both go) or by name (``--match name``).
@@ -93,15 +93,16 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--target", metavar="ROT,TRANS",
                         help="the 1-sigma to reach, e.g. 0.1deg,0.5mm: the line says 'enough' once every unknown is "
                              "within it")
-    parser.add_argument("--camera-intrinsics", metavar="FILE",
-                        help="camera intrinsics with the image size (OpenCV YAML/XML/JSON, ROS camera_info): with "
-                             "--board, the camera's expected noise and the next poses to record")
+    parser.add_argument("--intrinsics", "--camera-intrinsics", dest="camera_intrinsics", metavar="FILE",
+                        help="camera intrinsics with the image size (OpenCV YAML/XML/JSON, ROS camera_info), as "
+                             "plan and calibrate take them: with --board, the camera's expected noise and the next "
+                             "poses to record")
     parser.add_argument("--board", metavar="SPEC", help="the calibration board, e.g. chessboard:9x6:25mm "
                                                         "(docs/boards.md)")
     parser.add_argument("--pixel-noise", type=float, default=Noise().pixel, metavar="PX",
                         help=f"expected noise of the board's corners, pixels (default {Noise().pixel:g})")
     parser.add_argument("--camera-noise", metavar="ROT,TRANS",
-                        help="without --camera-intrinsics and --board: the expected noise of a camera pose per axis, "
+                        help="without --intrinsics and --board: the expected noise of a camera pose per axis, "
                              "e.g. 0.05deg,0.3mm (else the 1-sigma is printed from 8 stations on)")
     parser.add_argument("--suggest", type=int, default=3, metavar="K",
                         help="how many next poses to suggest (default 3; 0: none)")
@@ -131,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
     if args.problem is not None and args.problem not in planners():
         raise InputError(f"--problem {args.problem!r} cannot plan stations; problems that can: {', '.join(planners())}")
     if (args.camera_intrinsics is None) != (args.board is None):
-        raise InputError("--camera-intrinsics and --board go together (the expected noise of the camera poses and "
+        raise InputError("--intrinsics and --board go together (the expected noise of the camera poses and "
                          "the next poses need both)")
     target = None if args.target is None else parse_pair(args.target, "--target")
     camera_noise = None if args.camera_noise is None else parse_pair(args.camera_noise, "--camera-noise")
@@ -143,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
 
         camera, board = load_camera(args.camera_intrinsics), parse_board(args.board)
         if camera.size is None:
-            raise InputError(f"--camera-intrinsics {args.camera_intrinsics!r} has no image size (width, height): the "
+            raise InputError(f"--intrinsics {args.camera_intrinsics!r} has no image size (width, height): the "
                              "next poses must keep the board inside the image")
     source = PoseFilePair(
         PoseStream(args.robot, args.robot_format, args.robot_unit, args.robot_columns, args.robot_topic),
