@@ -92,6 +92,27 @@ def add_time_limit_flag(parser: argparse.ArgumentParser) -> None:
                              "plugin's; 0: no limit")
 
 
+def add_detection_flags(parser: argparse.ArgumentParser) -> None:
+    """``--workers N`` and ``--no-cache``: how the commands that detect boards in images do it
+    (`detection_options`; the library's ``workers=`` and ``cache=``, docs/images.md "Speed")."""
+    parser.add_argument("--workers", type=int, metavar="N",
+                        help="images: detect the boards on N threads (default: the cores, or HANDEYE_WORKERS); 1 "
+                             "detects one image at a time")
+    parser.add_argument("--no-cache", action="store_true", default=None,  # None when not given, as every flag
+                        help="images: detect every board afresh, neither reading nor writing the detection cache "
+                             "(default: detections of images seen before are read from it; HANDEYE_CACHE_DIR, "
+                             "HANDEYE_NO_CACHE=1)")
+
+
+def detection_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The library's ``workers`` and ``cache`` arguments of ``--workers`` and ``--no-cache``
+    (None: the environment's defaults). InputError for ``--workers`` below 1."""
+    workers = getattr(args, "workers", None)
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers takes the number of detection threads, at least 1; got {workers}")
+    return {"workers": workers, "cache": False if getattr(args, "no_cache", False) else None}
+
+
 def time_limit(args: argparse.Namespace, problem: str, solver: str) -> float | None:
     """The time limit of a solve, in seconds or None, from ``--time-limit`` and who provides the
     solver (`PLUGIN_TIME_LIMIT` for a third party's, so that a hanging plugin cannot hang the

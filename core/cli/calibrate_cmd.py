@@ -26,7 +26,10 @@ Board images instead of a camera file: ``--images DIR --board SPEC [--intrinsics
 the board in each image, calibrates the camera from the same images without ``--intrinsics``,
 solves the board poses and pairs them with the robot poses (``--match index|name|time``); an
 image that fails is dropped with its robot pose (docs/images.md). ``--robot`` may also be a
-folder of one pose file per station (ROS-Industrial's ``poses/N.yaml``).
+folder of one pose file per station (ROS-Industrial's ``poses/N.yaml``). The images (one camera's
+or several cameras') are detected on ``--workers`` threads (default: the cores), and detections of
+images seen before are read from the detection cache (``~/.cache/handeye/detections``; not with
+``--no-cache``), so a rerun with other options does not detect again.
 
 What is solved (docs/conventions.md): ``--problem axyb`` (default) finds both unknowns from the
 stations, eye-in-hand X = T_flange_cam and Y = T_base_target, eye-to-hand X = T_flange_target and
@@ -86,10 +89,12 @@ from handeye.cli import _facts
 from handeye.cli._cell_flags import cell_words, flag_settings, merged
 from handeye.cli._common import (
     _plain,
+    add_detection_flags,
     add_force_flag,
     add_time_limit_flag,
     check_new_file,
     check_outputs_apart,
+    detection_options,
     dump_json,
     format_pose,
     in_cli_words,
@@ -243,6 +248,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--no-checks", action="store_true", default=None,
                         help="skip the plausibility checks (residuals against the cell's noise, the usual setup "
                              "mistakes, duplicated stations, too few stations; docs/calibrate.md)")
+    add_detection_flags(parser)
     add_force_flag(parser)
     add_time_limit_flag(parser)
     parser.set_defaults(run=run)
@@ -266,6 +272,7 @@ def cell_of(args: argparse.Namespace) -> Cell:
 
 
 def run(args: argparse.Namespace) -> int:
+    detecting = detection_options(args)
     cell = cell_of(args)
     if cell.observations is not None:  # several cameras and targets: the tables of observations
         inputs = [cell.robot.file, *(p for s in cell.observations for p in (s.file, s.images, s.intrinsics)),
@@ -295,7 +302,7 @@ def run(args: argparse.Namespace) -> int:
         if stage == "images" or args.json:
             print(text, file=log_to)
 
-    result = calibrate(cell, log=log)
+    result = calibrate(cell, log=log, **detecting)
     r = result.to_dict()
     r["warnings"] = [cell_words(w) for w in r["warnings"]]  # the cell's settings as flags; else as the library says
     written = [] if not result.usable else _write(r, out.json, out.yaml, args.force)
@@ -345,14 +352,20 @@ def _write(result: dict[str, Any], json_path: str | None, yaml_path: str | None,
 
 
 def _scale_sensitivity(diagnostics: dict[str, Any], name: str, sigma: float, unit: str) -> list[str]:
-    """A line saying how far a camera scale 0.1% off (a board size or focal length a little wrong)
-    would move the unknown `name`, where that exceeds its 1-sigma `sigma`: the 1-sigma takes the
-    camera's scale as exact (self-check 5, docs/camera-scale.md)."""
+    """Lines saying how far a camera scale 0.1% off (a board size or focal length a little wrong),
+    and a given focal length 0.1% off, would move the unknown `name`, where that exceeds its
+    1-sigma `sigma`, which takes them as exact (self-check 5, docs/camera-scale.md; docs/images.md)."""
+    lines = []
     shift = ((diagnostics.get("self_check") or {}).get("camera_scale") or {}).get("per_permille", {}).get(name)
-    if shift is None or not shift > sigma:
-        return []
-    return [f"  a camera scale 0.1% off (board size, focal length) would move it by {shift:.3g} {unit}, "
-            f"{shift / sigma:.2g}x its 1-sigma, which takes the scale as exact"]
+    if shift is not None and shift > sigma:
+        lines.append(f"  a camera scale 0.1% off (board size, focal length) would move it by {shift:.3g} {unit}, "
+                     f"{shift / sigma:.2g}x its 1-sigma, which takes the scale as exact")
+    # intrinsics given (not calibrated here, where their uncertainty is in the 1-sigma already)
+    focal = (diagnostics.get("focal_per_permille") or {}).get(name)
+    if focal is not None and focal > sigma and "intrinsics_effect" not in diagnostics:
+        lines.append(f"  a focal length 0.1% off would move it by {focal:.3g} {unit}, {focal / sigma:.2g}x its "
+                     "1-sigma, which takes the given intrinsics as exact")
+    return lines
 
 
 def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: dict[str, Any]) -> str:

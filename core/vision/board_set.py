@@ -9,23 +9,33 @@ two would be found at each other's place, or a larger grid's corners read as a s
 `detect_boards(image, boards)` runs the detector of every board on the image and returns the
 detections found and, for the others, why each was not found (one line each: not in the image,
 too few points, ...), so the caller can report every (image, board) left out.
+
+`detect_board_files(files, boards, camera)` does so for one camera's folder of images as fast as
+one camera's image set is detected: per board, `handeye.vision.detection_plan.detect_set` (the
+images over the cores, the detection cache, and for a chessboard the flag-set plan, judged on
+this camera's images only: a camera's images are alike, another camera's need not be), so that a
+rerun of a cell of several cameras with other options reads every detection from the cache.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from handeye.framework.errors import InputError
 from handeye.vision.boards import APRILGRID_DICTIONARY, Board
+from handeye.vision.observations import Camera
 
 #: kinds without marker ids: found by their pattern alone
 WITHOUT_IDS = ("chessboard", "circles", "circlegrid")
 
 Detector = Callable[[np.ndarray, Board], Any]
+#: how `handeye.vision.image_detection.Outcome.reason` begins for a board not found
+_NOT_FOUND = "board not found: "
 
 
 @dataclasses.dataclass(frozen=True)
@@ -35,6 +45,11 @@ class BoardsFound:
 
     found: dict[str, Any]
     missing: dict[str, str]
+
+
+#: what one image of a camera's folder gave: its size (width, height) and the boards in it, or the
+#: InputError that makes it unreadable
+ImageBoards = tuple[tuple[int, int], BoardsFound] | InputError
 
 
 def _family(board: Board) -> str:
@@ -78,3 +93,45 @@ def detect_boards(image: np.ndarray, boards: Mapping[str, Board], detector: Dete
         except InputError as exc:
             missing[name] = str(exc)
     return BoardsFound(found, missing)
+
+
+def detect_board_files(files: Sequence[Path], boards: Mapping[str, Board], camera: Camera | None = None, *,
+                       workers: int | None = None, cache: bool | str | Path | None = None,
+                       detector: Detector | None = None) -> list[ImageBoards]:
+    """Per file of one camera, in order: ``(size, BoardsFound)``, or the InputError that makes it
+    unreadable (module docstring). camera: its intrinsics, if given (a chessboard's plan is judged
+    with them); workers: detection threads (default: the cores, `HANDEYE_WORKERS`); cache: None /
+    True the environment's detection cache, False none, a folder that one; detector: ``(image,
+    board) -> Detection`` instead of the built-in ones, run one image at a time, never cached."""
+    files = [Path(f) for f in files]
+    if detector is not None:
+        from handeye.vision.detection_pool import map_in_order
+
+        return map_in_order(lambda path: _detect_image(path, boards, detector), files, 1)
+    from handeye.vision.detection_plan import detect_set
+
+    per_board = {name: detect_set(files, board, camera, workers=workers, cache=cache)
+                 for name, board in boards.items()}
+    out: list[ImageBoards] = []
+    for k in range(len(files)):
+        outcomes = {name: found[k] for name, found in per_board.items()}
+        unreadable = next((o for o in outcomes.values() if not o.readable), None)
+        if unreadable is not None:
+            out.append(InputError(str(unreadable.reason)))
+            continue
+        size = next(iter(outcomes.values())).size
+        out.append((size, BoardsFound({n: o.detection for n, o in outcomes.items() if o.detection is not None},
+                                      {n: str(o.reason).removeprefix(_NOT_FOUND) for n, o in outcomes.items()
+                                       if o.detection is None})))
+    return out
+
+
+def _detect_image(path: Path, boards: Mapping[str, Board], detector: Detector) -> ImageBoards:
+    """One image's (size, boards found) with `detector`, or the InputError that makes it unreadable."""
+    from handeye.vision.image_files import read_any, to_8bit
+
+    try:
+        image = to_8bit(read_any(path), path.name)
+    except InputError as exc:
+        return exc
+    return (image.shape[1], image.shape[0]), detect_boards(image, boards, detector)

@@ -8,16 +8,23 @@ board) was left out. The images of a cell of several cameras and targets (``axyb
 1. lists the images and pairs them with the robot's stations as the single-camera image path
    does (`handeye.vision.image_set.pair_images`: ``index``, ``name`` or ``time``), before anything
    can fail, so that an image left out never shifts the others;
-2. reads each image and looks for every board in it (`handeye.vision.board_set.detect_boards`),
-   keeping per board and image the detector whose corners fit the camera best
-   (`handeye.vision.best_corners.choose`, as for one camera's images);
+2. reads each image and looks for every board in it (`handeye.vision.board_set.detect_board_files`:
+   over the cores, from the detection cache, a chessboard's flag-set plan judged on this camera's
+   images, as one camera's image set is detected), keeping per board and image the detector whose
+   corners fit the camera best (`handeye.vision.best_corners.choose`, as for one camera's images);
    an unreadable image or one of another size than most is dropped whole; a board not found, or
    found with fewer points than its detector needs, is dropped for that image only, with the
    detector's reason;
 3. without intrinsics, calibrates the camera from every board found (each a view);
 4. solves each board's pose by PnP (`handeye.vision.camera_poses.board_pose`, in the robot's
    unit) and drops a pose whose reprojection error is far above the camera's others (`flag_outliers`:
-   a wrong detection, blur, a moved board), with a note, recalibrating intrinsics calibrated here.
+   a wrong detection, blur, a moved board), with a note, recalibrating intrinsics calibrated here;
+5. as for one camera's images (`handeye.vision.intrinsics_check`): intrinsics calibrated here get
+   the larger of OpenCV's 1-sigma and a delete-one jackknife's over the images (`with_jackknife`,
+   an image's boards left out together); intrinsics given have their focal length checked against
+   the camera calibrated from the same corners (`focal_check`), with the warning where the images
+   contradict it (`focal_warning`). The corners are kept (`CameraObservations.detections`) for
+   what the answer's uncertainty needs of them (`handeye.workflow.observation_images`).
 
 InputError (one line) only when nothing usable remains or the input cannot apply (no folder,
 pairing impossible, intrinsics for another image size).
@@ -35,12 +42,11 @@ import numpy as np
 from handeye.framework.errors import InputError
 from handeye.io.pose_readers import PoseStack
 from handeye.vision.best_corners import choose
-from handeye.vision.board_set import Detector, check_distinct, detect_boards
+from handeye.vision.board_set import Detector, check_distinct, detect_board_files
 from handeye.vision.boards import UNITS, Board
 from handeye.vision.camera_poses import board_pose, flag_outliers
-from handeye.vision.detection_pool import map_in_order
-from handeye.vision.image_files import read_any, to_8bit
 from handeye.vision.image_set import (
+    INTRINSICS_CHECK_VIEWS,
     Dropped,
     _majority_size,
     list_images,
@@ -48,6 +54,12 @@ from handeye.vision.image_set import (
     pose_names,
 )
 from handeye.vision.intrinsics import CameraCalibration, calibrate_camera
+from handeye.vision.intrinsics_check import (
+    FocalCheck,
+    focal_check,
+    focal_warning,
+    with_jackknife,
+)
 from handeye.vision.observations import Camera
 
 
@@ -58,8 +70,11 @@ class CameraObservations:
     stack), target[k] (the board's name), T_cam_target[k] (4x4, translations in `unit`),
     errors[k] (RMS reprojection error at that pose, px), points[k] (points detected); dropped:
     every image or (image, board) left out, with why; camera: the intrinsics used (calibration:
-    their calibration here, None when given); images: how many images the folder holds; note: the
-    pairing in words; warnings: what the caller must print."""
+    their calibration here, its 1-sigma widened by the jackknife, None when given); images: how
+    many images the folder holds; note: the pairing in words; warnings: what the caller must
+    print; detections[k]: the corners (``image_points``, px, and ``object_points``, in the
+    board's own unit); focal_check: given intrinsics' focal length against the images' own
+    (None when calibrated here, or too few images to say)."""
 
     image: tuple[str, ...]
     station: tuple[str, ...]
@@ -75,6 +90,8 @@ class CameraObservations:
     images: int
     note: str
     warnings: tuple[str, ...] = ()
+    detections: tuple[Any, ...] = ()
+    focal_check: FocalCheck | None = None
 
     def __len__(self) -> int:
         return len(self.image)
@@ -82,12 +99,15 @@ class CameraObservations:
 
 def camera_observations(folder: str | Path, boards: Mapping[str, Board], camera: Camera | None, *,
                         robot: PoseStack, match: str = "index", max_dt: float | None = None,
-                        unit: str | None = None, detector: Detector | None = None) -> CameraObservations:
+                        unit: str | None = None, detector: Detector | None = None, workers: int | None = None,
+                        cache: bool | str | Path | None = None) -> CameraObservations:
     """The observations of the images in `folder` (module docstring). boards: the targets this
     camera may see, by name; camera: its intrinsics, or None to calibrate them from the boards
     found; robot: the stations' robot poses; match / max_dt: how images pair with them; unit: the
     poses' length unit (default the robot's); detector: ``(image, board) -> Detection`` (called on
-    one image at a time; the built-in detectors run on several threads)."""
+    one image at a time, never cached; the built-in detectors run on `workers` threads, default the
+    cores, their detections kept in the detection cache: `cache` None / True the environment's,
+    False none, a folder that one, as `handeye.vision.image_set.images_and_poses`)."""
     if not boards:
         raise InputError("a camera's images need at least one target (board) to look for")
     check_distinct(boards)
@@ -101,8 +121,7 @@ def camera_observations(folder: str | Path, boards: Mapping[str, Board], camera:
     used = [files[i] for i in pairing.image_rows]
     rows = [int(r) for r in pairing.robot_rows]
     found, sizes = [], []
-    # the images on several threads with the built-in detectors; a detector of the caller's one at a time
-    outcomes = map_in_order(lambda p: _detect_image(p, boards, detector), used, None if detector is None else 1)
+    outcomes = detect_board_files(used, boards, camera, workers=workers, cache=cache, detector=detector)
     for k, (path, outcome) in enumerate(zip(used, outcomes)):
         if isinstance(outcome, InputError):
             dropped.append(Dropped(path.stem, names[rows[k]], str(outcome).removeprefix(f"{path.name}: ")))
@@ -162,6 +181,14 @@ def camera_observations(folder: str | Path, boards: Mapping[str, Board], camera:
         views = [v for v in kept if v not in {o for o, _ in outliers}]
         if not views:
             raise InputError(f"no usable board pose left in the images of {str(folder)!r}: {(bad + outliers)[0][1]}")
+    detections = tuple(found[k][n] for k, n in views)
+    stems = [used[k].stem for k, _ in views]  # an image's boards leave the jackknife together
+    check = None
+    if calibration is not None:
+        calibration = with_jackknife(calibration, detections, size, stems)
+    elif len(set(stems)) >= INTRINSICS_CHECK_VIEWS:  # as one camera's images check a file (image_set)
+        check = focal_check(detections, camera_used, size, images=stems)
+        warnings += [w for w in [focal_warning(check)] if w]
     T = np.array(poses, dtype=float).reshape(-1, 4, 4)
     T.setflags(write=False)
     return CameraObservations(
@@ -170,7 +197,7 @@ def camera_observations(folder: str | Path, boards: Mapping[str, Board], camera:
         T_cam_target=T, errors=np.array(errors, dtype=float),
         points=np.array([len(found[k][n]) for k, n in views], dtype=np.int64), dropped=tuple(dropped),
         camera=camera_used, calibration=calibration, unit=unit, images=len(files), note=pairing.note,
-        warnings=tuple(warnings))
+        warnings=tuple(warnings), detections=detections, focal_check=check)
 
 
 def summary(name: str, folder: Any, obs: CameraObservations) -> list[str]:
@@ -185,16 +212,15 @@ def summary(name: str, folder: Any, obs: CameraObservations) -> list[str]:
     if obs.calibration is not None:
         cal = obs.calibration
         K = cal.camera.K
+        std = cal.std_fx_fy_cx_cy
         lines.append(f"  intrinsics calibrated from {len(cal.per_image_rms)} board views ({cal.model}): RMS "
-                     f"{cal.rms:.3f} px, fx {K[0, 0]:.2f} fy {K[1, 1]:.2f} cx {K[0, 2]:.2f} cy {K[1, 2]:.2f}")
+                     f"{cal.rms:.3f} px, fx {K[0, 0]:.2f} +- {std[0]:.2f} fy {K[1, 1]:.2f} +- {std[1]:.2f} "
+                     f"cx {K[0, 2]:.2f} +- {std[2]:.2f} cy {K[1, 2]:.2f} +- {std[3]:.2f} px (1-sigma"
+                     + ("" if cal.opencv_std is None else ", the larger of OpenCV's and a jackknife's over the images")
+                     + ")")
+    elif obs.focal_check is not None:
+        c = obs.focal_check
+        lines.append(f"  intrinsics file's focal length fx {c.given[0]:.2f} fy {c.given[1]:.2f} px; calibrated from these "
+                     f"{c.views} images: fx {c.own[0]:.2f} fy {c.own[1]:.2f} +- {c.std[0]:.2f} px (1-sigma); the file "
+                     f"{c.percent:+.2f}%, {c.sigmas:+.1f} of that 1-sigma")
     return lines
-
-
-def _detect_image(path: Path, boards: Any, detector: Any) -> tuple[tuple[int, int], Any] | InputError:
-    """One image's (size, boards found) or the InputError that makes it unreadable: the work item
-    the detecting threads run (`handeye.vision.detection_pool.map_in_order`)."""
-    try:
-        image = to_8bit(read_any(path), path.name)
-    except InputError as exc:
-        return exc
-    return (image.shape[1], image.shape[0]), detect_boards(image, boards, detector)

@@ -51,6 +51,7 @@ from handeye.vision.boards import UNITS, Board
 from handeye.vision.camera_poses import board_pose, flag_outliers
 from handeye.vision.image_files import depth_name, read_any, read_image, to_8bit  # noqa: F401 (re-exported)
 from handeye.vision.intrinsics import CameraCalibration, calibrate_camera
+from handeye.vision.intrinsics_check import focal_check, focal_warning, with_jackknife
 from handeye.vision.observations import BoardObservations, Camera
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
@@ -435,37 +436,50 @@ def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, ca
         keep = [k for k in keep if k not in {b for b, _ in bad}]
         if not keep:
             raise InputError(f"no usable image left: {bad[0][1]}")
-    if calibration is None:
-        warnings += _intrinsics_check([found[k] for k in keep], np.array(errors), size)
+    focal = None  # the images' own focal length against given intrinsics (`_intrinsics_check`)
+    if calibration is not None:  # its 1-sigma as a jackknife over the images finds it, where larger than OpenCV's
+        calibration = with_jackknife(calibration, [found[k] for k in keep], size)
+    else:
+        checked, focal = _intrinsics_check([found[k] for k in keep], np.array(errors), size, camera_used)
+        warnings += checked
     kept_names = tuple(files_used[k].stem for k in keep)
     T = np.array(poses)
     T.setflags(write=False)
     observations = BoardObservations(tuple(found[k].image_points for k in keep),
                                      tuple(found[k].object_points * scale for k in keep), camera_used, setup,
                                      kept_names, intrinsics_std=None if calibration is None else
-                                     tuple(float(v) for v in calibration.std_fx_fy_cx_cy))
+                                     tuple(float(v) for v in calibration.std_fx_fy_cx_cy),
+                                     focal_check=focal)
     rows = None if robot is None else np.array([robot_rows[k] for k in keep], dtype=np.intp)
     return ImageSet(kept_names, tuple(str(files_used[k]) for k in keep), T, observations, np.array(errors), rows,
                     None if rows is None else tuple(robot_names[r] for r in rows), tuple(dropped), camera_used,
                     calibration, unit, None if robot is None else pairing.method, pairing.note, tuple(warnings))
 
 
-def _intrinsics_check(detections: Sequence[Any], errors: np.ndarray, size: tuple[int, int] | None) -> list[str]:
-    """A warning when the given intrinsics fit the images clearly worse than intrinsics calibrated
-    from the same images would: pooled PnP RMS more than `INTRINSICS_MISFIT` x the calibration's
-    and `INTRINSICS_MISFIT_PX` px above it (e.g. a lens with distortion the file does not list).
-    The calibration's extra parameters alone lower its RMS by a few per cent only."""
+def _intrinsics_check(detections: Sequence[Any], errors: np.ndarray, size: tuple[int, int] | None,
+                      camera: Camera) -> tuple[list[str], Any]:
+    """Warnings when the given intrinsics disagree with intrinsics calibrated from the same images:
+    they fit the images clearly worse (pooled PnP RMS more than `INTRINSICS_MISFIT` x the
+    calibration's and `INTRINSICS_MISFIT_PX` px above it, e.g. a lens with distortion the file
+    does not list; the calibration's extra parameters alone lower its RMS by a few per cent only),
+    or their focal length is off by more than the images' own uncertainty allows
+    (`handeye.vision.intrinsics_check`: a focal length off barely changes the fit, PnP absorbs it
+    into the distance, yet moves the answer). Also that focal-length check itself, or None."""
+
     if size is None or len(detections) < INTRINSICS_CHECK_VIEWS:
-        return []
+        return [], None
     try:
         own = calibrate_camera(detections, size)
     except InputError:
-        return []
+        return [], None
+    out = []
     counts = np.array([len(d.image_points) for d in detections], dtype=float)
     given = float(np.sqrt(np.sum(errors**2 * counts) / np.sum(counts)))
     if given > INTRINSICS_MISFIT * own.rms and given - own.rms > INTRINSICS_MISFIT_PX:
-        return [f"the given intrinsics fit the images worse than intrinsics calibrated from them "
-                f"({given:.2f} px against {own.rms:.2f} px RMS; calibrated distortion "
-                f"{' '.join(f'{v:.3g}' for v in own.camera.dist)}): check the intrinsics file (a lens "
-                "distortion it does not list?) or leave out --intrinsics to calibrate the camera from these images"]
-    return []
+        out.append(f"the given intrinsics fit the images worse than intrinsics calibrated from them "
+                   f"({given:.2f} px against {own.rms:.2f} px RMS; calibrated distortion "
+                   f"{' '.join(f'{v:.3g}' for v in own.camera.dist)}): check the intrinsics file (a lens "
+                   "distortion it does not list?) or leave out --intrinsics to calibrate the camera from these images")
+    check = focal_check(detections, camera, size, own)
+    focal = focal_warning(check)
+    return out + ([focal] if focal else []), check

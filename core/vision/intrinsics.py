@@ -59,13 +59,17 @@ class PointsOfImage(Protocol):
 @dataclasses.dataclass(frozen=True)
 class CameraCalibration:
     """The result of `calibrate_camera`: the camera, the RMS reprojection error of each image and
-    of all points (pixels), 1-sigma of fx, fy, cx, cy (pixels) from OpenCV, and the model used."""
+    of all points (pixels), 1-sigma of fx, fy, cx, cy (pixels) from OpenCV, and the model used.
+    `opencv_std`: OpenCV's own 1-sigma where `std_fx_fy_cx_cy` was widened by a jackknife over
+    the images (`handeye.vision.intrinsics_check.with_jackknife`: OpenCV's is too small on real
+    images), else None."""
 
     camera: Camera
     per_image_rms: np.ndarray
     rms: float
     std_fx_fy_cx_cy: np.ndarray
     model: str
+    opencv_std: np.ndarray | None = None
 
     def __iter__(self):  # (camera, per-image RMS, overall RMS), as the function's documented triple
         return iter((self.camera, self.per_image_rms, self.rms))

@@ -67,6 +67,9 @@ class BoardObservations:
     #: (`handeye.vision.intrinsics.CameraCalibration`); None: given apart, taken as exact. A fit
     #: to the corners owes them part of its uncertainty (the `reprojection` solver adds it)
     intrinsics_std: tuple[float, float, float, float] | None = None
+    #: where the intrinsics were given apart: the images' own focal length against theirs
+    #: (`handeye.vision.intrinsics_check.FocalCheck`), or None (not checked: too few images)
+    focal_check: Any = None
 
     def __post_init__(self) -> None:
         if self.setup not in SETUPS:

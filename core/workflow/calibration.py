@@ -25,6 +25,7 @@ a solver failure raises `handeye.SolverError`. An unusable answer (``not_converg
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 from handeye.checks.plausibility import Streams, check
 from handeye.framework.api import solve
@@ -44,33 +45,44 @@ from handeye.workflow.solving import (
     image_solver,
     measured_data,
     pose_based_instead,
+    pose_based_intrinsics,
     time_limit,
 )
 from handeye.workflow.stations import Log, pose_stations, reliable, take
 
 
-def calibrate(cell: Cell, *, log: Log | None = None) -> CalibrationResult:
+def calibrate(cell: Cell, *, log: Log | None = None, workers: int | None = None,
+              cache: bool | str | Path | None = None) -> CalibrationResult:
     """Calibrate `cell` (module docstring) and return the `CalibrationResult`.
 
     log: called as ``log(stage, text)`` with what the pairing found as soon as it is known
     (``"images"``: the images' summary; ``"matching"``: how the stations were matched), for a
     caller that shows progress; the same is in the result.
+    workers, cache: how board images are detected, one camera's or several cameras' (they change
+    the time, never the answer): `workers` threads (default the cores, or `HANDEYE_WORKERS`);
+    `cache` None / True the detection cache of the environment (`HANDEYE_CACHE_DIR`,
+    `HANDEYE_NO_CACHE`), False none, a folder that one (docs/images.md, "Speed").
     """
     if not isinstance(cell, Cell):
         raise InputError(f"calibrate expects a handeye.Cell (e.g. handeye.Cell.from_file('cell.yaml')), got "
                          f"{type(cell).__name__}")
+    if workers is not None:  # refused before anything is read
+        from handeye.vision.detection_pool import check_workers
+
+        check_workers(workers)
     if cell.joints is not None:  # joint readings and the arm's DH table: a kinematic calibration
         from handeye.workflow.joint_cell import calibrate_joints
 
-        return calibrate_joints(cell, log)
+        return calibrate_joints(cell, log, workers=workers, cache=cache)
     if cell.observations is not None:  # several cameras and targets: tables of observations
         from handeye.workflow.observation_cell import calibrate_observations
 
-        result = calibrate_observations(cell, log)
+        result = calibrate_observations(cell, log, workers=workers, cache=cache)
         if log is not None:
             log("matching", result.stations.matching["message"])
         return result
-    stations = image_stations(cell, log) if cell.images is not None else pose_stations(cell, log)
+    stations = (image_stations(cell, log, workers=workers, cache=cache) if cell.images is not None
+                else pose_stations(cell, log))
     robot = stations.robot
     warnings = list(stations.warnings)
     invert = cell.camera is not None and cell.camera.poses == "camera-in-board"
@@ -98,6 +110,8 @@ def calibrate(cell: Cell, *, log: Log | None = None) -> CalibrationResult:
         solver = default_solver(cell.problem)
         solution = solve(cell.problem, solver=solver, **pose_file.data, **facts, **options)
         warnings.append(instead)
+    if images is not None:  # the intrinsics' own uncertainty in a pose-based answer's 1-sigma
+        solution = pose_based_intrinsics(solution, images, robot.poses, cell, facts, options)
 
     problem = get_registry().problem(cell.problem)
     residuals = problem.residuals(measured_data(problem, solution, pose_file.data, facts), solution.unknowns)

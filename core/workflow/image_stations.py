@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -28,10 +29,12 @@ from handeye.workflow.reading import read_stream
 from handeye.workflow.stations import Dropped, Log, Stations, take
 
 
-def image_stations(cell: Cell, log: Log | None = None, robot: PoseStack | None = None) -> Stations:
+def image_stations(cell: Cell, log: Log | None = None, robot: PoseStack | None = None, *,
+                   workers: int | None = None, cache: bool | str | Path | None = None) -> Stations:
     """The stations of the cell's images (module docstring); `log` gets `summary_lines` as soon as
     the images are done (``"images"``); `robot`: the robot's poses when not read from the cell's
-    robot file (a kinematic calibration's forward kinematics of the joint readings)."""
+    robot file (a kinematic calibration's forward kinematics of the joint readings); `workers`
+    (detection threads) and `cache` (the detection cache) as `images_and_poses` takes them."""
     from handeye.vision.boards import parse_board
     from handeye.vision.image_set import images_and_poses
     from handeye.vision.intrinsics import load_camera_of
@@ -46,7 +49,7 @@ def image_stations(cell: Cell, log: Log | None = None, robot: PoseStack | None =
     try:
         images = images_and_poses(spec.folder, board, camera, setup=cell.setup, robot=robot,
                                   match=IMAGE_MATCHES[cell.matching.method], max_dt=cell.matching.max_dt,
-                                  unit=robot.unit)
+                                  unit=robot.unit, workers=workers, cache=cache)
     except InputError as exc:
         raise InputError(re.sub(r"\bmatch='(\w+)'", r"`matching.method: \1`", str(exc))) from None
     poses = np.array(images.T_cam_target)
@@ -81,7 +84,9 @@ def summary_lines(cell: Cell, board: Any, images: Any) -> list[str]:
         std = cal.std_fx_fy_cx_cy
         lines += [f"camera calibrated from {len(cal.per_image_rms)} images ({cal.model}): RMS {cal.rms:.3f} px",
                   (f"  fx {K[0, 0]:.2f} +- {std[0]:.2f}, fy {K[1, 1]:.2f} +- {std[1]:.2f}, cx {K[0, 2]:.2f} +- "
-                   f"{std[2]:.2f}, cy {K[1, 2]:.2f} +- {std[3]:.2f} px (1-sigma)"),
+                   f"{std[2]:.2f}, cy {K[1, 2]:.2f} +- {std[3]:.2f} px (1-sigma"
+                   + ("" if cal.opencv_std is None else ", the larger of OpenCV's and a jackknife's over the images")
+                   + ")"),
                   "  K " + np.array2string(K, precision=3, suppress_small=True).replace("\n", ""),
                   "  dist (k1, k2, p1, p2, k3) " + " ".join(f"{v:.6g}" for v in cal.camera.dist)]
     return lines
@@ -103,13 +108,16 @@ def intrinsics_entry(cam: Any, calibration: Any, given: str | None) -> dict[str,
     """A camera's intrinsics as the result's ``camera`` entry: K, dist, image_size, source (the
     intrinsics file `given`, else ``calibrated``) and, when calibrated from the images
     (`calibration`, a `handeye.vision.intrinsics.CameraCalibration`), the model, the RMS
-    reprojection error and the 1-sigma of fx, fy, cx, cy (px)."""
+    reprojection error and the 1-sigma of fx, fy, cx, cy (px), and OpenCV's own where a
+    jackknife over the images widened it."""
     entry: dict[str, Any] = {"K": cam.K.tolist(), "dist": cam.dist.tolist(),
                              "image_size": None if cam.size is None else list(cam.size),
                              "source": given or "calibrated"}
     if calibration is not None:
         entry.update({"model": calibration.model, "rms_px": calibration.rms,
                       "std_px": dict(zip(("fx", "fy", "cx", "cy"), calibration.std_fx_fy_cx_cy.tolist()))})
+        if calibration.opencv_std is not None:  # std_px widened by a jackknife over the images
+            entry["opencv_std_px"] = dict(zip(("fx", "fy", "cx", "cy"), calibration.opencv_std.tolist()))
     return entry
 
 

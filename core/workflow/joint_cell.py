@@ -74,15 +74,17 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def calibrate_joints(cell: Cell, log: Log | None = None) -> CalibrationResult:
-    """Calibrate a cell of joint readings (module docstring); `log` as `handeye.calibrate`'s."""
+def calibrate_joints(cell: Cell, log: Log | None = None, *, workers: int | None = None,
+                     cache: Any = None) -> CalibrationResult:
+    """Calibrate a cell of joint readings (module docstring); `log`, `workers` and `cache` (how
+    board images are detected) as `handeye.calibrate`'s."""
     arm, joints = read_inputs(cell)
     unit = arm.unit
     robot_file = PoseStack(_frozen(arm.forward(joints.q)), unit, "matrix", joints.names, joints.stamps,
                            None, str(cell.joints.file))
     try:
-        stations = (image_stations(cell, log, robot=robot_file) if cell.images is not None
-                    else pose_stations(cell, log, robot_file=robot_file))
+        stations = (image_stations(cell, log, robot=robot_file, workers=workers, cache=cache)
+                    if cell.images is not None else pose_stations(cell, log, robot_file=robot_file))
     except InputError as exc:
         raise InputError(str(exc).replace("`robot` ", "`joints` ")) from None
     q = joints.q[stations.robot_rows]

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -44,7 +45,7 @@ from handeye.io.observation_tables import (
 )
 from handeye.io.pose_readers import PoseStack, natural_key
 from handeye.workflow.cell import Cell, ObservationStream
-from handeye.workflow.observation_images import image_tables, intrinsics_entries
+from handeye.workflow.observation_images import image_tables, intrinsics_entries, with_intrinsics
 from handeye.workflow.reading import in_cell_words, read_stream
 from handeye.workflow.result import CalibrationResult
 from handeye.workflow.solving import default_solver, measured_data, time_limit
@@ -97,9 +98,11 @@ def station_rows(robot: PoseStack, stations: tuple[str, ...], where: tuple[str, 
     return np.array(rows, dtype=np.int64)
 
 
-def calibrate_observations(cell: Cell, log: Log | None = None) -> CalibrationResult:
+def calibrate_observations(cell: Cell, log: Log | None = None, *, workers: int | None = None,
+                           cache: bool | str | Path | None = None) -> CalibrationResult:
     """Calibrate a cell of tables of observations (module docstring); `log` gets the cameras'
-    images' summary (``"images"``) as soon as they are done."""
+    images' summary (``"images"``) as soon as they are done; `workers` and `cache`: how the
+    cameras' images are detected (`handeye.workflow.observation_images.image_tables`)."""
     if cell.robot.file is None:  # the tables carry the robot's pose of each row's station
         tables = read_tables(cell, None)
         robot_file = robot_of_stations(tables, cell.robot.unit)
@@ -114,7 +117,8 @@ def calibrate_observations(cell: Cell, log: Log | None = None) -> CalibrationRes
             raise InputError(f"table of observations {both[0]!r} carries robot poses and the cell names the robot pose "
                              f"file {str(cell.robot.file)!r}; give the robot's poses once (drop `robot.file` or the "
                              "table's robot columns)")
-    imaged = image_tables(cell, robot_file) if any(s.images is not None for s in cell.observations) else None
+    imaged = (image_tables(cell, robot_file, workers=workers, cache=cache)
+              if any(s.images is not None for s in cell.observations) else None)
     if imaged is not None:
         tables += list(imaged.tables)
         if log is not None:
@@ -140,6 +144,7 @@ def calibrate_observations(cell: Cell, log: Log | None = None) -> CalibrationRes
     solver = cell.solver or default_solver(cell.problem)
     solution = solve(cell.problem, solver=solver, backend=cell.backend,
                      time_limit=time_limit(cell.time_limit, cell.problem, solver), **fields, **facts, **options)
+    solution = with_intrinsics(solution, cell, imaged, observations, facts, options)  # cameras calibrated here
     data = measured_data(problem, solution, fields, facts)
     residuals = problem.residuals(data, solution.unknowns)
     pair_table = tuple(problem.residual_table(data, solution.unknowns))

@@ -3,19 +3,25 @@
 the targets it looks for) gives one `ObservationTable` whose rows are the boards found (station,
 camera, target, T_cam_target by PnP in the robot's unit), so that the rest of the multi-camera
 path (`handeye.workflow.observation_cell`) treats them as it treats a table read from a file.
+Each camera's images are detected as one camera's image set is (over the cores, from the detection
+cache, a chessboard's flag-set plan judged on that camera's images: docs/images.md, "Speed").
 
 The images are paired with the robot's stations by the cell's ``matching.method`` (``row`` /
 ``index``: the k-th image with the k-th robot pose; ``name``: file stem = station name; ``time``)
 exactly as one camera's images are; what each camera's images left out (an unreadable image, a
 board not found or with too few points, a board pose whose reprojection error is far above the
 camera's others) is listed as `handeye.workflow.stations.Dropped` entries (``image cam0/003``),
-and the unreliable poses also as warnings.
+and the unreliable poses also as warnings. Each camera's intrinsics are treated as one camera's
+images treat them (`handeye.vision.image_observations`, step 5: a jackknife 1-sigma when
+calibrated here, a focal-length check of a given file, its warning prefixed ``camera NAME:``);
+`with_intrinsics` then gives the answer their share.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import re
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -53,9 +59,11 @@ def target_boards(cell: Cell) -> dict[str, Any]:
     return boards
 
 
-def image_tables(cell: Cell, robot: PoseStack) -> ImageTables:
+def image_tables(cell: Cell, robot: PoseStack, *, workers: int | None = None,
+                 cache: bool | str | Path | None = None) -> ImageTables:
     """The tables of observations of the cell's cameras' images (module docstring); `robot` is
-    the robot's pose file as read (its unit is the poses')."""
+    the robot's pose file as read (its unit is the poses'); `workers` (detection threads) and
+    `cache` (the detection cache) as `handeye.vision.image_observations.camera_observations`."""
     from handeye.vision.image_observations import camera_observations, summary
     from handeye.vision.intrinsics import load_camera_of
 
@@ -70,7 +78,7 @@ def image_tables(cell: Cell, robot: PoseStack) -> ImageTables:
         try:
             obs = camera_observations(stream.images, seen, camera, robot=robot,
                                       match=IMAGE_MATCHES[cell.matching.method], max_dt=cell.matching.max_dt,
-                                      unit=robot.unit)
+                                      unit=robot.unit, workers=workers, cache=cache)
         except InputError as exc:
             text = re.sub(r"\bmatch='(\w+)'", r"`matching.method: \1`", str(exc))
             raise InputError(f"`{which}` (camera {stream.camera!r}): {text}") from None
@@ -108,3 +116,104 @@ def _table(stream: ObservationStream, obs: Any) -> ObservationTable:
     return ObservationTable(station=obs.station, camera=(stream.camera,) * len(obs), target=obs.target, poses=stack,
                             where=tuple(f"image {i}, {t}" for i, t in zip(obs.image, obs.target)),
                             source=str(stream.images))
+
+
+def with_intrinsics(solution: Any, cell: Cell, imaged: ImageTables | None, observations: Any,
+                    facts: dict[str, Any], options: dict[str, Any]) -> Any:
+    """`solution` (of the cell's observations `observations`, a `handeye.framework.problem.
+    Observations` whose rows of an imaged camera are its `imaged` table's) with what each imaged
+    camera's intrinsics do to it (`handeye.vision.intrinsics_effect`), per camera its board poses
+    moved as PnP would move them (from the corners it found) and the problem re-solved:
+
+    - calibrated from its own images: their uncertainty (the larger of OpenCV's and the jackknife's
+      1-sigma) added to the answer's covariance and 1-sigma, the cameras independent, and the
+      warning where a translation's 1-sigma at least doubles (3 solves per camera);
+    - given in a file its images did not contradict (`CameraObservations.focal_check`): how far a
+      focal length 0.1% off moves each unknown (``diagnostics["given_focal_per_permille"]``, by
+      camera), and the statement where that exceeds an unknown's 1-sigma (`handeye.vision.
+      intrinsics_check.exactness_note`, naming the camera; 1 solve per camera).
+
+    Unchanged where no camera applies, the answer is unusable, or a moved solve fails."""
+    from handeye.framework.api import solve
+    from handeye.framework.errors import HandEyeError
+    from handeye.framework.registry import get_registry
+    from handeye.framework.solution import jsonable, standard_deviations
+    from handeye.vision import intrinsics_effect as effect
+    from handeye.vision.intrinsics_check import exactness_note
+    from handeye.workflow.solving import UNUSABLE
+
+    cameras = {} if imaged is None else {n: o for n, o in imaged.cameras.items()
+                                         if o.calibration is not None or o.focal_check is not None}
+    if not cameras or solution.status in UNUSABLE:
+        return solution
+    problem = get_registry().problem(cell.problem)
+    boards = target_boards(cell)
+    T0 = np.asarray(observations.camera_poses, dtype=float)
+    names = list(effect.flat_poses(solution.unknowns))
+    camera_of = np.array(observations.camera)
+    stacked = problem.from_observations(observations, cell.setup).names  # {"Y": ("cam0", "cam1")}
+    labels = {f"{k}[{j}]": user for k, users in stacked.items() for j, user in enumerate(users)}
+
+    def resolve(T: np.ndarray) -> dict[str, np.ndarray]:
+        made = problem.from_observations(dataclasses.replace(observations, camera_poses=T), cell.setup)
+        return solve(cell.problem, solver=solution.solver, backend=solution.backend, **dict(made.fields), **facts,
+                     **options).unknowns
+
+    blocks, percents, shares, given = [], {}, {}, {}
+    try:
+        for name, obs in cameras.items():
+            rows = np.flatnonzero(camera_of == name)
+            if len(rows) != len(obs):
+                continue
+            slopes = [effect.pose_sensitivity(T0[r], points, obs.camera)
+                      for r, points in zip(rows, _board_points(obs, boards))]
+            if obs.calibration is None:
+                moved = effect.answer_moves(resolve, solution.unknowns, names, T0, slopes,
+                                            effect.focal_change(obs.camera), rows)
+                given[name] = effect.per_permille(moved, names)
+                continue
+            std = obs.calibration.std_fx_fy_cx_cy
+            blocks.append(effect.answer_moves(resolve, solution.unknowns, names, T0, slopes,
+                                              effect.one_sigma_moves(std), rows))
+            percents[name] = effect.focal_percent(std, obs.camera)
+            shares[name] = effect.focal_moves(blocks[-1], names, percents[name])
+    except (HandEyeError, np.linalg.LinAlgError):
+        return solution
+    if not blocks and not given:
+        return solution
+    diagnostics, notes = dict(solution.diagnostics), []
+    if blocks:
+        whose = (f"camera {next(iter(percents))}'s intrinsics" if len(percents) == 1
+                 else f"the intrinsics of cameras {', '.join(percents)}")
+        diagnostics, note = effect.with_moves(diagnostics, names, np.hstack(blocks),
+                                              lambda b, a: effect.growth_note(b, a, names, max(percents.values()),
+                                                                              whose, labels))
+        diagnostics["intrinsics_effect"] = shares
+        notes += [note] if note else []
+    if given:
+        diagnostics["given_focal_per_permille"] = given
+        std = standard_deviations(diagnostics)
+        for name, shifts in given.items():
+            note = exactness_note(shifts, std, cameras[name].focal_check, labels)
+            notes += [f"camera {name}: {note}"] if note else []
+    if notes:
+        diagnostics["warnings"] = [*diagnostics.get("warnings", []), *notes]
+    return dataclasses.replace(solution, diagnostics=jsonable(diagnostics))
+
+
+def _board_points(obs: Any, boards: dict[str, Any]) -> list[np.ndarray]:
+    """Per observation of a camera (`CameraObservations`), the board points (n, 3) its PnP pose
+    rests on, in the poses' unit: the corners found (``detections``), or, without them, the
+    board's points that fall in the image at that pose."""
+    from handeye.vision import intrinsics_effect as effect
+    from handeye.vision.boards import UNITS
+
+    out = []
+    for k, target in enumerate(obs.target):
+        board = boards[target]
+        scale = UNITS[board.unit] / UNITS[obs.unit]
+        if k < len(obs.detections):
+            out.append(np.asarray(obs.detections[k].object_points) * scale)
+        else:
+            out.append(effect.visible_points(board.object_points() * scale, obs.T_cam_target[k], obs.camera))
+    return out

@@ -12,19 +12,24 @@ Also the statuses whose unknowns must not be used (`UNUSABLE`), the camera's tra
 scaled into the robot's unit when the camera scale (or, in a cell of several cameras, each
 monocular camera's scale) was estimated (`in_robot_unit`), and the validated data the residuals
 are measured on (`measured_data`: the solve's own, `Solution.data`, unless scaled).
+
+A pose-based answer from board images (`pose_based_intrinsics`) owes the uncertainty of
+intrinsics calibrated from the same images as the corner fit does, found by re-solving with the
+board poses PnP gives for intrinsics 1-sigma off (`handeye.vision.intrinsics_effect`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.framework.errors import HandEyeError, InputError
 from handeye.framework.registry import get_registry
-from handeye.framework.solution import Solution, Status
+from handeye.framework.solution import Solution, Status, jsonable, standard_deviations
 
 #: solvers tried, in order, when none is chosen
 DEFAULT_SOLVERS = ("auto", "kron-lstsq")
@@ -140,3 +145,52 @@ def measured_data(problem: Any, solution: Solution, data: Mapping[str, Any], fac
     if measured is data and solution.data is not None:
         return solution.data
     return problem.validate(**measured, **facts)
+
+
+def pose_based_intrinsics(solution: Solution, image_set: Any, robot_poses: np.ndarray, cell: Any,
+                          facts: Mapping[str, Any], options: Mapping[str, Any]) -> Solution:
+    """`solution`, a pose-based answer from the board poses of `image_set` (a
+    `handeye.vision.image_set.ImageSet`; the robot's poses `robot_poses` in its station order),
+    with ``diagnostics["focal_per_permille"]``: how far each unknown's translation moves for a
+    focal length 0.1% off; and, where the intrinsics were calibrated from these images
+    (``observations.intrinsics_std``), its covariance and 1-sigma widened by theirs, with the
+    warning where a translation's 1-sigma at least doubles (`handeye.vision.intrinsics_effect`).
+    Found by re-solving `cell`'s problem with the same solver, facts and options (4 solves of a
+    few ms). The corner fit (`REPROJECTION_SOLVER`), which does this itself, an unusable answer,
+    or no images: `solution` as it is."""
+    from handeye.framework.api import solve
+    from handeye.io.data_files import from_poses
+    from handeye.vision import intrinsics_effect as effect
+    from handeye.vision.intrinsics_check import exactness_note
+
+    if (image_set is None or solution.solver == REPROJECTION_SOLVER or solution.status in UNUSABLE
+            or len(robot_poses) != len(image_set.T_cam_target)):
+        return solution
+    obs = image_set.observations
+    names = list(effect.flat_poses(solution.unknowns))
+    T0 = np.asarray(image_set.T_cam_target, dtype=float)
+    slopes = [effect.pose_sensitivity(T, P, obs.camera) for T, P in zip(T0, obs.object_points)]
+
+    def resolve(T: np.ndarray) -> Mapping[str, np.ndarray]:
+        data = from_poses(robot_poses, T, cell.problem, setup=cell.setup, pairing=cell.pairing).data
+        return solve(cell.problem, solver=solution.solver, backend=solution.backend, **data, **facts,
+                     **options).unknowns
+
+    try:
+        focal = effect.answer_moves(resolve, solution.unknowns, names, T0, slopes, effect.focal_change(obs.camera))
+        moves = None if obs.intrinsics_std is None else effect.answer_moves(
+            resolve, solution.unknowns, names, T0, slopes, effect.one_sigma_moves(obs.intrinsics_std))
+    except (HandEyeError, np.linalg.LinAlgError):  # a moved solve that fails: the answer as it is
+        return solution
+    diagnostics, note = dict(solution.diagnostics), None
+    if moves is not None:
+        percent = effect.focal_percent(obs.intrinsics_std, obs.camera)
+        diagnostics, note = effect.with_moves(diagnostics, names, moves,
+                                              lambda b, a: effect.growth_note(b, a, names, percent))
+        diagnostics["intrinsics_effect"] = effect.focal_moves(moves, names, percent)
+    diagnostics["focal_per_permille"] = effect.per_permille(focal, names)
+    if moves is None:  # given apart: say so where a 0.1% focal length matters
+        note = exactness_note(diagnostics["focal_per_permille"], standard_deviations(diagnostics), obs.focal_check)
+    if note:
+        diagnostics["warnings"] = [*diagnostics.get("warnings", []), note]
+    return dataclasses.replace(solution, diagnostics=jsonable(diagnostics))

@@ -53,6 +53,8 @@ from handeye.plugins.reprojection.corners import (
     residuals,
 )
 from handeye.problems.axyb import AXYBData
+from handeye.vision import intrinsics_effect
+from handeye.vision.intrinsics_check import exactness_note
 
 #: the start solver (pose-based maximum likelihood)
 START = "auto"
@@ -145,11 +147,6 @@ def robot_errors_dominate(diagnostics: Mapping[str, Any]) -> bool:
     return diagnostics["robot_misfit"] > MISFIT_LIMIT and math.sqrt(max(rms * rms - pnp * pnp, 0.0)) > MISFIT_FLOOR_PX
 
 
-#: the intrinsics' share of the uncertainty is named in a warning where a translation's 1-sigma
-#: grows by this factor with it
-INTRINSICS_GROWTH = 2.0
-
-
 def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     if data.images is None:
         raise InputError("solver 'reprojection' needs the board's image observations (images=...); "
@@ -179,7 +176,7 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
                  "exact_robot_rms_px": exact_rms,
                  "corrections_rms": {"rotation": float(np.sqrt(np.mean(joint.delta[:, :3] ** 2) * 3)),
                                      "translation": float(np.sqrt(np.mean(joint.delta[:, 3:] ** 2) * 3))}}
-    cov, intrinsics_note = _with_intrinsics(data, options, fit, cov)
+    cov, intrinsics_note, share = _with_intrinsics(data, options, fit, cov)
     if intrinsics_note:
         warnings.append(intrinsics_note)
     var = np.diag(cov)
@@ -216,6 +213,14 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     }
     if robot:
         diagnostics["robot_noise"] = robot
+    if not options.refine_intrinsics:  # what holding the intrinsics exact is worth (docs/images.md)
+        diagnostics["focal_per_permille"] = _focal_per_permille(fit, camera)
+        if data.images.intrinsics_std is None:  # given apart: say so where a 0.1% focal length matters
+            note = exactness_note(diagnostics["focal_per_permille"], diagnostics["std"], data.images.focal_check)
+            if note:
+                warnings.append(note)
+    if share:
+        diagnostics["intrinsics_effect"] = share
     # the verdict itself, for whoever shows the answer (handeye.calibrate gives way to the pose-based
     # one where the robot's errors dominate and this fit took the robot's poses as exact)
     dominate = robot_errors_dominate({"rms_px": exact_rms, "pnp_rms_px": pnp, "robot_misfit": misfit})
@@ -251,44 +256,40 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     return SolverOutput(unknowns=dict(poses), status=status, diagnostics=jsonable(diagnostics))
 
 
-def _with_intrinsics(data: AXYBData, options: Options, fit: Any, cov: np.ndarray) -> tuple[np.ndarray, str | None]:
+def _with_intrinsics(data: AXYBData, options: Options, fit: Any,
+                     cov: np.ndarray) -> tuple[np.ndarray, str | None, dict[str, Any] | None]:
     """The covariance of X, Y with the uncertainty of intrinsics calibrated from these images
-    added (`BoardObservations.intrinsics_std`), and a warning where that at least doubles a
-    translation's 1-sigma; `cov` as it is where the intrinsics were given apart.
+    added (`BoardObservations.intrinsics_std`), a warning where that at least doubles a
+    translation's 1-sigma, and the record of that share (`intrinsics_effect.focal_moves`); `cov`
+    as it is where the intrinsics were given apart.
 
     The fit holds the intrinsics exact, at the values the camera's calibration gave them, each
-    uncertain by its 1-sigma there; a focal length a little off scales every board's distance
-    (on the real ChArUco set fx, fy +- 0.39% move Y, the camera 1.27 m from the board, by 1.9 mm
-    against a 1-sigma of 0.18 mm with them exact). To first order the answer moves by S dk for
-    intrinsics off by dk, S = -(J_p^T W J_p)^-1 J_p^T W J_k from the fit's own Jacobian (its
-    columns for the pose parameters p and for fx, fy, cx, cy), so the covariance gains S C S^T:
-    C the calibration's, fx and fy taken as fully correlated (one focal length, square pixels:
-    the larger, safer share), cx and cy independent."""
+    uncertain by its 1-sigma there (`handeye.vision.intrinsics_effect`). To first order the
+    answer moves by S dk for intrinsics off by dk (`_intrinsics_slope`), so the covariance gains
+    S C S^T, C the calibration's with fx and fy fully correlated."""
     std = data.images.intrinsics_std
     if std is None or options.refine_intrinsics:
-        return cov, None
+        return cov, None, None
+    moves = _intrinsics_slope(fit) @ intrinsics_effect.one_sigma_moves(std)
+    out = np.array(cov, dtype=float)
+    out[:12, :12] = intrinsics_effect.widened(out[:12, :12], moves)
+    percent = intrinsics_effect.focal_percent(std, data.images.camera)
+    return (out, intrinsics_effect.growth_note(cov[:12, :12], out[:12, :12], ("X", "Y"), percent),
+            intrinsics_effect.focal_moves(moves, ("X", "Y"), percent))
+
+
+def _intrinsics_slope(fit: Any) -> np.ndarray:
+    """(12, 4) S = -(J_p^T W J_p)^-1 J_p^T W J_k: how X, Y move with fx, fy, cx, cy at the fit
+    holding them exact, from its own Jacobian (columns for the poses p and the intrinsics k)."""
     ww = np.repeat(fit.weights, 2)[:, None]
     Jp, Jk = fit.J[:, :, :12].reshape(-1, 12), fit.J[:, :, 12:16].reshape(-1, 4)
-    S = -np.linalg.lstsq(Jp.T @ (Jp * ww), Jp.T @ (Jk * ww), rcond=None)[0]
-    sx, sy, scx, scy = (float(v) for v in std)
-    C = np.array([[sx * sx, sx * sy, 0.0, 0.0], [sx * sy, sy * sy, 0.0, 0.0], [0.0, 0.0, scx * scx, 0.0],
-                  [0.0, 0.0, 0.0, scy * scy]])
-    out = np.array(cov, dtype=float)
-    out[:12, :12] += S @ C @ S.T
-    grown = []
-    for j, name in enumerate(("X", "Y")):
-        before = math.sqrt(max(float(np.trace(cov[6 * j + 3:6 * j + 6, 6 * j + 3:6 * j + 6])), 0.0))
-        after = math.sqrt(max(float(np.trace(out[6 * j + 3:6 * j + 6, 6 * j + 3:6 * j + 6])), 0.0))
-        if after > INTRINSICS_GROWTH * before:
-            grown.append(f"{name} to {after:.3g} (from {before:.3g} with them exact)")
-    if not grown:
-        return out, None
-    focal = 100.0 * max(sx / data.images.camera.K[0, 0], sy / data.images.camera.K[1, 1])
-    return out, (f"the camera's intrinsics, calibrated from these same images, are known to {focal:.2g}% in focal "
-                 f"length, and they leave the translation of {' and '.join(grown)} (1-sigma, the data's length "
-                 "unit; the 1-sigma reported includes them): a focal length a little off scales the board's "
-                 "distance. Images at more distances and tilts fix the intrinsics better, or calibrate the camera "
-                 "apart and give its intrinsics")
+    return -np.linalg.lstsq(Jp.T @ (Jp * ww), Jp.T @ (Jk * ww), rcond=None)[0]
+
+
+def _focal_per_permille(fit: Any, camera: Any) -> dict[str, float]:
+    """How far each unknown's translation moves for a focal length 0.1% off (fx, fy together):
+    the 1-sigma takes given intrinsics as exact, so this says what that trust is worth."""
+    return intrinsics_effect.per_permille(_intrinsics_slope(fit) @ intrinsics_effect.focal_change(camera), ("X", "Y"))
 
 
 def _compare_held_out(data: AXYBData, options: Options) -> dict[str, Any]:

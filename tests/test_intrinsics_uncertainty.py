@@ -1,0 +1,305 @@
+"""Intrinsics calibrated from the same images, or given in a file: the 1-sigma of a hand-eye answer
+owes them part of its uncertainty (`handeye.vision.intrinsics_effect`), and a file's focal length
+is checked against the images' own (`handeye.vision.intrinsics_check`).
+
+Simulated image sets (`handeye.problems.axyb.images`: corners with 0.3 px noise, 15 stations) are
+cheap: no rendering; their intrinsics are calibrated from the same corners, as ``handeye calibrate
+--images`` does without an intrinsics file (bench/intrinsics_uncertainty.py reuses the maker)."""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import handeye
+from handeye.framework.solution import standard_deviations
+from handeye.geometry.se3 import inverse
+from handeye.problems.axyb import images as sim
+from handeye.vision import intrinsics_effect as effect
+from handeye.vision.camera_poses import board_pose
+from handeye.vision.intrinsics_check import focal_check, focal_warning
+from handeye.vision.observations import Camera
+from handeye.workflow.cell import Cell
+from handeye.workflow.solving import pose_based_intrinsics
+
+BENCH = Path(__file__).parents[1] / "bench" / "intrinsics_uncertainty.py"
+SHARED = Path(__file__).parents[2] / "shared" / "data" / "industrial_calibration_rct"
+
+
+def bench():
+    spec = importlib.util.spec_from_file_location("intrinsics_uncertainty", BENCH)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def widened_pose_based(data, T, setup):
+    poses = handeye.solve("axyb", A=data["A"], B=data["B"])
+    cell = types.SimpleNamespace(problem="axyb", setup=setup, pairing=None)
+    image_set = types.SimpleNamespace(observations=data["images"], T_cam_target=T)
+    return poses, pose_based_intrinsics(poses, image_set, data["A"], cell, {}, {})
+
+
+def test_pnp_sensitivity_predicts_the_pose_opencv_gives_with_other_intrinsics():
+    """One Gauss-Newton step of PnP at its answer against solvePnP itself with fx, fy 0.5% longer
+    and cx 2 px off: the predicted move is within 3% of the real one (it is ~3 mm in depth)."""
+    rng = np.random.default_rng(3)
+    camera = Camera(sim.K, sim.DIST, sim.SIZE)
+    P = sim.board_points()
+    for T in sim.views(5, rng):
+        q = P @ T[:3, :3].T + T[:3, 3]
+        from handeye.vision.projection import project
+
+        u = project(q, camera)[0] + 0.3 * rng.standard_normal((len(P), 2))
+        T0 = board_pose(P, u, camera).T_cam_target
+        dk = np.array([5.0, 5.0, 2.0, 0.0])
+        K = camera.K.copy()
+        K[0, 0] += dk[0]
+        K[1, 1] += dk[1]
+        K[0, 2] += dk[2]
+        T1 = board_pose(P, u, Camera(K, camera.dist, camera.size)).T_cam_target
+        predicted = effect.shifted_poses(T0[None], [effect.pose_sensitivity(T0, P, camera)], dk)[0]
+        real, guess = T1[:3, 3] - T0[:3, 3], predicted[:3, 3] - T0[:3, 3]
+        assert np.linalg.norm(guess - real) < 0.03 * np.linalg.norm(real), (real, guess)
+
+
+def test_the_pose_based_answer_owes_the_intrinsics_their_share():
+    """The pose-based answer on a simulated set whose intrinsics were calibrated from its corners:
+    the re-solve's focal-length move is what recomputing every PnP pose with fx, fy 1-sigma longer
+    (solvePnP itself) and re-solving gives, to 10%; the 1-sigma of the camera-side unknown grows
+    (eye to hand: Y), and the warning says so where it doubles."""
+    truth, data, T, cal = bench().simulated(1, "eye-to-hand")
+    poses, widened = widened_pose_based(data, T, "eye-to-hand")
+    before, after = standard_deviations(poses.diagnostics), standard_deviations(widened.diagnostics)
+    assert after["Y"]["translation"] > 2 * before["Y"]["translation"]
+    assert after["X"]["translation"] == pytest.approx(before["X"]["translation"], rel=0.1)
+    assert any("calibrated from these same images" in w and "translation of Y" in w for w in widened.warnings)
+    # the move itself, against solvePnP with the focal length 1-sigma longer and a full re-solve
+    obs = data["images"]
+    K = obs.camera.K.copy()
+    K[0, 0] += cal.std_fx_fy_cx_cy[0]
+    K[1, 1] += cal.std_fx_fy_cx_cy[1]
+    moved = Camera(K, obs.camera.dist, obs.camera.size)
+    T1 = np.array([board_pose(p, u, moved).T_cam_target for u, p in zip(obs.image_points, obs.object_points)])
+    real = handeye.solve("axyb", A=data["A"], B=T1).unknowns["Y"][:3, 3] - poses.unknowns["Y"][:3, 3]
+    slopes = [effect.pose_sensitivity(t, p, obs.camera) for t, p in zip(T, obs.object_points)]
+    resolve = lambda B: handeye.solve("axyb", A=data["A"], B=B).unknowns  # noqa: E731
+    D = effect.answer_moves(resolve, poses.unknowns, ["X", "Y"], T, slopes, effect.one_sigma_moves(cal.std_fx_fy_cx_cy))
+    predicted = poses.unknowns["Y"][:3, :3] @ D[9:12, 0]
+    assert np.linalg.norm(predicted - real) < 0.1 * np.linalg.norm(real), (predicted, real)
+    assert widened.diagnostics["focal_per_permille"]["Y"] > 5 * widened.diagnostics["focal_per_permille"]["X"]
+
+
+@pytest.mark.parametrize("setup", ["eye-in-hand", "eye-to-hand"])
+def test_z_scores_of_the_widened_1_sigma_are_near_1(setup):
+    """20 simulated sets with intrinsics calibrated from their own corners: RMS of |translation
+    error| / 1-sigma of the camera-side unknown, over the sets, is 0.7-1.4 for the corner fit and
+    the widened pose-based answer (bench, 50 sets: 0.79-1.18), and above 1.6 with the
+    intrinsics taken as exact (measured 1.8-2.5)."""
+    module = bench()
+    side = "X" if setup == "eye-in-hand" else "Y"
+    z = {"reprojection": [], "pose_based": [], "exact": []}
+    for seed in range(20):
+        truth, data, T, _ = module.simulated(seed, setup)
+        corner = handeye.solve("axyb", solver="reprojection", **data)
+        poses, widened = widened_pose_based(data, T, setup)
+        for name, sol in (("reprojection", corner), ("pose_based", widened), ("exact", poses)):
+            error = handeye.get_registry().problem("axyb").errors(sol.unknowns, truth)[side]["translation"]
+            z[name].append(error / standard_deviations(sol.diagnostics)[side]["translation"])
+    rms = {name: float(np.sqrt(np.mean(np.square(v)))) for name, v in z.items()}
+    assert 0.7 < rms["reprojection"] < 1.4 and 0.7 < rms["pose_based"] < 1.4, rms
+    assert rms["exact"] > 1.6, rms
+
+
+def test_the_file_focal_check_warns_far_off_and_keeps_quiet_on_the_truth():
+    """Simulated corners (15 images, the focal length known to ~0.15% from them): the true
+    intrinsics are quiet, a file 1% off warns with the file's and the images' values."""
+    _, data, _, cal = bench().simulated(4, "eye-in-hand")
+    obs = data["images"]
+    views = [types.SimpleNamespace(image_points=u, object_points=p) for u, p in zip(obs.image_points, obs.object_points)]
+    truth = Camera(sim.K, sim.DIST, sim.SIZE)
+    quiet = focal_check(views, truth, sim.SIZE, cal)
+    assert not quiet.off and focal_warning(quiet) is None
+    assert 0.8 < quiet.std[0] / quiet.opencv_std[0] < 2.0  # independent noise: the jackknife agrees with OpenCV
+    K = sim.K.copy()
+    K[:2, :2] *= 1.01
+    off = focal_check(views, Camera(K, sim.DIST, sim.SIZE), sim.SIZE, cal)
+    text = focal_warning(off)
+    assert off.off and off.sigmas > 3 and "% longer" in text and "fx 1010.0" in text
+    assert f"fx {cal.camera.K[0, 0]:.1f}" in text
+
+
+def test_the_corner_fit_states_what_a_focal_length_0_1_percent_off_does():
+    """``focal_per_permille``: the corner fit's own Jacobian, against the answer with fx, fy given
+    0.1% longer (exact intrinsics both times): within 10%."""
+    truth, data, T, cal = bench().simulated(2, "eye-to-hand")
+    plain = dataclasses.replace(data["images"], intrinsics_std=None)
+    a = handeye.solve("axyb", solver="reprojection", robot_noise="none", **{**data, "images": plain})
+    K = plain.camera.K.copy()
+    K[0, 0] *= 1.001
+    K[1, 1] *= 1.001
+    longer = dataclasses.replace(plain, camera=Camera(K, plain.camera.dist, plain.camera.size))
+    B = np.array([board_pose(p, u, longer.camera).T_cam_target for u, p in zip(plain.image_points, plain.object_points)])
+    b = handeye.solve("axyb", solver="reprojection", robot_noise="none", A=data["A"], B=B, images=longer)
+    moved = float(np.linalg.norm(a.unknowns["Y"][:3, 3] - b.unknowns["Y"][:3, 3]))
+    assert a.diagnostics["focal_per_permille"]["Y"] == pytest.approx(moved, rel=0.1)
+    assert inverse(T[0]) is not None  # the poses are SE(3) (a smoke check of the maker)
+
+
+def _calibrate_capturing(cell_file, monkeypatch):
+    """handeye.calibrate of a multi-camera cell, with what `observation_images.with_intrinsics`
+    needs of its inside: the cameras' image tables and the observations solved."""
+    from handeye.workflow import observation_cell
+
+    seen = {}
+    tables, observations = observation_cell.image_tables, observation_cell.Observations
+    widen = observation_cell.with_intrinsics
+
+    def keep_solution(solution, *args, **kwargs):  # the answer before calibrate widens it
+        seen["solution"] = solution
+        return widen(solution, *args, **kwargs)
+
+    def keep_tables(*args, **kwargs):
+        seen["imaged"] = tables(*args, **kwargs)
+        return seen["imaged"]
+
+    def keep_observations(*args, **kwargs):
+        seen["observations"] = observations(*args, **kwargs)
+        return seen["observations"]
+
+    monkeypatch.setattr(observation_cell, "image_tables", keep_tables)
+    monkeypatch.setattr(observation_cell, "Observations", keep_observations)
+    monkeypatch.setattr(observation_cell, "with_intrinsics", keep_solution)
+    cell = Cell.from_file(cell_file)
+    result = handeye.calibrate(cell)
+    monkeypatch.undo()
+    monkeypatch.setenv("HANDEYE_NO_CACHE", "1")
+    return cell, result, seen
+
+
+def test_a_cell_of_several_cameras_owes_each_cameras_intrinsics_their_share(tmp_path, monkeypatch):
+    """Two fixed cameras calibrated from their own images (8 rendered stations, two boards): each
+    camera's intrinsics widen the 1-sigma of its own Y, cameras independent; checked against the
+    answer itself: cam0's focal length given 1-sigma longer in a file (cam1's as calibrated)
+    moves cam0's Y by what the re-solve predicted for that change, to 25% (measured: 0.642 mm
+    both)."""
+    import json
+
+    from handeye.workflow.observation_images import with_intrinsics
+    from tests.multi_images import CELL_YAML, write_cell
+
+    monkeypatch.setenv("HANDEYE_NO_CACHE", "1")
+    write_cell(tmp_path, 8)
+    (tmp_path / "own.yaml").write_text(CELL_YAML.replace(", intrinsics: cam0.json", "")
+                                       .replace(", intrinsics: cam1.json", ""))
+    cell, result, seen = _calibrate_capturing(tmp_path / "own.yaml", monkeypatch)
+    imaged, observations = seen["imaged"], seen["observations"]
+    widened = with_intrinsics(seen["solution"], cell, imaged, observations, dict(result.facts), cell.solver_options())
+    before, after = standard_deviations(seen["solution"].diagnostics), standard_deviations(widened.diagnostics)
+    assert standard_deviations(result.solution.diagnostics) == after  # calibrate gives the widened answer
+    y_names = list(result.solution.data.y_names)
+    cam0 = f"Y[{y_names.index('cam0')}]"
+    assert after[cam0]["translation"] > 1.5 * before[cam0]["translation"], (before[cam0], after[cam0])
+    # the focal-length move of cam0's Y predicted by re-solving, against files holding the calibrations
+    cal = imaged.cameras["cam0"].calibration
+    for name, longer in (("cam0", True), ("cam1", False)):
+        own = imaged.cameras[name].calibration
+        K = own.camera.K.copy()
+        for label in ("plain", "longer"):
+            if label == "longer" and longer:
+                K[0, 0] += cal.std_fx_fy_cx_cy[0]
+                K[1, 1] += cal.std_fx_fy_cx_cy[1]
+            (tmp_path / f"{name}_{label}.json").write_text(json.dumps({
+                "camera_matrix": K.tolist(), "distortion_coefficients": own.camera.dist.tolist(),
+                "image_width": 640, "image_height": 480}))
+    runs = {}
+    for label in ("plain", "longer"):
+        text = CELL_YAML.replace("cam0.json", f"cam0_{label}.json").replace("cam1.json", f"cam1_{label}.json")
+        (tmp_path / f"{label}.yaml").write_text(text)
+        runs[label] = handeye.calibrate(Cell.from_file(tmp_path / f"{label}.yaml"))
+    k = y_names.index("cam0")
+    real = float(np.linalg.norm(runs["longer"].solution.unknowns["Y"][k][:3, 3]
+                                - runs["plain"].solution.unknowns["Y"][k][:3, 3]))
+    predicted = widened.diagnostics["intrinsics_effect"]["cam0"]["focal_moves"][cam0]
+    assert 0.75 * predicted < real < 1.25 * predicted, (real, predicted)  # measured 0.642 and 0.642 mm
+    cam1 = f"Y[{y_names.index('cam1')}]"  # each camera's focal length moves its own Y most (the boards couple them)
+    shares = widened.diagnostics["intrinsics_effect"]
+    assert shares["cam1"]["focal_moves"][cam0] < 0.5 * shares["cam1"]["focal_moves"][cam1]
+    assert shares["cam0"]["focal_moves"][cam1] < 0.5 * predicted
+
+
+CHARUCO = SHARED / "test_set_charuco"
+
+
+def _charuco(solver=None, intrinsics=None):
+    from handeye.workflow.cell import Images, Matching, PoseStream
+
+    return Cell(robot=PoseStream(CHARUCO / "poses", format="xyz-quat-xyzw", unit="m"),
+                images=Images(CHARUCO / "images", board="charuco:5x7:36.195mm:18.256mm:DICT_6X6_250",
+                              intrinsics=intrinsics),
+                setup="eye-to-hand", matching=Matching(method="name"), solver=solver)
+
+
+def _write_intrinsics(path, K, dist):
+    import cv2
+
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    fs.write("camera_matrix", K)
+    fs.write("distortion_coefficients", np.asarray(dist).reshape(1, -1))
+    fs.write("image_width", 1600)
+    fs.write("image_height", 1200)
+    fs.release()
+    return path
+
+
+@pytest.mark.skipif(not CHARUCO.is_dir(), reason="shared industrial_calibration set not present")
+def test_real_charuco_pose_based_answer_and_a_file_1_percent_off(tmp_path, monkeypatch):
+    """The real ChArUco set (15 images, the camera calibrated from them to 0.79% in focal length).
+    The pose-based answer (solver auto): Y's 1-sigma 0.75 -> 5.1 mm with the intrinsics' share,
+    whose focal-length part (4.87 mm) is what the answer does with the focal length given 1-sigma
+    longer in a file (measured 4.87 mm). A file 1% off moves the default answer's Y by 5 mm, 19
+    of its 1-sigma: the images cannot tell (their own focal length is known to 0.78%: 1.3
+    sigmas), so the answer says what its 1-sigma takes as exact and what 0.1% would do."""
+    from handeye.workflow import calibration
+
+    monkeypatch.setenv("HANDEYE_NO_CACHE", "1")
+    raw = {}
+
+    def keep_solution(solution, *args, **kwargs):  # the answer before calibrate widens it
+        raw["solution"] = solution
+        return pose_based_intrinsics(solution, *args, **kwargs)
+
+    monkeypatch.setattr(calibration, "pose_based_intrinsics", keep_solution)
+    cell = _charuco("auto")
+    result = handeye.calibrate(cell)
+    monkeypatch.undo()
+    monkeypatch.setenv("HANDEYE_NO_CACHE", "1")
+    stations = result.stations
+    widened = pose_based_intrinsics(raw["solution"], stations.images, stations.robot.poses, cell, dict(result.facts),
+                                    cell.solver_options())
+    before, after = standard_deviations(raw["solution"].diagnostics), standard_deviations(widened.diagnostics)
+    assert standard_deviations(result.solution.diagnostics) == after  # calibrate gives the widened answer
+    assert after["Y"]["translation"] > 3 * before["Y"]["translation"]
+    predicted = widened.diagnostics["intrinsics_effect"]["focal_moves"]["Y"]
+    cal = stations.images.calibration
+    K = cal.camera.K.copy()
+    K[0, 0] += cal.std_fx_fy_cx_cy[0]
+    K[1, 1] += cal.std_fx_fy_cx_cy[1]
+    longer = handeye.calibrate(_charuco("auto", _write_intrinsics(tmp_path / "longer.yaml", K, cal.camera.dist)))
+    own = handeye.calibrate(_charuco("auto", _write_intrinsics(tmp_path / "own.yaml", cal.camera.K, cal.camera.dist)))
+    real = float(np.linalg.norm(longer.solution.unknowns["Y"][:3, 3] - own.solution.unknowns["Y"][:3, 3]))
+    assert real == pytest.approx(predicted, rel=0.1)
+    # a file 1% off: the default answer is ~5 mm off; it says what holding the file exact is worth
+    off = handeye.calibrate(_charuco(None, _write_intrinsics(tmp_path / "off.yaml", cal.camera.K * [[1.01, 1, 1],
+                                                                                                   [1, 1.01, 1],
+                                                                                                   [1, 1, 1]],
+                                                             cal.camera.dist)))
+    note = [w for w in off.warnings if "takes the intrinsics given as exact" in w]
+    assert len(note) == 1 and "would move Y by" in note[0] and "know the focal length only to 0.7" in note[0], note
+    assert off.solution.diagnostics["focal_per_permille"]["Y"] > standard_deviations(off.solution.diagnostics)["Y"][
+        "translation"]
