@@ -45,7 +45,11 @@ from handeye.io.observation_tables import (
 )
 from handeye.io.pose_readers import PoseStack, natural_key
 from handeye.workflow.cell import Cell, ObservationStream
-from handeye.workflow.observation_images import image_tables, intrinsics_entries, with_intrinsics
+from handeye.workflow.observation_images import (
+    image_tables,
+    intrinsics_entries,
+    with_intrinsics,
+)
 from handeye.workflow.reading import in_cell_words, read_stream
 from handeye.workflow.result import CalibrationResult
 from handeye.workflow.solving import default_solver, measured_data, time_limit
