@@ -23,12 +23,17 @@ hits every row alike; the median is printed):
   detection cache;
 - ``handeye rerun``: the same call again, detections from the cache of the run before;
 - ``handeye before`` (``--before``): one worker, no cache, every flag set on every image: the
-  pipeline as it was before the threads, the cache and the chessboard plan.
+  pipeline as it was before the threads, the cache and the chessboard plan;
+- ``handeye full image`` (``--full-image``, chessboard only): as ``handeye`` with no detection
+  cache and SB's ACCURACY flag sets on the full image instead of a crop around the board
+  (`handeye.vision.chessboard_region` told it cannot locate the board): the pipeline as it was
+  before the crop.
 
 The ratio column divides by ``opencv``. Targets: ``handeye`` no slower than ``opencv`` on the
 chessboard set; ``handeye rerun`` below 3 s.
 
 Usage: python bench/images_speed.py [--sets chessboard,charuco,circles] [--repeats 3] [--workers N] [--before]
+       [--full-image]
 """
 
 from __future__ import annotations
@@ -200,17 +205,19 @@ def _opencv_detector(board, accuracy: bool) -> Callable[[np.ndarray], tuple[np.n
 # ----------------------------------------------------------------------------- handeye
 
 
-def handeye_run(image_set: dict, cache: Path | None, out: Path, workers: int | None, before: bool = False) -> float:
+def handeye_run(image_set: dict, cache: Path | None, out: Path, workers: int | None, before: bool = False,
+                crop: bool = True) -> float:
     """Seconds of ``handeye calibrate --images`` (the CLI's main, in this process) on the set.
     `cache`: the detection cache folder (None: off); `before`: one worker and every flag set on
-    every image, as before the threads, cache and plan."""
+    every image, as before the threads, cache and plan; `crop` False: ACCURACY on the full image,
+    as before the crop (give no cache: the entries' keys do not tell the two apart)."""
     from handeye.cli import main
-    from handeye.vision import detection_plan
+    from handeye.vision import chessboard_region, detection_plan
 
     env = {"HANDEYE_CACHE_DIR": str(cache) if cache else None, "HANDEYE_NO_CACHE": None if cache else "1",
            "HANDEYE_WORKERS": "1" if before else (str(workers) if workers else None)}
     saved = {k: os.environ.get(k) for k in env}
-    plan_min = detection_plan.PLAN_MIN_IMAGES
+    plan_min, locate = detection_plan.PLAN_MIN_IMAGES, chessboard_region.locate
     argv = ["calibrate", "--images", image_set["images"], "--board", image_set["board"], *image_set["args"],
             "--setup", image_set["setup"], "--match", "name", "-o", out, "--force"]
     try:
@@ -218,12 +225,14 @@ def handeye_run(image_set: dict, cache: Path | None, out: Path, workers: int | N
             os.environ.pop(k, None) if v is None else os.environ.__setitem__(k, v)
         if before:
             detection_plan.PLAN_MIN_IMAGES = 10**9
+        if not crop:
+            chessboard_region.locate = lambda gray, size: None
         started = time.perf_counter()
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             code = main([str(a) for a in argv])
         seconds = time.perf_counter() - started
     finally:
-        detection_plan.PLAN_MIN_IMAGES = plan_min
+        detection_plan.PLAN_MIN_IMAGES, chessboard_region.locate = plan_min, locate
         for k, v in saved.items():
             os.environ.pop(k, None) if v is None else os.environ.__setitem__(k, v)
     if code != 0:
@@ -234,7 +243,8 @@ def handeye_run(image_set: dict, cache: Path | None, out: Path, workers: int | N
 # ----------------------------------------------------------------------------- the table
 
 
-def measure(image_set: dict, repeats: int, workers: int | None, before: bool, scratch: Path) -> dict[str, list[float]]:
+def measure(image_set: dict, repeats: int, workers: int | None, before: bool, scratch: Path,
+            full_image: bool = False) -> dict[str, list[float]]:
     """Every row's times on one set, round-robin over the repeats."""
     times: dict[str, list[float]] = {}
     is_chess = image_set["board"].startswith("chessboard")
@@ -245,6 +255,9 @@ def measure(image_set: dict, repeats: int, workers: int | None, before: bool, sc
             times.setdefault("opencv accuracy", []).append(opencv_pipeline(image_set, accuracy=True))
         times.setdefault("handeye", []).append(handeye_run(image_set, cache, scratch / "out.json", workers))
         times.setdefault("handeye rerun", []).append(handeye_run(image_set, cache, scratch / "out.json", workers))
+        if full_image and is_chess:
+            times.setdefault("handeye full image", []).append(
+                handeye_run(image_set, None, scratch / "out.json", workers, crop=False))
         if before and r == 0:
             times["handeye before"] = [handeye_run(image_set, None, scratch / "out.json", workers, before=True)]
     return times
@@ -256,6 +269,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--workers", type=int, default=None, help="detection threads (default: the cores)")
     parser.add_argument("--before", action="store_true", help="also time the pipeline as before (slow: ~1 min)")
+    parser.add_argument("--full-image", action="store_true",
+                        help="also time handeye with ACCURACY on the full image, as before the crop")
     parser.add_argument("--chessboard-dir", type=Path, default=Path(tempfile.gettempdir()) / "handeye-bench-chess")
     args = parser.parse_args(argv)
     from handeye.cli import main as cli_main
@@ -271,12 +286,12 @@ def main(argv: list[str] | None = None) -> None:
         print(f"cores {len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count()}, "
               f"OpenCV {cv2.__version__}, load {os.getloadavg()[0]:.1f}, median of {args.repeats}")
         for image_set in image_sets(args.sets.split(","), args.chessboard_dir):
-            times = measure(image_set, args.repeats, args.workers, args.before, Path(scratch))
+            times = measure(image_set, args.repeats, args.workers, args.before, Path(scratch), args.full_image)
             reference = statistics.median(times["opencv"])
             print(f"\n{image_set['name']}")
             for row, values in times.items():
                 median = statistics.median(values)
-                print(f"  {row:<16} {median:7.2f} s   x{median / reference:5.2f}   "
+                print(f"  {row:<18} {median:7.2f} s   x{median / reference:5.2f}   "
                       f"({', '.join(f'{v:.2f}' for v in values)})")
     sys.stdout.flush()
 

@@ -10,9 +10,12 @@ image the one fitting its calibrated camera best (`handeye.vision.best_corners`,
 - chessboard: ``cornerSubPix`` on the corners of the first flag set of
   ``cv2.findChessboardCornersSB`` that finds the board (else ``findChessboardCorners``), then SB's
   own corners with each of `SB_FLAG_SETS` that finds it (``CALIB_CB_EXHAUSTIVE`` only when none
-  did). The order is OpenCV's; on a board with `Board.orientation_ambiguous` two images may number
-  it 180 deg apart, which this module reports (the flag) but does not guess away. An image set
-  runs only the flag sets its probe images kept (``flag_sets``, `handeye.vision.detection_plan`).
+  did). SB searches a padded crop around the board, located cheaply, and the full image when that
+  fails (`handeye.vision.chessboard_region`: ACCURACY ~5x faster on 1.3 MP images, its corners
+  within ~0.013 px RMS of the full image's, as near the truth). The order is OpenCV's; on a
+  board with `Board.orientation_ambiguous` two images may number it 180 deg apart, which this
+  module reports (the flag) but does not guess away. An image set runs only the flag sets its
+  probe images kept (``flag_sets``, `handeye.vision.detection_plan`).
 - charuco: ``cv2.aruco.CharucoDetector`` (ids are ChArUco corner ids; sub-pixel by OpenCV) with the
   markers refined by ``CORNER_REFINE_SUBPIX``, then by ``CORNER_REFINE_CONTOUR``, then OpenCV's
   corners refined again by ``cornerSubPix`` in a small window (`CHARUCO_WINDOW`).
@@ -30,6 +33,7 @@ import numpy as np
 
 from handeye.framework.errors import InputError
 from handeye.vision.boards import Board, parse_board
+from handeye.vision.chessboard_region import Region
 from handeye.vision.detection import BoardNotFound, Detection
 from handeye.vision.observations import Camera
 
@@ -143,9 +147,10 @@ def _chessboard(gray: np.ndarray, board: Board, planned: tuple[tuple[str, int], 
     that finds the board, or of every other flag set when none does (module docstring); all in the
     canonical order."""
     size, ids = (board.cols, board.rows), np.arange(board.point_count)
-    sb = _sb_candidates(gray, board, planned)
+    region = Region(gray, size)
+    sb = _sb_candidates(gray, board, planned, region)
     if not sb and len(planned) < len(SB_FLAG_SETS):
-        sb = _sb_candidates(gray, board, tuple(s for s in SB_FLAG_SETS if s not in planned))
+        sb = _sb_candidates(gray, board, tuple(s for s in SB_FLAG_SETS if s not in planned), region)
     if not sb:
         found, corners = cv2.findChessboardCornersSB(gray, size, flags=SB_EXHAUSTIVE[1])
         if found:
@@ -163,14 +168,16 @@ def _chessboard(gray: np.ndarray, board: Board, planned: tuple[tuple[str, int], 
     return refined.with_alternatives(tuple(sb))
 
 
-def _sb_candidates(gray: np.ndarray, board: Board, flag_sets: tuple[tuple[str, int], ...]) -> list[Detection]:
-    """SB's corners of each of `flag_sets` that finds the board, in that order."""
-    size, ids = (board.cols, board.rows), np.arange(board.point_count)
+def _sb_candidates(gray: np.ndarray, board: Board, flag_sets: tuple[tuple[str, int], ...],
+                  region: Region) -> list[Detection]:
+    """SB's corners of each of `flag_sets` that finds the board, in that order, searched in
+    `region` (a crop around the board, else the full image)."""
+    ids = np.arange(board.point_count)
     sb = []
     for method, flags in flag_sets:
-        found, corners = cv2.findChessboardCornersSB(gray, size, flags=flags)
-        if found:
-            sb.append(Detection.of(board, ids, _canonical_order(gray, corners.reshape(-1, 2), board), method))
+        corners = region.find(flags)
+        if corners is not None:
+            sb.append(Detection.of(board, ids, _canonical_order(gray, corners, board), method))
     return sb
 
 

@@ -36,7 +36,8 @@ from handeye.vision.image_detection import Outcome
 #: bump when what an entry holds, or what the detectors return, changes
 FORMAT = 1
 #: the modules whose code decides what a detection is (their source is part of every key)
-DETECTOR_MODULES = ("detect", "detection", "circlegrid", "aprilgrid", "image_detection", "image_set", "boards")
+DETECTOR_MODULES = ("detect", "chessboard_region", "detection", "circlegrid", "aprilgrid", "image_detection", "image_set",
+                    "boards")
 #: environment variables: the cache folder, and switching the cache off
 DIR_VARIABLE = "HANDEYE_CACHE_DIR"
 OFF_VARIABLE = "HANDEYE_NO_CACHE"
