@@ -84,7 +84,7 @@ from handeye.estimation.whitening import CHI3_MEDIAN
 from handeye.framework.errors import DegenerateDataError
 from handeye.framework.problem import item_listing
 from handeye.geometry import so3_fast
-from handeye.geometry.linalg import median
+from handeye.geometry.linalg import median, row_norms
 
 #: check 1: median residual rotation beyond this many times what the data's noise gives
 ROTATION_RESIDUAL_FACTOR = 10.0
@@ -145,13 +145,15 @@ def angle_noise(angle_A: np.ndarray, angle_B: np.ndarray) -> float | None:
     return MAD_TO_SIGMA * median(np.abs(angle_A[use] - angle_B[use]))
 
 
-def pitch_noise(phi_A: np.ndarray, t_A: np.ndarray, phi_B: np.ndarray, t_B: np.ndarray) -> float | None:
+def pitch_noise(phi_A: np.ndarray, t_A: np.ndarray, phi_B: np.ndarray, t_B: np.ndarray,
+                angles: tuple[np.ndarray, np.ndarray] | None = None) -> float | None:
     """Robust standard deviation (data units) of the differences of the screw pitches n . t
     (translation along the rotation axis, invariant like the angle under A = X B X^-1, and under
     inverting a pose) of paired motions, over those that rotate by more than MIN_ANGLE on both
     sides; None with fewer than MIN_MOTIONS such motions. Motions given by rotation vectors phi
-    and translations t, (n, 3) each."""
-    angle_A, angle_B = np.linalg.norm(phi_A, axis=1), np.linalg.norm(phi_B, axis=1)
+    and translations t, (n, 3) each; `angles`: their norms (the rotation angles) when the caller
+    has them."""
+    angle_A, angle_B = (row_norms(phi_A), row_norms(phi_B)) if angles is None else angles
     use = (angle_A > MIN_ANGLE) & (angle_B > MIN_ANGLE)
     if use.sum() < MIN_MOTIONS:
         return None
@@ -287,15 +289,21 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
                                     warnings, figures)
     names = model.unknowns
     delta = _difference(poses, fit)
-    keep = np.concatenate([np.arange(6 * j, 6 * j + 6) for j, n in enumerate(names) if n in interest])
-    floor = np.tile(np.r_[np.full(3, NUMERICAL_FLOOR), np.full(3, NUMERICAL_FLOOR * model.scale)], len(keep) // 6)
-    sigma = cov[np.ix_(keep, keep)] + np.diag(floor**2)
-    d = math.sqrt(max(float(delta[keep] @ np.linalg.solve(sigma, delta[keep])), 0.0))
+    chosen = [j for j, n in enumerate(names) if n in interest]
+    floor = np.array([NUMERICAL_FLOOR] * 3 + [NUMERICAL_FLOOR * model.scale] * 3) ** 2
+    if len(chosen) == len(names):  # every unknown (the usual case): cov and delta as they are
+        sigma = cov + np.diag(np.tile(floor, len(chosen)))
+    else:
+        keep = np.concatenate([np.arange(6 * j, 6 * j + 6) for j in chosen])
+        sigma, delta = cov[np.ix_(keep, keep)] + np.diag(np.tile(floor, len(chosen))), delta[keep]
+    d = math.sqrt(max(float(delta @ np.linalg.solve(sigma, delta)), 0.0))
     figures["distance_sigmas"] = d
-    gap_text = "; ".join(
-        f"{n} differs by {math.degrees(float(np.linalg.norm(delta[6 * j:6 * j + 3]))):.2g} deg / "
-        f"{float(np.linalg.norm(poses[j][:3, 3] - fit[j][:3, 3])):.3g}"
-        for j, n in enumerate(names) if n in interest) + ", translations in the data's length unit"
+
+    def gap_text() -> str:  # for the messages only
+        return "; ".join(
+            f"{names[j]} differs by {math.degrees(float(np.linalg.norm(omega))):.2g} deg / "
+            f"{float(np.linalg.norm(poses[j][:3, 3] - fit[j][:3, 3])):.3g}"
+            for j, omega in zip(chosen, delta.reshape(-1, 6)[:, :3])) + ", translations in the data's length unit"
     left_out = {int(o["index"]) for o in diagnostics.get("outliers", []) if isinstance(o, Mapping) and "index" in o}
     used = [int(i) for i in np.flatnonzero(flagged) if int(i) not in left_out]
     figures["far_off_pairs"] = np.flatnonzero(flagged).tolist()
@@ -307,15 +315,15 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
                f"({listing}) are far off the others (gross errors: a failed detection, a mismatched pair) and "
                "this solver used them")
     if d > DISTANCE_FAIL:
-        failures.append(f"the answer is {d:.3g} standard deviations from the best fit of these data ({gap_text}){why}")
+        failures.append(f"the answer is {d:.3g} standard deviations from the best fit of these data ({gap_text()}){why}")
     elif d > DISTANCE_WARN and not _own_model(diagnostics):
         warnings.append(f"self-check: the answer is {d:.3g} standard deviations from the best fit of these data "
-                        f"({gap_text}), so the data support it far less than that fit{why}; solver 'auto' returns "
+                        f"({gap_text()}), so the data support it far less than that fit{why}; solver 'auto' returns "
                         "the best fit")
     figures["std"] = _precision(problem, data, model, fit, cov, interest, warnings, figures)
     _imprecise(figures["std"], model.scale, failures)
     # the rotation residuals of the data's own pairs at the answer, when the model is on them
-    return np.linalg.norm(at_answer[:, :3], axis=1) if model.m == problem_pairs(data) else None
+    return row_norms(at_answer[:, :3]) if model.m == problem_pairs(data) else None
 
 
 def _own_model(diagnostics: Mapping[str, Any]) -> bool:

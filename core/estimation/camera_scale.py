@@ -110,11 +110,11 @@ class ScaledCameraModel(PoseModel):
     def jacobian(self, poses: Poses, e: np.ndarray) -> np.ndarray:
         last = self._last
         _, s, g = last if last is not None and last[0] is poses else self._profile(poses)
-        J = self.model.with_camera_scale(s).jacobian(poses, e)
+        J = self.model.with_camera_scale(s).jacobian(poses, e)  # read-only (the model keeps it)
         n = J.shape[2]
         Jf, gf = J.reshape(-1, n), g.reshape(-1)
-        Jf -= np.outer(gf, (gf @ Jf) / (gf @ gf))  # orthogonal to g: s re-profiled at every step
-        return J
+        Jf = Jf - np.outer(gf, (gf @ Jf) / (gf @ gf))  # orthogonal to g: s re-profiled at every step
+        return Jf.reshape(J.shape)
 
 
 def translations_and_scale(model: PoseModel, rotations: Poses) -> tuple[Poses, float]:

@@ -41,6 +41,7 @@ from handeye.estimation.rotation_cost import (
 )
 from handeye.framework.errors import SolverError
 from handeye.geometry import so3_fast
+from handeye.geometry.linalg import lstsq, vector_norm
 from handeye.geometry.se3 import project_to_so3, skew
 
 #: Certificate thresholds (docs/solvers/so3-sdp.md: 1400 solves of ``axyb`` at m = 3, simulated
@@ -149,26 +150,54 @@ def polish(cost: RotationCost, rotations: list[np.ndarray]) -> tuple[list[np.nda
     Returns the rotations and the number of accepted steps. A step is kept only if it does not
     increase the cost (or is below POLISH_SMALL_STEP, where the cost cannot tell), so the result
     is never worse than the start beyond rounding.
+
+    The residual S r - s of an accepted step is the next step's (the cost is its squared norm
+    plus `rest`, as `RotationCost.value`), and the derivative of r along the steps
+    (`_tangent_map`) is a signed gather of r: the same numbers in fewer numpy calls (measured
+    ~90 -> ~60 us at k = 2, once every so3-sdp solve).
     """
     Rs = list(rotations)
-    k = len(Rs)
-    current = cost.value(rotations_vector(*Rs))
+    S, s, rest = cost.S, cost.s, cost.rest
+    r = rotations_vector(*Rs)
+    e = S @ r - s
+    current = float(e @ e + rest)
+    tangent = _tangent_map(len(Rs))
     steps = 0
     for _ in range(POLISH_MAX_ITER):
-        e = cost.S @ rotations_vector(*Rs) - cost.s
-        D = np.zeros((9 * k, 3 * k))
-        for j, R in enumerate(Rs):
-            D[9 * j:9 * j + 9, 3 * j:3 * j + 3] = (R @ _GENERATORS).transpose(0, 2, 1).reshape(3, 9).T  # vec(R [e]_x)
-        delta = _gauss_newton_step(cost.S @ D, e)
+        D = (tangent @ r).reshape(len(r), -1)  # vec(R_j [e_a]_x) in column 3j + a
+        delta = _gauss_newton_step(S @ D, e)
         new_Rs = [R @ so3_fast.exp(delta[3 * j:3 * j + 3]) for j, R in enumerate(Rs)]
-        new = cost.value(rotations_vector(*new_Rs))
-        if new > current and np.max(np.abs(delta)) > POLISH_SMALL_STEP:
+        r_new = rotations_vector(*new_Rs)
+        e_new = S @ r_new - s
+        new = float(e_new @ e_new + rest)
+        size = float(np.abs(delta).max())
+        if new > current and size > POLISH_SMALL_STEP:
             break
-        Rs, current = new_Rs, new
+        Rs, current, e, r = new_Rs, new, e_new, r_new
         steps += 1
-        if np.max(np.abs(delta)) < POLISH_STEP_TOL:
+        if size < POLISH_STEP_TOL:
             break
     return Rs, steps
+
+
+@functools.cache
+def _tangent_map(rotations: int) -> np.ndarray:
+    """T: (9k * 3k, 9k) with (T r).reshape(9k, 3k) = D, D[9j:9j+9, 3j+a] = vec(R_j [e_a]_x)
+    (column-major vec, r = [vec R_1; ...]): each entry of R [e_a]_x is one entry of R, signed,
+    so D is exact whichever way it is formed (read-only)."""
+    n = 9 * rotations
+    T = np.zeros((n, 3 * rotations, n))
+    for j in range(rotations):
+        for a in range(3):
+            G = _GENERATORS[a]
+            for col in range(3):
+                for row in range(3):  # (R G)[row, col] = sum_q R[row, q] G[q, col]
+                    for q in range(3):
+                        if G[q, col]:
+                            T[9 * j + 3 * col + row, 3 * j + a, 9 * j + 3 * q + row] = G[q, col]
+    T = T.reshape(n * 3 * rotations, n)
+    T.setflags(write=False)
+    return T
 
 
 def _gauss_newton_step(J: np.ndarray, e: np.ndarray) -> np.ndarray:
@@ -191,8 +220,10 @@ def certificate(M: np.ndarray, y: np.ndarray, nu: np.ndarray, redundant: bool) -
     """
     rotations = (len(y) - 1) // 9
     A, b = constraint_matrices(rotations, redundant)
-    L = np.einsum("kij,j->ik", A, y)  # (9k+1, K): columns A_j y
-    correction, *_ = np.linalg.lstsq(L, M @ y - L @ nu, rcond=None)
+    # (9k+1, K): columns A_j y, by one BLAS product (each row of an A_j has one nonzero entry,
+    # so this is exact either way; einsum took 8 of the bound's ~80 us)
+    L = (A.reshape(-1, len(y)) @ y).reshape(len(A), len(y)).T
+    correction = lstsq(L, M @ y - L @ nu)  # LAPACK directly (`handeye.linalg.lstsq`: numpy's numbers)
     nu = nu + correction
     S = M - np.einsum("k,kij->ij", nu, A)
     lam = np.linalg.eigvalsh(S)
@@ -201,7 +232,7 @@ def certificate(M: np.ndarray, y: np.ndarray, nu: np.ndarray, redundant: bool) -
     lower = float(nu @ b + trace_z(rotations) * min(0.0, lam_min))
     # y is feasible, so the global minimum is <= value: a bound above it is rounding (~1e-15 |M|)
     return {"value": value, "lower_bound": min(lower, value), "dual_slack_min_eigenvalue": lam_min,
-            "certificate_margin": float(lam[1]), "stationarity_residual": float(np.linalg.norm(S @ y))}
+            "certificate_margin": float(lam[1]), "stationarity_residual": vector_norm(S @ y)}
 
 
 def local_minimum(cost: RotationCost) -> tuple[list[np.ndarray], int]:

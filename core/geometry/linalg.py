@@ -1,8 +1,15 @@
-"""Linear algebra shared by solvers: the triangular factor of a tall stack of small blocks."""
+"""Linear algebra shared by solvers: the triangular factor of a tall stack of small blocks, the
+median, and LAPACK's routines called directly on the small matrices of a solve (triangular solve,
+Cholesky, symmetric eigenproblem, least squares, singular values, norms): the numbers numpy's and
+scipy's wrappers give (measured bit for bit), without the wrappers' checks and dispatch, which at
+these sizes cost more than the work."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from scipy.linalg import lapack
 
 
 def triangular_factor(blocks: np.ndarray) -> np.ndarray:
@@ -30,10 +37,10 @@ def triangular_factor(blocks: np.ndarray) -> np.ndarray:
 def frobenius_norm(M: np.ndarray) -> float:
     """|M|_F without overflow: scaled by max |M_ij| first (np.linalg.norm squares the entries and
     returns inf for finite entries above ~1e154). inf or nan only when M holds them."""
-    peak = float(np.max(np.abs(M))) if M.size else 0.0
+    peak = float(np.abs(M).max()) if M.size else 0.0
     if peak == 0.0 or not np.isfinite(peak):
         return peak
-    return peak * float(np.linalg.norm(M / peak))
+    return peak * vector_norm((M / peak).ravel(order="K"))  # np.linalg.norm's arithmetic (sqrt of the dot)
 
 
 def median(x: np.ndarray) -> float:
@@ -47,3 +54,83 @@ def median(x: np.ndarray) -> float:
     middle = [(n - 1) // 2, n // 2]
     s = np.sort(x) if n <= 1000 else np.partition(x, middle)
     return float(0.5 * (s[middle[0]] + s[middle[1]]))
+
+
+def solve_triangular(a: np.ndarray, b: np.ndarray, lower: bool = False, trans: int = 0) -> np.ndarray:
+    """x with a x = b (trans 0) or a^T x = b (trans 1), a: (n, n) triangular and finite, b: (n,)
+    or (n, k), float64: scipy.linalg.solve_triangular's LAPACK call (dtrtrs, on a or, row-major,
+    on a^T with the triangle and the transposition swapped, as scipy does: the same numbers) without
+    its checks, which cost more than the solve at these sizes (~15 of ~20 us at 24 x 24).
+    LinAlgError when a is singular."""
+    if a.flags.f_contiguous:
+        x, info = lapack.dtrtrs(a, b, lower=lower, trans=trans)
+    else:
+        x, info = lapack.dtrtrs(a.T, b, lower=not lower, trans=not trans)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"singular matrix: resolution failed at diagonal {info - 1}")
+    return x
+
+
+def cholesky_upper(a: np.ndarray) -> np.ndarray:
+    """The upper Cholesky factor R (R^T R = a) of a finite symmetric (n, n) float64 array:
+    scipy.linalg.cholesky(a, lower=False)'s LAPACK call (dpotrf, the other triangle zeroed)
+    without its checks (the same numbers). LinAlgError when a is not positive definite."""
+    c, info = lapack.dpotrf(a, lower=0, clean=1)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"{info}-th leading minor of the array is not positive definite")
+    return c
+
+
+def eigh(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (ascending) and eigenvectors of a finite symmetric (n, n) float64 S: LAPACK's
+    dsyevd on the lower triangle called directly, the routine behind np.linalg.eigh (the same
+    numbers, measured bit for bit; the vectors row-major as numpy's, so that products with them
+    sum alike) without its wrapper (~15 us of ~60 at 18 x 18); np.linalg.eigh where it fails."""
+    d, V, info = lapack.dsyevd(S, compute_v=1, lower=1)
+    if info != 0:
+        return np.linalg.eigh(S)
+    return d, np.ascontiguousarray(V)
+
+
+def row_norms(x: np.ndarray) -> np.ndarray:
+    """The Euclidean norm of each row of a real (n, k) array: np.linalg.norm(x, axis=1)'s own
+    arithmetic (sqrt of the summed squares) without its wrapper (~2 us, a dozen times a solve)."""
+    return np.sqrt(np.add.reduce(x * x, axis=1))
+
+
+def vector_norm(x: np.ndarray) -> float:
+    """The Euclidean norm of a real 1-D array: np.linalg.norm(x)'s arithmetic (sqrt(x . x)) as a
+    float, without its wrapper."""
+    return math.sqrt(float(x.dot(x)))
+
+
+def lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The least-squares (minimum-norm where rank deficient) solution x of a x = b for a finite
+    float64 a: (m, n) and b: (m,): np.linalg.lstsq(a, b, rcond=None)[0]'s LAPACK call (dgelsd,
+    rcond = eps max(m, n)) without its wrapper (the same numbers, measured; ~8 of ~35 us at 19 x 13).
+    np.linalg.lstsq where LAPACK reports a failure."""
+    m, n = a.shape
+    work = _GELSD_WORK.get((m, n))
+    if work is None:
+        lwork, liwork, info = lapack.dgelsd_lwork(m, n, 1, -1)
+        if info != 0:
+            return np.linalg.lstsq(a, b, rcond=None)[0]
+        work = _GELSD_WORK[(m, n)] = (int(lwork), int(liwork))
+    rhs = np.zeros((max(m, n), 1))
+    rhs[:m, 0] = b
+    x, _, _, info = lapack.dgelsd(a, rhs, work[0], work[1], np.finfo(float).eps * max(m, n))
+    if info != 0:
+        return np.linalg.lstsq(a, b, rcond=None)[0]
+    return x[:n, 0]
+
+
+#: dgelsd's workspace sizes per (m, n), asked of LAPACK once
+_GELSD_WORK: dict[tuple[int, int], tuple[int, int]] = {}
+
+
+def singular_values(M: np.ndarray) -> np.ndarray:
+    """The singular values (descending) of a finite float64 (m, n) M: np.linalg.svd(M,
+    compute_uv=False)'s LAPACK call (dgesdd) without its wrapper (the same numbers, measured;
+    7 against 16 us at 9 x 9); numpy's where LAPACK reports a failure."""
+    _, s, _, info = lapack.dgesdd(M, compute_uv=0)
+    return s if info == 0 else np.linalg.svd(M, compute_uv=False)

@@ -91,8 +91,7 @@ def project_to_so3(M: ArrayLike) -> Array:
     U, _, Vt = np.linalg.svd(M)
     d = np.sign(np.linalg.det(U @ Vt))
     d = np.where(d == 0, 1.0, d)
-    U = U.copy()
-    U[..., :, 2] *= d[..., None]
+    U[..., :, 2] *= d[..., None]  # U is svd's own array
     return U @ Vt
 
 
@@ -113,8 +112,12 @@ def gram_schmidt(M: ArrayLike) -> Array:
 
 def gram(R: ArrayLike) -> Array:
     """R^T R for R: (..., 3, 3), from the six distinct dot products of the columns (a batched
-    3x3 matmul is 2-3x slower on large stacks, where this dominates validating the data)."""
+    3x3 matmul is 2-3x slower on large stacks, where this dominates validating the data). Up to
+    _SMALL_STACK matrices one einsum, which sums the same products in the same order (the same
+    numbers, measured; 4x faster at 16, equal at 128, 3x slower at 1e5)."""
     R = np.asarray(R, dtype=float)
+    if R.ndim == 3 and len(R) <= _SMALL_STACK:
+        return np.einsum("nki,nkj->nij", R, R)
     c0, c1, c2 = R[..., 0], R[..., 1], R[..., 2]
     dot = functools.partial(np.einsum, "...i,...i->...")
     d00, d11, d22, d01, d02, d12 = dot(c0, c0), dot(c1, c1), dot(c2, c2), dot(c0, c1), dot(c0, c2), dot(c1, c2)

@@ -52,7 +52,7 @@ def log(R: np.ndarray) -> np.ndarray:
     sin = np.sqrt((s * s).sum(axis=1))
     theta = np.arctan2(sin, parts[:, 3] - 0.5)
     phi = (theta / np.maximum(sin, _TINY))[:, None] * s
-    if theta.max(initial=0.0) > np.pi - 1e-3:
+    if len(theta) and theta.max() > np.pi - 1e-3:
         near_pi = theta > np.pi - 1e-3
         phi[near_pi] = so3_log(R[near_pi])
     return phi
@@ -133,7 +133,7 @@ def jl_coefficient(theta2: np.ndarray) -> np.ndarray:
     Taylor series 1/12 + theta^2/720 + theta^4/30240 + theta^6/1209600, exact to rounding there
     (the closed form loses digits to cancellation at small angles) and fewer numpy calls; else the
     closed form, with 1/12 + theta^2/720 below 1e-4 rad."""
-    if theta2.max(initial=0.0) < 0.01:
+    if not len(theta2) or theta2.max() < 0.01:
         return ((theta2 / 1209600.0 + 1.0 / 30240.0) * theta2 + 1.0 / 720.0) * theta2 + 1.0 / 12.0
     theta = np.sqrt(theta2)
     small = theta < 1e-4

@@ -326,7 +326,8 @@ def _local(cost: RotationCost, norm: float) -> tuple[list[np.ndarray], dict[str,
     "certified"). A local solve that fails numerically is reported as not certified."""
     root = np.sqrt(norm)  # the cost divided by |M| (as the SDP's): entries of M may pass 1e154
     try:
-        Rs, steps = local_minimum(dataclasses.replace(cost, S=cost.S / root, s=cost.s / root))
+        Rs, steps = local_minimum(RotationCost(S=cost.S / root, s=cost.s / root, T=cost.T, U=cost.U, u=cost.u,
+                                               rest=cost.rest))  # as dataclasses.replace, without its ~4 us
     except (np.linalg.LinAlgError, InputError):  # the SDP decides
         return [], {"certified": False, "relative_gap": float("nan"), "dual_slack_min_eigenvalue": float("nan"),
                     "cost": float("nan")}

@@ -30,6 +30,7 @@ from handeye.estimation import camera_scale
 from handeye.estimation.kronecker import PosePairs
 from handeye.estimation.nlls import PoseModel, Poses
 from handeye.geometry import so3_fast
+from handeye.geometry.linalg import row_norms
 from handeye.problems.axyb import noise
 
 #: from this many pairs on, the normal equations are summed in closed form (`normal_equations`)
@@ -67,13 +68,14 @@ class AXYBModel(PoseModel):
         planar = getattr(data, "planar", None)  # the planar mode keeps one translation component
         self.fixed = () if planar is None else planar.fixed(self.unknowns)
         self._last: tuple[bytes, np.ndarray] | None = None
+        self._last_jacobian: tuple[tuple[bytes, bytes], np.ndarray] | None = None
 
     def residuals(self, poses: Poses) -> np.ndarray:
         """Unwhitened residuals e: (m, 6) = [r_i; t_i], r_i the rotation vector of the discrepancy
         Q_i = R_A R_X R_B^T R_Y^T (two BLAS products, one batched 3x3); read-only. The last ones
         are kept: auto's steps and the self-check ask again at the same answer (5 of 12
         evaluations at m = 1e5, 20 ms each)."""
-        key = np.ascontiguousarray(poses[0], dtype=float).tobytes() + np.ascontiguousarray(poses[1], dtype=float).tobytes()
+        key = _key(poses)
         last = self._last
         if last is not None and last[0] == key:
             return last[1]
@@ -94,7 +96,21 @@ class AXYBModel(PoseModel):
         return e
 
     def jacobian(self, poses: Poses, e: np.ndarray) -> np.ndarray:
-        """J: (m, 6, 12) = d e_i / d (omega_X, v_X, omega_Y, v_Y) at (X, Y), e from `residuals`.
+        """J: (m, 6, 12) = d e_i / d (omega_X, v_X, omega_Y, v_Y) at (X, Y), e from `residuals`;
+        read-only. The last one is kept, as the residuals: the self-check's scale screen and its
+        systematic test ask it at the best fit, auto's scale screen and the best fit's first step
+        at the answer (2 of 9 Jacobians a solve at m = 16)."""
+        key = (_key(poses), np.ascontiguousarray(e, dtype=float).tobytes())
+        last = self._last_jacobian
+        if last is not None and last[0] == key:
+            return last[1]
+        J = self._jacobian(poses, e)
+        J.setflags(write=False)
+        self._last_jacobian = (key, J)
+        return J
+
+    def _jacobian(self, poses: Poses, e: np.ndarray) -> np.ndarray:
+        """`jacobian`, computed.
 
         With Q_i = R_A R_X R_B^T R_Y^T = exp([r_i]_x): X exp(omega_X) gives Q <- exp([R_A R_X omega_X]_x) Q
         and Y exp(omega_Y) gives Q <- Q exp(-[R_Y omega_Y]_x), hence
@@ -143,7 +159,7 @@ class AXYBModel(PoseModel):
         """This model on the pairs `index` only (the same scale and fixed components): what the
         self-check's test for systematic errors needs of 2000 pairs out of 1e5."""
         out = copy.copy(self)
-        out._last = None
+        out._last = out._last_jacobian = None
         index = np.asarray(index)
         m = len(index)
         out.m = m
@@ -156,7 +172,7 @@ class AXYBModel(PoseModel):
     def with_camera_scale(self, s: float) -> AXYBModel:
         """This model with the camera translations t_B multiplied by s (the rest shared)."""
         out = copy.copy(self)
-        out._last = None
+        out._last = out._last_jacobian = None
         out.tB, out.TBx_T = s * self.tB, s * self.TBx_T
         return out
 
@@ -208,6 +224,11 @@ class AXYBModel(PoseModel):
         return g_rot, g_trans, Hw
 
 
+def _key(poses: Poses) -> bytes:
+    """The bits of the poses (X, Y): what `AXYBModel`'s kept residuals and Jacobian are keyed by."""
+    return np.ascontiguousarray(poses[0], dtype=float).tobytes() + np.ascontiguousarray(poses[1], dtype=float).tobytes()
+
+
 # --------------------------------------------------------------------------- the host's self-check
 
 def consecutive_motions(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
@@ -221,7 +242,7 @@ def consecutive_motions(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.nd
     t_cam = np.einsum("nij,nj->ni", RBt, B[1:, :3, 3] - B[:-1, :3, 3])
     phi_right = so3_fast.consecutive_logs(A)
     return (phi_right, so3_fast.consecutive_logs(A, moving=False), t_right, so3_fast.consecutive_logs(B), t_cam,
-            np.linalg.norm(phi_right, axis=1))
+            row_norms(phi_right))
 
 
 def expected_rotation_residual(data: PosePairs) -> float | None:
@@ -237,8 +258,9 @@ def expected_rotation_residual(data: PosePairs) -> float | None:
     if data.m < 4:
         return None
     phi_A, _, t_A, phi_B, t_B, angle_A = data.consecutive_motions
-    sigma = angle_noise(angle_A, np.linalg.norm(phi_B, axis=1))
-    pitch = None if data.camera_scale_unknown else pitch_noise(phi_A, t_A, phi_B, t_B)  # B's pitch in its own unit
+    angle_B = row_norms(phi_B)
+    sigma = angle_noise(angle_A, angle_B)
+    pitch = None if data.camera_scale_unknown else pitch_noise(phi_A, t_A, phi_B, t_B, (angle_A, angle_B))  # B's pitch in its own unit
     return expected_from_invariants(sigma, pitch, data.translation_scale, 1.0)
 
 

@@ -39,7 +39,6 @@ from handeye.problems.axyb.data import (
     SETUPS,
     AXYBData,
     pairs_from_stations,
-    station_angles,
 )
 
 
@@ -136,7 +135,7 @@ class AXYB(Problem):
                 f"the rotations of X and Y cannot be determined (rotation excitation {excitation:.1e} "
                 f"< {DEGENERATE_EXCITATION:g}). Record poses that rotate about at least two different axes"
             )
-        check_motion_beyond_noise(*station_angles(out.A, out.B), "stations")
+        check_motion_beyond_noise(*out.station_angles(), "stations")
         return out
 
     def diagnose(self, data: AXYBData) -> dict[str, Any]:
