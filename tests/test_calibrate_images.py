@@ -135,6 +135,10 @@ def test_eye_to_hand_with_intrinsics_drops_the_unreadable_image(eye_to_hand, tmp
     assert [p["robot_pose"] for p in result["matching"]["pairs"]] == [str(i) for i in range(12) if i != 7]
     check_truth(result, cell)
     assert result["inputs"]["camera"]["intrinsics"] == str(folder / "camera.yaml")
+    # the true file against the images' own focal length: within 3 of its 1-sigma, not warned
+    check = result["camera"]["focal_check"]
+    assert check["images"] == 11 and abs(check["sigmas"]) < 3 and not check["warned"] and abs(check["percent"]) < 1
+    assert check["images_fx_fy"][0] == pytest.approx(CAMERA.K[0, 0], rel=0.01) and check["images_std_px"][0] > 0
 
 
 def test_no_cache_leaves_the_cache_empty_and_workers_change_nothing(eye_to_hand, tmp_path, monkeypatch, capsys):

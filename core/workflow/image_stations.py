@@ -126,6 +126,11 @@ def result_entries(cell: Cell, images: Any) -> dict[str, Any]:
     camera = intrinsics_entry(images.camera, images.calibration, cell.images.intrinsics)
     if images.calibration is not None:
         camera["per_image_rms_px"] = dict(zip(images.names, images.calibration.per_image_rms.tolist()))
+    check = images.observations.focal_check  # given intrinsics against the images' own (docs/images.md)
+    if check is not None:
+        camera["focal_check"] = {"images_fx_fy": list(check.own), "images_std_px": list(check.std),
+                                 "sigmas": check.sigmas, "percent": check.percent, "images": check.views,
+                                 "warned": check.off}
     stations = [{"image": f, "robot_pose": p, "points": len(u), "rms_px": float(e)}
                 for f, p, u, e in zip(images.files, images.pose_names, images.observations.image_points,
                                       images.errors)]
