@@ -212,28 +212,11 @@ def problem_for(data: Any) -> Problem:
     the model refine needs; InputError otherwise."""
     from handeye.framework.registry import get_registry
 
-    registry = get_registry()
-    # asked ~9 times a solve of the same data: kept per registry (a reload makes another) and data
-    # type, while no problem is added
-    key = (id(registry), len(registry.problems), type(data))
-    problem = _PROBLEM_FOR.get(key)
-    if (problem is None or _PROBLEM_FOR_REGISTRY[0] is not registry
-            or registry.problems.get(problem.name) is not problem):  # (replaced: ask again)
-        problem = registry.problem_of(data)
-        if not problem.refinable:
-            raise InputError(f"refine does not solve problem {problem.name!r}: it gives no least-squares model "
-                             "(Problem.pose_model)")
-        if _PROBLEM_FOR_REGISTRY[0] is not registry:
-            _PROBLEM_FOR.clear()
-            _PROBLEM_FOR_REGISTRY[0] = registry
-        _PROBLEM_FOR[key] = problem
+    problem = get_registry().problem_of(data)
+    if not problem.refinable:
+        raise InputError(f"refine does not solve problem {problem.name!r}: it gives no least-squares model "
+                         "(Problem.pose_model)")
     return problem
-
-
-#: `problem_for`'s answers: (id of the registry, its number of problems, data type) -> problem
-_PROBLEM_FOR: dict[tuple[int, int, type], Problem] = {}
-#: the registry they are of (its id alone could be reused by another after a reload)
-_PROBLEM_FOR_REGISTRY: list[Any] = [None]
 
 
 def problem_of(data: Any) -> str:
