@@ -12,6 +12,7 @@ eye-to-hand and exp(-delta_i) M_i eye-in-hand (`residuals` with ``robot``).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from typing import Any
 
@@ -20,7 +21,7 @@ import numpy as np
 from handeye.estimation.nlls import retract
 from handeye.estimation.robust import loss_terms
 from handeye.framework.errors import SolverError
-from handeye.geometry.se3 import inverse, skew
+from handeye.geometry.se3 import inverse, make_pose, so3_exp
 from handeye.problems.axyb import AXYBData
 
 #: relative decrease of the cost, and step size relative to the parameters' scale, below which
@@ -54,57 +55,94 @@ class Cell:
         """The corners of each station."""
         return np.array([len(u) for u in self.pixels])
 
+    @functools.cached_property
+    def station(self) -> np.ndarray:
+        """(n,) each corner's station."""
+        return np.repeat(np.arange(len(self.pixels)), self.counts)
+
+    @functools.cached_property
+    def object_points(self) -> np.ndarray:
+        """(n, 3) every station's board points, stacked."""
+        return np.concatenate(self.points).astype(float, copy=False).reshape(-1, 3)
+
+    @functools.cached_property
+    def image_points(self) -> np.ndarray:
+        """(n, 2) every station's detected corners, stacked."""
+        return np.concatenate(self.pixels).astype(float, copy=False).reshape(-1, 2)
+
+
+def robot_poses(delta: np.ndarray) -> np.ndarray:
+    """(m, 4, 4) exp(delta_i) to first order (`handeye.estimation.nlls.retract` of the identity)
+    of the robot-pose corrections delta (m, 6) = (omega, v)."""
+    return make_pose(so3_exp(delta[:, :3]), delta[:, 3:])
+
 
 def residuals(cell: Cell, poses: dict[str, np.ndarray], camera: Any, jacobian: bool,
               robot: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """Stacked pixel residuals (n, 2) (prediction - detection) and, if asked, their Jacobian
     (n, 2, 12 + ni [+ 6]) by right perturbations of X, Y (in that order), the intrinsics and,
     with `robot` (m, 6) corrections delta_i of the robot's poses (module docstring), by each
-    corner's own station's delta."""
-    from handeye.vision.projection import point_jacobians, project
+    corner's own station's delta. Every corner of every station at once: one projection, and
+    each corner's station's transforms gathered by `Cell.station`."""
+    from handeye.vision.projection import project
 
     L, R = poses[cell.left], poses[cell.right]
     Linv = inverse(L)
-    res, jac = [], []
-    for i, (M, P, u) in enumerate(zip(cell.M, cell.points, cell.pixels)):
-        if robot is not None:
-            E = retract(np.eye(4), robot[i])
-            M = inverse(E) @ M if cell.eye_in_hand else M @ E  # exp(-delta) M, M exp(delta)
-        T = Linv @ M @ R
-        q = P @ T[:3, :3].T + T[:3, 3]
-        pixels, Jp, Ji = project(q, camera)
-        res.append(pixels - u)
-        if jacobian:
-            dL, dR = point_jacobians(q, T[:3, :3], P)
-            dpose = {cell.left: Jp @ dL, cell.right: Jp @ dR}
-            parts = [dpose["X"], dpose["Y"], Ji]
-            if robot is not None:
-                parts.append(Jp @ _robot_jacobian(cell, Linv, M, R, P))
-            jac.append(np.concatenate(parts, axis=2))
-    r = np.concatenate(res)
+    M = cell.M
+    if robot is not None:
+        E = robot_poses(robot)
+        M = inverse(E) @ M if cell.eye_in_hand else M @ E  # exp(-delta) M, M exp(delta)
+    T = Linv @ M @ R                                           # (m, 4, 4): board to camera
+    at = cell.station
+    G = T[at, :3, :3]                                          # each corner's station's rotation
+    P = cell.object_points
+    q = np.einsum("nij,nj->ni", G, P) + T[at, :3, 3]
+    pixels, Jp, Ji = project(q, camera)
+    r = pixels - cell.image_points
     if not np.all(np.isfinite(r)):
         raise SolverError("reprojection: a board corner fell behind the camera at the start poses; give "
                           "better init_X / init_Y or check the setup (eye-in-hand / eye-to-hand)")
-    return r, (np.concatenate(jac) if jacobian else None)
+    if not jacobian:
+        return r, None
+    # d p / d xi_L = [[q]_x | -I], d p / d xi_R = G [-[P]_x | I] (`handeye.vision.projection.
+    # point_jacobians`); a row j^T [v]_x is (j x v)^T, so each product by Jp is a cross product
+    JpG = Jp @ G
+    parts = {cell.left: np.concatenate([np.cross(Jp, q[:, None, :]), -Jp], axis=2),
+             cell.right: np.concatenate([-np.cross(JpG, P[:, None, :]), JpG], axis=2)}
+    columns = [parts["X"], parts["Y"], Ji]
+    if robot is not None:
+        columns.append(_robot_jacobian(cell, Linv, M, R, Jp))
+    return r, np.concatenate(columns, axis=2)
 
 
-def _robot_jacobian(cell: Cell, Linv: np.ndarray, M: np.ndarray, R: np.ndarray, P: np.ndarray) -> np.ndarray:
-    """d p / d delta: (n, 3, 6) of the board points p at the current correction. Eye-to-hand
-    p = L^-1 M exp(delta) R P: G [-[w]_x | I] with G the rotation of L^-1 M and w = R P (the
-    points in the flange frame); eye-in-hand p = L^-1 exp(-delta) M R P: R_L^T [[w]_x | -I] with
-    w = M R P (the points in the flange frame)."""
-    n = len(P)
-    out = np.empty((n, 3, 6))
+def _robot_jacobian(cell: Cell, Linv: np.ndarray, M: np.ndarray, R: np.ndarray, Jp: np.ndarray) -> np.ndarray:
+    """d pixel / d delta: (n, 2, 6) at the current corrections (M: the stations' corrected robot
+    chains), Jp = d pixel / d p. Eye-to-hand p = L^-1 M exp(delta) R P: d p / d delta =
+    G [-[w]_x | I] with G the rotation of L^-1 M and w = R P (the points in the flange frame);
+    eye-in-hand p = L^-1 exp(-delta) M R P: R_L^T [[w]_x | -I] with w = M R P (the points in
+    the flange frame)."""
+    at, P = cell.station, cell.object_points
+    w = P @ R[:3, :3].T + R[:3, 3]
     if cell.eye_in_hand:
-        w = (P @ R[:3, :3].T + R[:3, 3]) @ M[:3, :3].T + M[:3, 3]
-        G = Linv[:3, :3]
-        out[:, :, :3] = G @ skew(w)
-        out[:, :, 3:] = -G
-    else:
-        w = P @ R[:3, :3].T + R[:3, 3]
-        G = (Linv @ M)[:3, :3]
-        out[:, :, :3] = -G @ skew(w)
-        out[:, :, 3:] = G
+        Mw = M[at]
+        w = np.einsum("nij,nj->ni", Mw[:, :3, :3], w) + Mw[:, :3, 3]
+        JpG = Jp @ Linv[:3, :3]
+        return np.concatenate([np.cross(JpG, w[:, None, :]), -JpG], axis=2)
+    JpG = Jp @ (Linv[:3, :3] @ M[:, :3, :3])[at]
+    return np.concatenate([-np.cross(JpG, w[:, None, :]), JpG], axis=2)
+
+
+def station_grams(columns: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """(m, k, k): each station's sum of C^T C over its corners' rows of `columns` (n, 2, k),
+    `counts` corners a station in order; one BLAS product a station (~6x an einsum over every
+    corner's outer product and a reduceat, at 30 stations of 54 corners)."""
+    k = columns.shape[2]
+    out = np.empty((len(counts), k, k))
+    start = 0
+    for i, count in enumerate(counts.tolist()):
+        rows = columns[start:start + count].reshape(-1, k)
+        out[i] = rows.T @ rows
+        start += count
     return out
 
 

@@ -46,6 +46,7 @@ from handeye.plugins.reprojection.corners import (
     camera_with,
     intrinsics,
     residuals,
+    station_grams,
 )
 
 #: the alternation stops when the variances' step gains less than this in log-likelihood (nats)
@@ -94,11 +95,11 @@ class _Sums:
     @classmethod
     def at(cls, cell: Cell, poses: dict[str, np.ndarray], camera: Any, delta: np.ndarray, free: int) -> _Sums:
         r, J = residuals(cell, poses, camera, True, robot=delta)
-        Jg, Jd = J[:, :, :free], J[:, :, -6:]
-        starts = np.r_[0, np.cumsum(cell.counts)[:-1]]
-        return cls(np.einsum("nka,nkb->ab", Jg, Jg), np.add.reduceat(np.einsum("nka,nkb->nab", Jg, Jd), starts, axis=0),
-                   np.add.reduceat(np.einsum("nka,nkb->nab", Jd, Jd), starts, axis=0), np.einsum("nka,nk->a", Jg, r),
-                   np.add.reduceat(np.einsum("nka,nk->na", Jd, r), starts, axis=0), r, delta)
+        # [Jg | Jd | r]^T [Jg | Jd | r] station by station: every sum in one product each
+        blocks = station_grams(np.concatenate([J[:, :, :free], J[:, :, -6:], r[:, :, None]], axis=2), cell.counts)
+        g, d = slice(0, free), slice(free, free + 6)
+        return cls(blocks[:, g, g].sum(axis=0), blocks[:, g, d], blocks[:, d, d], blocks[:, g, -1].sum(axis=0),
+                   blocks[:, d, -1], r, delta)
 
     def normal(self, sigmas: tuple[float, float, float]) -> _Normal:
         """The arrow's blocks under the variances `sigmas`."""
