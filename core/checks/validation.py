@@ -158,22 +158,34 @@ def _valid_poses(T: np.ndarray) -> bool:
         # a sum is finite only if every entry is (an overflow merely sends the data to pose_stack)
         if not (np.isfinite(T.sum()) and np.abs(T[:, 3, :] - _LAST_ROW).max() <= LAST_ROW_TOL):
             return False
+        if len(T) > 128:
+            return _valid_rotations_by_entry(T)
         R = T[:, :3, :3]
         if not orthonormality_error(R).max() <= (1.0 - 1e-6) * ORTHONORMALITY_TOL:
             return False
-        if len(T) <= 128:
-            det = np.linalg.det(R)
-        else:  # the rule of Sarrus: one gather and 5 products, 2x cheaper than LAPACK's batched LU here
-            G = R.reshape(len(T), 9).take(_SARRUS, axis=1)
-            det = (G[:, :3] * (G[:, 3:6] * G[:, 6:9] - G[:, 9:12] * G[:, 12:15])).sum(axis=1)
-        return bool(det.min() > 0.5)  # +-1 given the previous check
+        return bool(np.linalg.det(R).min() > 0.5)  # +-1 given the previous check
+
+
+def _valid_rotations_by_entry(T: np.ndarray) -> bool:
+    """`_valid_poses`' rotation checks on a large stack, entry by entry: each of the nine entries
+    copied once into a contiguous row, then R^T R - I and det R (rule of Sarrus) by elementwise
+    products of those rows. Strided access to a (n, 4, 4) stack reads a cache line per pose for
+    every operation; this reads it once (2x faster than `orthonormality_error` and a gather at
+    n = 2e5)."""
+    a, b, c, d, e, f, g, h, i = np.ascontiguousarray(T[:, :3, :3].reshape(len(T), 9).T)
+    err = np.abs(a * a + d * d + g * g - 1.0)
+    for x in (b * b + e * e + h * h - 1.0, c * c + f * f + i * i - 1.0, a * b + d * e + g * h,
+              a * c + d * f + g * i, b * c + e * f + h * i):
+        np.maximum(err, np.abs(x), out=err)
+    if not err.max() <= (1.0 - 1e-6) * ORTHONORMALITY_TOL:
+        return False
+    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    return bool(det.min() > 0.5)  # +-1 given the previous check
 
 
 #: the last row of a pose
 _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
 _LAST_ROW.setflags(write=False)
-#: det R = sum_j r_0j (r_1,j+1 r_2,j+2 - r_1,j+2 r_2,j+1) (indices mod 3), as flat indices of R
-_SARRUS = np.array([0, 1, 2, 4, 5, 3, 8, 6, 7, 5, 3, 4, 7, 8, 6])
 
 
 #: data move beyond their noise when some motion's rotation (the smaller of the robot's and the

@@ -431,11 +431,19 @@ ROUNDING = 1e-12
 
 def _at_rounding(e: np.ndarray, scale: float) -> bool:
     """Whether every residual is at the rounding level of exact data (ROUNDING): the largest
-    |entry| of each column in one pass (asked at every iteration)."""
+    |entry| of each column in one pass (asked at every iteration), the first rows alone first:
+    noisy data are told by them (at m = 1e5 the full pass costs 3 ms)."""
     if not len(e):
         return True
-    top = np.abs(e).max(axis=0)  # numpy's max: NaN stays NaN (not at rounding)
-    return bool(top[:3].max() <= ROUNDING and top[3:].max() <= ROUNDING * scale)
+    for rows in (e[:_HEAD_ROWS], e) if len(e) > _HEAD_ROWS else (e,):
+        top = np.abs(rows).max(axis=0)  # numpy's max: NaN stays NaN (not at rounding)
+        if not (top[:3].max() <= ROUNDING and top[3:].max() <= ROUNDING * scale):
+            return False
+    return True
+
+
+#: `_at_rounding` looks at this many rows first
+_HEAD_ROWS = 256
 
 
 def _newton_step(H: np.ndarray, g: np.ndarray) -> np.ndarray:

@@ -44,6 +44,8 @@ SUMS_MIN_PAIRS = 700
 PROFILE_MIN_PAIRS = 4
 
 _I3 = so3_fast.I3
+#: [e_c]_x of the unit vectors
+_E = so3_fast.skew(np.eye(3))
 
 
 class AXYBModel(PoseModel):
@@ -69,6 +71,7 @@ class AXYBModel(PoseModel):
         self.fixed = () if planar is None else planar.fixed(self.unknowns)
         self._last: tuple[bytes, np.ndarray] | None = None
         self._last_jacobian: tuple[tuple[bytes, bytes], np.ndarray] | None = None
+        self._components: tuple[np.ndarray, np.ndarray] | None = None
 
     def residuals(self, poses: Poses) -> np.ndarray:
         """Unwhitened residuals e: (m, 6) = [r_i; t_i], r_i the rotation vector of the discrepancy
@@ -159,7 +162,7 @@ class AXYBModel(PoseModel):
         """This model on the pairs `index` only (the same scale and fixed components): what the
         self-check's test for systematic errors needs of 2000 pairs out of 1e5."""
         out = copy.copy(self)
-        out._last = out._last_jacobian = None
+        out._last = out._last_jacobian = out._components = None
         index = np.asarray(index)
         m = len(index)
         out.m = m
@@ -172,9 +175,17 @@ class AXYBModel(PoseModel):
     def with_camera_scale(self, s: float) -> AXYBModel:
         """This model with the camera translations t_B multiplied by s (the rest shared)."""
         out = copy.copy(self)
-        out._last = out._last_jacobian = None
+        out._last = out._last_jacobian = out._components = None
         out.tB, out.TBx_T = s * self.tB, s * self.TBx_T
         return out
+
+    def _by_component(self) -> tuple[np.ndarray, np.ndarray]:
+        """(R_A (3, 3, m), t_B (3, m)): the pairs' data component by component, each contiguous
+        over the pairs, the layout in which `normal_equations`' sums run at memory speed (kept)."""
+        if self._components is None:
+            RA = np.ascontiguousarray(self.RA9.reshape(self.m, 9).T).reshape(3, 3, self.m)
+            self._components = (RA, np.ascontiguousarray(self.tB.T))
+        return self._components
 
     def normal_equations(self, poses: Poses, e: np.ndarray, wr: float, wt: float,
                          d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -190,38 +201,57 @@ class AXYBModel(PoseModel):
         X, Y = poses
         m = self.m
         RX, RY = X[:3, :3], Y[:3, :3]
-        r, t = e[:, :3], e[:, 3:]
-        RA = self.RA9.reshape(m, 3, 3)
-        dr, dt = d[:, None] * r, d[:, None] * t
-        theta2 = np.einsum("ni,ni->n", r, r)
+        RA, tB = self._by_component()
+        eT = np.ascontiguousarray(e.T)
+        r, t = eT[:3], eT[3:]
+        theta2 = np.einsum("in,in->n", r, r)
         beta, gamma, delta = so3_fast.jl_products(theta2)
-        u = np.einsum("nji,nj->ni", RA, r)  # R_A^T r
+        u = np.einsum("jin,jn->in", RA, r)  # R_A^T r
+        q = RY @ tB  # R_Y t_B
+        # the sums of R_A weighted per pair by dt, dq, d, d (1 - delta theta^2), d gamma r: one product.
+        # A sum of R_A^T [v]_x is sum_c S_(v_c)^T [e_c]_x, and sum R_A^T v is sum_c row c of S_(v_c)
+        W = np.empty((11, m))
+        np.multiply(t, d, out=W[0:3])
+        np.multiply(q, d, out=W[3:6])
+        W[6] = d
+        W[7] = d * (1.0 - delta * theta2)
+        np.multiply(r, d * gamma, out=W[8:11])
+        S = (W @ RA.reshape(9, m).T).reshape(11, 3, 3)
+        dt, dq = W[0:3], W[3:6]
+        db = d * beta
+        Brr = (r * db) @ r.T
         sum_d = float(np.sum(d))
-        # gradient
+        ones = sum_d - float(np.trace(Brr))  # sum d (1 - beta theta^2)
+        tq = dt @ q.T  # sum d t q^T: its skew part is sum d t x q
+        # gradient (translation rows as `translation_gradient`)
         g_rot = np.zeros(12)
-        g_rot[0:3] = wr * (RX.T @ np.einsum("nji,nj->i", RA, dr))
-        g_rot[6:9] = -wr * (RY.T @ dr.sum(axis=0))
-        q = self.tB @ RY.T  # R_Y t_B
-        g_trans = wt * AXYBModel.translation_gradient(self, poses, dt, q)  # (X, Y) even when a subclass folds
+        g_rot[0:3] = wr * (RX.T @ (u @ d))
+        g_rot[6:9] = -wr * (RY.T @ (r @ d))
+        g_trans = np.zeros(12)
+        g_trans[3:6] = wt * (RX.T @ (S[0, 0] + S[1, 1] + S[2, 2]))
+        g_trans[6:9] = wt * (RY.T @ np.array([tq[1, 2] - tq[2, 1], tq[2, 0] - tq[0, 2], tq[0, 1] - tq[1, 0]]))
+        g_trans[9:12] = -wt * (RY.T @ (t @ d))
         # information matrix
         H = np.zeros((12, 12))
-        db = d * beta
-        H[0:3, 0:3] = wr * (RX.T @ (float(np.sum(d * (1.0 - beta * theta2))) * _I3 + (db[:, None] * u).T @ u) @ RX)
-        H[6:9, 6:9] = wr * (RY.T @ (float(np.sum(d * (1.0 - beta * theta2))) * _I3 + (db[:, None] * r).T @ r) @ RY)
-        K = so3_fast.skew(r)
-        T = (np.einsum("n,nij->ji", d * (1.0 - delta * theta2), RA)
-             + np.tensordot(RA, (d * gamma)[:, None, None] * K, axes=([0, 1], [0, 1]))
-             + ((d * delta)[:, None] * u).T @ r)
+        H[0:3, 0:3] = wr * (RX.T @ (ones * _I3 + (u * db) @ u.T) @ RX)
+        H[6:9, 6:9] = wr * (RY.T @ (ones * _I3 + Brr) @ RY)
+        T = S[7].T + _skew_sum(S[8:11]) + (u * (d * delta)) @ r.T
         H[0:3, 6:9] = -wr * (RX.T @ T @ RY)
         H[3:6, 3:6] = wt * sum_d * _I3
         H[9:12, 9:12] = wt * sum_d * _I3
-        H[3:6, 6:9] = wt * (RX.T @ np.tensordot(RA, d[:, None, None] * so3_fast.skew(q), axes=([0, 1], [0, 1])) @ RY)
-        H[3:6, 9:12] = -wt * (RX.T @ np.einsum("n,nij->ji", d, RA) @ RY)
-        dq = d[:, None] * q
-        H[6:9, 6:9] += wt * (RY.T @ (float(np.sum(dq * q)) * _I3 - dq.T @ q) @ RY)
-        H[6:9, 9:12] = wt * (RY.T @ so3_fast.skew(dq.sum(axis=0)) @ RY)
+        H[3:6, 6:9] = wt * (RX.T @ _skew_sum(S[3:6]) @ RY)
+        H[3:6, 9:12] = -wt * (RX.T @ S[6].T @ RY)
+        qq = dq @ q.T
+        H[6:9, 6:9] += wt * (RY.T @ (float(np.trace(qq)) * _I3 - qq) @ RY)
+        H[6:9, 9:12] = wt * (RY.T @ so3_fast.skew(dq.sum(axis=1)) @ RY)
         Hw = np.triu(H) + np.triu(H, 1).T  # mirror the upper blocks filled above
         return g_rot, g_trans, Hw
+
+
+def _skew_sum(S: np.ndarray) -> np.ndarray:
+    """sum_c S_c^T [e_c]_x of three 3x3 sums S (3, 3, 3): sum_i R_A,i^T [v_i]_x when S_c is the sum
+    of R_A,i weighted by v_i's component c."""
+    return S[0].T @ _E[0] + S[1].T @ _E[1] + S[2].T @ _E[2]
 
 
 def _key(poses: Poses) -> bytes:
