@@ -262,3 +262,27 @@ def test_options_are_validated(data, runtime_plugins):
                   solver="with-options", iterations=-1)
     sol = handeye.solve("axyb", solver="with-options", iterations=3, **data)
     assert sol.solver == "with-options"
+
+
+@pytest.mark.parametrize("fault, match", [
+    ("norm 2x", r"not orthonormal .* in pose\(s\) 250"),
+    ("shear 2x", r"not orthonormal .* in pose\(s\) 250"),
+    ("reflection", r"det -1 \(a reflection\) in pose\(s\) 250"),
+])
+def test_a_large_stack_is_checked_pose_by_pose_as_a_small_one(fault, match):
+    """Above 128 poses the rotations are checked entry by entry (another code path): the same
+    boundary, named pose and message; half the tolerance passes."""
+    d, _ = PROBLEM.simulate(pairs=300, seed=5, noise=NoiseModel.on("B", 0.01, 0.5))
+    A, B = np.array(d["A"]), np.array(d["B"])
+    bad, fine = A.copy(), A.copy()
+    if fault.startswith("norm"):
+        bad[250, :3, 1] *= np.sqrt(1 + 2.0 * ORTHONORMALITY_TOL)
+        fine[250, :3, 1] *= np.sqrt(1 + 0.5 * ORTHONORMALITY_TOL)
+    elif fault.startswith("shear"):  # columns 0 and 2 no longer orthogonal: c0 . c2 = 2 tol
+        bad[250, :3, 2] += 2.0 * ORTHONORMALITY_TOL * A[250, :3, 0]
+        fine[250, :3, 2] += 0.5 * ORTHONORMALITY_TOL * A[250, :3, 0]
+    else:
+        bad[250, :3, 0] *= -1
+    _solve_raises(InputError, match, bad, B)
+    if fault != "reflection":
+        handeye.solve("axyb", solver="kron-lstsq", A=fine, B=B)

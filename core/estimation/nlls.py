@@ -51,6 +51,7 @@ from handeye.estimation.whitening import (
 from handeye.framework.errors import DegenerateDataError
 from handeye.framework.solution import Status
 from handeye.geometry import so3_fast
+from handeye.geometry.linalg import row_sums_of_squares
 
 ESTIMATES = ("profile", "initial")
 #: a Gauss-Newton step whose predicted decrease is below JUDGE_TOL * |objective| is taken without
@@ -201,7 +202,7 @@ def objective(e: np.ndarray, W: Whitening | None, mode: str, loss: str, c: float
         return (3.0 * len(e) * (math.log(W.sigma_rot) + math.log(W.sigma_trans))
                 + 0.5 * (sum_rot / W.sigma_rot**2 + sum_trans / W.sigma_trans**2)), W
     ew = W.residual(e)
-    return 0.5 * float(loss_terms((ew * ew).sum(axis=1), loss, c)[0].sum()), W
+    return 0.5 * float(loss_terms(row_sums_of_squares(ew), loss, c)[0].sum()), W
 
 
 def cost_of(model: PoseModel, poses: Poses, W: Whitening, loss: str, c: float) -> float:

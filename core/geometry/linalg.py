@@ -95,7 +95,25 @@ def eigh(S: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def row_norms(x: np.ndarray) -> np.ndarray:
     """The Euclidean norm of each row of a real (n, k) array: np.linalg.norm(x, axis=1)'s own
     arithmetic (sqrt of the summed squares) without its wrapper (~2 us, a dozen times a solve)."""
-    return np.sqrt(np.add.reduce(x * x, axis=1))
+    return np.sqrt(row_sums_of_squares(x))
+
+
+#: from this many rows on, `row_sums_of_squares` adds column by column
+_COLUMNWISE_ROWS = 256
+
+
+def row_sums_of_squares(x: np.ndarray) -> np.ndarray:
+    """sum_j x_ij^2 of each row of a real (n, k) array, with the bits of np.add.reduce(x * x,
+    axis=1). numpy adds fewer than 8 numbers in order, so for k < 8 and many rows the sum is
+    taken column by column over whole columns instead: the same additions in the same order,
+    4-13x faster at n = 1e5 (a reduction along short rows runs a loop per row)."""
+    n, k = x.shape
+    if n < _COLUMNWISE_ROWS or k >= 8:
+        return np.add.reduce(x * x, axis=1)
+    out = x[:, 0] * x[:, 0]
+    for j in range(1, k):
+        out += x[:, j] * x[:, j]
+    return out
 
 
 def vector_norm(x: np.ndarray) -> float:
