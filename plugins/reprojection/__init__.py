@@ -305,30 +305,45 @@ def _compare_held_out(data: AXYBData, options: Options) -> dict[str, Any]:
         raise InputError(f"held_out={k} needs at least {2 * k} stations (2 per fold), got {len(data.A)}; "
                          "give fewer folds or record more stations")
     plain = dataclasses.replace(options, held_out=0, init_X=None, init_Y=None)
-    fold: list[Any] = [None, None]  # the fold's training data and the pose-based answer on them
+    fold: dict[str, Any] = {}  # what was fitted on the current fold's training data (`fitted`)
+
+    def fitted(train: AXYBData, what: str, fit: Any) -> Any:
+        """fit(train), once per fold: the corner fits share the pose-based start and the exact-robot
+        fit (the joint fit starts from it, as in `run`)."""
+        if fold.get("train") is not train:
+            fold.clear()
+            fold["train"] = train
+        if what not in fold:
+            fold[what] = fit(train)
+        return fold[what]
 
     def pose_based(train: AXYBData) -> Any:
-        """The start solver on the fold's poses, once per fold: it is also the corner fits' start."""
-        if fold[0] is not train:
-            fold[:] = [train, run_registered(START, dataclasses.replace(train, images=None), problem="axyb")]
-        return fold[1]
+        return fitted(train, "pose_based", lambda t: run_registered(START, dataclasses.replace(t, images=None),
+                                                                    problem="axyb"))
 
-    def corner_fit(robot: str) -> held_out.Fitter:
-        fit_options = dataclasses.replace(plain, robot_noise=robot)
+    def exact_fit(train: AXYBData) -> Any:
+        """`run`'s corner fit with the robot's poses exact, from the pose-based start (or, where
+        that ended badly, from `run`'s own start, which then refuses it as alone)."""
+        start = pose_based(train)
+        if Status(start.status) in (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED):
+            poses0 = {k: np.asarray(start.unknowns[k], dtype=float) for k in ("X", "Y")}
+        else:
+            poses0 = _start(train, plain)[0]
+        return levenberg_marquardt(Cell.of(train), poses0, train.images.camera, plain.refine_intrinsics, plain.loss,
+                                   plain.loss_scale, plain.max_iter)
 
-        def fit(train: AXYBData) -> dict[str, np.ndarray]:
-            start = pose_based(train)
-            given = fit_options  # a start that ended badly: `run`'s own start refuses it, as alone
-            if Status(start.status) in (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED):
-                given = dataclasses.replace(fit_options, init_X=start.unknowns["X"], init_Y=start.unknowns["Y"])
-            return run(train, given, "default").unknowns
-        return fit
+    def joint_fit(train: AXYBData) -> dict[str, np.ndarray]:
+        """`run`'s joint fit with the robot's noise estimated, from the exact-robot fit."""
+        fit = fitted(train, "exact_robot", exact_fit)
+        cell = Cell.of(train)
+        sigmas = _start_sigmas(train, cell, fit, pnp_rms(train))
+        return robot_noise.fit(cell, fit.poses, train.images.camera, plain.refine_intrinsics, sigmas).poses
 
     fitters: dict[str, held_out.Fitter] = {}
     if options.robot_noise_estimated:
-        fitters["joint"] = corner_fit("estimated")
+        fitters["joint"] = lambda train: fitted(train, "joint", joint_fit)
     if options.robot_noise != "estimated":
-        fitters["exact_robot"] = corner_fit("none")
+        fitters["exact_robot"] = lambda train: fitted(train, "exact_robot", exact_fit).poses
     fitters["pose_based"] = lambda train: pose_based(train).unknowns
     found = held_out.held_out(data, fitters, k)
     corner_fits = {name: px for name, px in found.items() if name != "pose_based" and px is not None}
