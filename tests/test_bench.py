@@ -57,7 +57,8 @@ def _problem(seen: list[int]) -> AXYB:
                          BenchRow("lib direct A", direct, missing=lambda: "no such library here"),
                          BenchRow("lib direct B", direct, missing=lambda: "no such library here")),
             targets=(BenchTarget(SOLVER, 5, seconds=60.0), BenchTarget(SOLVER, 6, ratio=1e9),
-                     BenchTarget(SOLVER, 7, seconds=1.0)),
+                     BenchTarget(SOLVER, 7, seconds=1.0), BenchTarget(SOLVER, 5, ratio=1e-12, against="plain direct"),
+                     BenchTarget(SOLVER, 5, ratio=2.0, against="lib direct A")),
             data_note="my cell (seed {seed}), {rot:g} rad, {trans:g} mm",
         )
 
@@ -79,10 +80,13 @@ def test_a_problem_registered_at_run_time_is_benchmarked_by_its_own_settings(run
         assert all(run.cells[(label, m)].call is not None for m in (5, 6))
     assert data_line(run) == "my cell (seed 3), 0.01 rad, 1 mm"
     verdicts = target_lines(run)
-    assert len(verdicts) == 3
+    assert len(verdicts) == 5
     assert "< 60000 ms" in verdicts[0] and verdicts[0].endswith("PASS")
     assert "x the plain call" in verdicts[1] and verdicts[1].endswith("PASS")
     assert "n/a: m=7 not measured" in verdicts[2]
+    # a target against a row of its own choosing: divided by that row, or said to be unmeasured
+    assert "< 1e-12x plain direct" in verdicts[3] and verdicts[3].endswith("MISS")
+    assert verdicts[4].endswith("n/a: lib direct A not measured")
     assert same_method_lines(run)[0].startswith(f"  {SOLVER}/numpy") and "vs plain direct" in same_method_lines(run)[0]
     assert "1.00x" in table(run, "call").splitlines()[1]  # the reference row divides by itself
     assert payload(run)["reference"] == "plain direct" and payload(run)["unavailable"] == run.unavailable

@@ -87,8 +87,9 @@ class BenchRow:
 class BenchTarget:
     """A speed target `handeye bench` checks and prints: `solver` (on its default backend, or
     `backend`) at `pairs` pairs within `seconds` per `handeye.solve` call, or within `ratio` times
-    the reference row's call; `options` (e.g. ``(("init", "kron-lstsq"),)``) make it a row of
-    its own, timed beside the solver's plain row."""
+    the call of the row labelled `against` (None: the reference row; e.g. a direct row, to compare
+    with the other library called as its users call it); `options` (e.g.
+    ``(("init", "kron-lstsq"),)``) make it a row of its own, timed beside the solver's plain row."""
 
     solver: str
     pairs: int
@@ -96,6 +97,7 @@ class BenchTarget:
     ratio: float | None = None
     backend: str | None = None
     options: tuple[tuple[str, Any], ...] = ()
+    against: str | None = None
 
 
 @dataclasses.dataclass(frozen=True)

@@ -74,10 +74,11 @@ def target_lines(run: BenchRun) -> list[str]:
         spec = registry.solvers.get(t.solver, {}).get(run.problem)
         backend = t.backend or (spec.default_backend if spec else "?")
         label = row_label(t.solver, backend, t.options)
-        limit = f"< {t.seconds * 1e3:g} ms" if t.seconds is not None else f"< {t.ratio:g}x {name}"
+        by = t.against or name
+        limit = f"< {t.seconds * 1e3:g} ms" if t.seconds is not None else f"< {t.ratio:g}x {by}"
         head = f"  target: {label:<34} m={t.pairs:<6} {limit:<22}"
         cell = run.cells.get((label, t.pairs))
-        ref = run.cells.get((run.reference, t.pairs))
+        ref = run.cells.get((t.against or run.reference, t.pairs))
         direct = run.cells.get((direct_label, t.pairs)) if direct_label else None
         if spec is None:
             lines.append(f"{head} n/a: solver {t.solver!r} is not registered")
@@ -95,7 +96,7 @@ def target_lines(run: BenchRun) -> list[str]:
                 verdict += " (solver run alone would pass)"
             lines.append(f"{head} {fmt_seconds(cell.call)} (run {fmt_seconds(cell.run)})  {verdict}")
         elif ref is None or not ref.call:
-            lines.append(f"{head} n/a: {name} not measured")
+            lines.append(f"{head} n/a: {by} not measured")
         else:
             ratio = cell.call / ref.call
             verdict = "PASS" if ratio < t.ratio else "MISS"

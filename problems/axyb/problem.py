@@ -41,6 +41,9 @@ from handeye.problems.axyb.data import (
     pairs_from_stations,
 )
 
+#: the direct OpenCV row the speed targets against OpenCV divide by
+DIRECT_SHAH = "cv2 direct SHAH"
+
 
 class AXYB(Problem):
     """A_i X = Y B_i: simultaneous hand-eye (X) and robot-world (Y) calibration."""
@@ -87,6 +90,10 @@ class AXYB(Problem):
             BenchTarget("refine", 16, seconds=5e-3, options=(("init", "kron-lstsq"),)),
             BenchTarget("auto", 16, seconds=30e-3),
             BenchTarget("refine", 10000, seconds=200e-3),
+            # auto (validation, the checks and all) against OpenCV as its users call it
+            BenchTarget("auto", 16, ratio=13.0, against=DIRECT_SHAH),
+            BenchTarget("auto", 100000, ratio=1.0, against=DIRECT_SHAH),
+            BenchTarget("auto", 100000, ratio=0.3, options=(("noise", "groups"),), against=DIRECT_SHAH),
         ),
     )
 
