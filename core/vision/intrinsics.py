@@ -62,7 +62,9 @@ class CameraCalibration:
     of all points (pixels), 1-sigma of fx, fy, cx, cy (pixels) from OpenCV, and the model used.
     `opencv_std`: OpenCV's own 1-sigma where `std_fx_fy_cx_cy` was widened by a jackknife over
     the images (`handeye.vision.intrinsics_check.with_jackknife`: OpenCV's is too small on real
-    images), else None."""
+    images), else None. `board_poses`: per image, the board's pose in the camera that the
+    calibration solved with the intrinsics, (n, 6) as OpenCV's rvec then tvec (the jackknife
+    linearises about them), or None where not known."""
 
     camera: Camera
     per_image_rms: np.ndarray
@@ -70,6 +72,7 @@ class CameraCalibration:
     std_fx_fy_cx_cy: np.ndarray
     model: str
     opencv_std: np.ndarray | None = None
+    board_poses: np.ndarray | None = None
 
     def __iter__(self):  # (camera, per-image RMS, overall RMS), as the function's documented triple
         return iter((self.camera, self.per_image_rms, self.rms))
@@ -268,7 +271,7 @@ def calibrate_camera(detections: Sequence[PointsOfImage], image_size: tuple[int,
     criteria = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 100, 1e-12)
     try:
         with one_thread():
-            rms, K, dist, _, _, std, _, per_view = cv2.calibrateCameraExtended(
+            rms, K, dist, rvecs, tvecs, std, _, per_view = cv2.calibrateCameraExtended(
                 obj, img, (width, height), None, None, flags=flags, criteria=criteria)
     except cv2.error as exc:
         reason = str(exc).strip().splitlines()[-1] if str(exc).strip() else "OpenCV error"
@@ -276,5 +279,6 @@ def calibrate_camera(detections: Sequence[PointsOfImage], image_size: tuple[int,
                          "or images showing the board at more angles") from None
     camera = Camera(K, np.asarray(dist, dtype=float).ravel()[:5], (width, height))
     model = "k1, k2, p1, p2" + (" (k3 fixed at 0)" if fix_k3 else ", k3")
+    poses = np.hstack([np.asarray(rvecs, dtype=float).reshape(-1, 3), np.asarray(tvecs, dtype=float).reshape(-1, 3)])
     return CameraCalibration(camera, np.asarray(per_view, dtype=float).ravel(), float(rms),
-                             np.asarray(std, dtype=float).ravel()[:4], model)
+                             np.asarray(std, dtype=float).ravel()[:4], model, board_poses=poses)

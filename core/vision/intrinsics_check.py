@@ -9,16 +9,26 @@ focal length, and the file's is compared with it in units of its uncertainty.
 
 That uncertainty is not OpenCV's 1-sigma: on real images the corners' errors are not independent
 pixel noise, and OpenCV's figure is too small. Measured by a delete-one jackknife over the
-images, fx's 1-sigma is 1.9x OpenCV's on the real ChArUco set (16 images, 9.9 px against 5.2 px)
-and 4.6x on the real circle-grid set (15 images); on simulated corners with independent noise
-the two agree. The check uses the larger of the two, the jackknife over at most `GROUPS` groups
-of the images (`focal_check`).
+images, fx's 1-sigma is 2.0x OpenCV's on the real ChArUco set (15 images, 10.2 px against 5.2 px)
+and 4.5x on the real circle-grid set (15 images, 4.8 against 1.05 px); on simulated corners with
+independent noise the two agree. The check uses the larger of the two, the jackknife over at
+most `GROUPS` groups of the images (`focal_check`).
+
+The jackknife does not recalibrate without each group (12 calibrations, 0.2-0.3 s on 15-30
+images: a quarter of the pipeline after detection): it linearises the full calibration, one
+Gauss-Newton step per group from the full set's intrinsics and board poses, each view's pose
+eliminated (`jackknife_std`; ~2 ms). Against recalibrating, its 1-sigma of fx, fy, cx, cy: real
+ChArUco 0.99, 0.99, 0.98, 0.97; real circle grid 1.01, 1.00, 1.09, 0.95; 30 rendered 1.3 MP
+chessboards 1.00 for all four; 80 simulated sets of 15 images (both setups) fx, fy 0.98-1.01,
+cx, cy 0.91-1.08. The circle grid's first images move cx, cy by up to 10 px when left out, where
+one step is 1.7 px short; Gauss-Newton iterated per group oscillates there (two steps: cy 0.89,
+three: 0.99, at 10-15x the cost), so one step it is.
 
 Measured (bench/intrinsics_uncertainty.py --detect 40, docs/images.md): on simulated sets of 15
 images (own focal length to ~0.14%) the true intrinsics warn in 0 of 40, a file 0.3% / 0.5% / 1%
-/ 2% off in 7 / 21 / 38 / 40 of 40; the real sets' files (their own calibration, and their
-cal_data.yaml) are quiet, and so is every error up to 2% there (own focal length to 0.76% and
-0.87%: 2.6 and 2.3 sigmas at 2%). The check finds a file as far off as `FOCAL_SIGMAS` times the
+/ 2% off in 7 / 20 / 38 / 40 of 40; the real sets' files (their own calibration, and their
+cal_data.yaml) are quiet, and so is every error up to 2% there (own focal length to 0.75% and
+0.88%: 2.6 and 2.3 sigmas at 2%). The check finds a file as far off as `FOCAL_SIGMAS` times the
 images' own uncertainty and no closer; below that, `exactness_note` says what holding the file
 exact is worth.
 """
@@ -41,8 +51,8 @@ FOCAL_SIGMAS = 3.0
 #: makes the answer state that it takes the given intrinsics as exact (`exactness_note`): a 0.1%
 #: focal length is a good calibration's precision (the real ChArUco set's own: 0.76%)
 EXACT_GROWTH = 1.0
-#: the jackknife deletes one of at most this many groups of the images at a time (cost: GROUPS
-#: calibrations of the camera, 0.12 s on the real ChArUco set's 15 images of 1600 x 1200)
+#: the jackknife deletes one of at most this many groups of the images at a time (cost: one
+#: Gauss-Newton step each from the full calibration, ~2 ms in all on 15-30 images)
 GROUPS = 12
 
 
@@ -67,25 +77,108 @@ class FocalCheck:
 
 
 def jackknife_std(views: Sequence[Any], size: tuple[int, int], fix_k3: bool, groups: int = GROUPS,
-                  images: Sequence[str] | None = None) -> np.ndarray:
+                  images: Sequence[str] | None = None, *, calibration: Any = None) -> np.ndarray:
     """The grouped delete-one jackknife 1-sigma of (fx, fy, cx, cy) of `calibrate_camera` over
-    the views: sqrt((g - 1) / g * sum_i (theta_i - mean)^2), theta_i calibrated without group i.
-    The groups are of images: `images` names each view's image (None: one view per image), and
+    the views: sqrt((g - 1) / g * sum_i (theta_i - mean)^2), theta_i the intrinsics without group
+    i. The groups are of images: `images` names each view's image (None: one view per image), and
     the views of one image (several boards in it) leave together, as their corners' errors are
-    not independent either."""
-    from handeye.vision.intrinsics import calibrate_camera
+    not independent either.
 
+    theta_i is not recalibrated: it is one Gauss-Newton step from `calibration` (the views' own,
+    `handeye.vision.intrinsics.CameraCalibration`; None: calibrated here) on the views outside
+    group i (`_without_group`), 12 recalibrations' ~0.3 s becoming a few ms; against them
+    (module docstring) fx's 1-sigma agrees to 1-2%, cx's and cy's to 10%. Raises InputError
+    where a group's removal leaves the intrinsics undetermined (fewer than `MIN_VIEWS` views)."""
+    from handeye.vision.intrinsics import MIN_VIEWS, calibrate_camera
+
+    if calibration is None:
+        calibration = calibrate_camera(views, size, fix_k3=fix_k3)
     keys = list(range(len(views))) if images is None else list(images)
     units = list(dict.fromkeys(keys))
     g = min(len(units), groups)
-    theta = []
+    S, G = _reduced_terms(calibration, views, fix_k3)
+    steps = []
     for part in np.array_split(np.arange(len(units)), g):
         gone = {units[i] for i in part.tolist()}
-        kept = [v for v, key in zip(views, keys) if key not in gone]
-        K = calibrate_camera(kept, size, fix_k3=fix_k3).camera.K
-        theta.append([K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
-    theta = np.array(theta)
+        kept = np.array([key not in gone for key in keys])
+        if kept.sum() < MIN_VIEWS:
+            raise InputError(f"a jackknife over {len(units)} images leaves {int(kept.sum())} board views in a group")
+        steps.append(_without_group(S[kept].sum(axis=0), G[kept].sum(axis=0))[:4])
+    theta = np.array(steps)  # theta_i - theta_hat: the full calibration's theta_hat cancels in the spread
     return np.sqrt((g - 1) / g * np.sum((theta - theta.mean(axis=0)) ** 2, axis=0))
+
+
+#: columns of cv2.projectPoints' Jacobian: rvec, tvec (the view's pose), then fx, fy, cx, cy, k1,
+#: k2, p1, p2, k3 (the intrinsics `calibrate_camera` frees; k3 last, left out where it is fixed)
+_POSE_COLUMNS = 6
+_INTRINSIC_COLUMNS = 9
+
+
+def _reduced_terms(calibration: Any, views: Sequence[Any], fix_k3: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Per view, its share of the calibration's normal equations in the intrinsics alone, at the
+    calibration: (S_v, g_v), the view's pose eliminated (Schur complement: the pose re-fits to
+    any change of the intrinsics). Stacked, (n, p, p) and (n, p), p = 9 (8 with k3 fixed);
+    sum_v g_v is the gradient of 1/2 * sum of squared residuals, ~0 at the calibration."""
+    import cv2  # not on import: a closed-form solve loads no OpenCV
+
+    camera = calibration.camera
+    dist = np.zeros(5)
+    dist[:min(5, camera.dist.size)] = camera.dist[:5]
+    poses = _board_poses(calibration, views, dist)
+    free = slice(_POSE_COLUMNS, _POSE_COLUMNS + _INTRINSIC_COLUMNS - int(fix_k3))
+    S, G = [], []
+    for view, pose in zip(views, poses):
+        obj, img = _as_calibrated(view)
+        projected, J = cv2.projectPoints(obj, pose[:3], pose[3:], camera.K, dist)
+        r = (projected.reshape(-1, 2) - img).ravel()
+        Jp, Ji = J[:, :_POSE_COLUMNS], J[:, free]
+        B = Ji.T @ Jp
+        eliminate = B @ np.linalg.inv(Jp.T @ Jp)
+        S.append(Ji.T @ Ji - eliminate @ B.T)
+        G.append(Ji.T @ r - eliminate @ (Jp.T @ r))
+    return np.array(S), np.array(G)
+
+
+def _as_calibrated(view: Any) -> tuple[np.ndarray, np.ndarray]:
+    """A view's board and image points as `calibrate_camera` hands them to OpenCV (float32),
+    then in float64: the residuals are the ones the calibration minimised."""
+    obj = np.asarray(view.object_points, dtype=np.float32).reshape(-1, 3).astype(float)
+    img = np.asarray(view.image_points, dtype=np.float32).reshape(-1, 2).astype(float)
+    return obj, img
+
+
+def _board_poses(calibration: Any, views: Sequence[Any], dist: np.ndarray) -> np.ndarray:
+    """Each view's board pose (rvec, tvec) at the calibration: the ones it solved with the
+    intrinsics (``board_poses``), else (a calibration without them, or of a different number of
+    views) solvePnP with its intrinsics, which converges to the same per-view optimum (the
+    jackknife agrees to 1e-3 either way; solvePnP costs 2-4 ms more on 15-30 images)."""
+    import cv2
+
+    poses = getattr(calibration, "board_poses", None)
+    if poses is not None and len(poses) == len(views):
+        return np.asarray(poses, dtype=float)
+    out = []
+    for view in views:
+        obj, img = _as_calibrated(view)
+        ok, rvec, tvec = cv2.solvePnP(obj, img, calibration.camera.K, dist, flags=cv2.SOLVEPNP_ITERATIVE)
+        if not ok:
+            raise InputError("the board pose of a view could not be solved with the calibrated intrinsics")
+        out.append(np.r_[rvec.ravel(), tvec.ravel()])
+    return np.array(out)
+
+
+def _without_group(S: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """The move of the intrinsics from the full calibration to the calibration without a group:
+    one Gauss-Newton step -S^-1 G of the remaining views' reduced normal equations (S, G their
+    sums of `_reduced_terms`; G is minus the group's own gradient, as the full set's is zero),
+    solved on unit-diagonal scaling (fx ~ 1000 px, k3 ~ 0.1)."""
+    d = np.sqrt(np.diag(S))
+    if not np.all(np.isfinite(d) & (d > 0)):
+        raise InputError("the views left in a jackknife group do not determine the intrinsics")
+    scaled = S / np.outer(d, d)
+    if np.linalg.cond(scaled) > 1e12:
+        raise InputError("the views left in a jackknife group do not determine the intrinsics")
+    return -np.linalg.solve(scaled, G / d) / d
 
 
 def with_jackknife(calibration: Any, views: Sequence[Any], size: tuple[int, int],
@@ -97,8 +190,9 @@ def with_jackknife(calibration: Any, views: Sequence[Any], size: tuple[int, int]
     if calibration.opencv_std is not None:
         return calibration
     try:
-        jack = jackknife_std(views, size, calibration.model.endswith("(k3 fixed at 0)"), images=images)
-    except InputError:
+        jack = jackknife_std(views, size, calibration.model.endswith("(k3 fixed at 0)"), images=images,
+                             calibration=calibration)
+    except (InputError, np.linalg.LinAlgError):
         return calibration
     opencv = np.asarray(calibration.std_fx_fy_cx_cy, dtype=float)
     return dataclasses.replace(calibration, std_fx_fy_cx_cy=np.maximum(opencv, jack), opencv_std=opencv)
