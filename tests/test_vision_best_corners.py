@@ -77,12 +77,14 @@ def test_an_image_one_flag_set_misses_is_found_through_another(monkeypatch):
     board = parse_board("chessboard:9x6:25mm")
     T = view_pose(board, 450.0, tilt=(0.2, -0.3, 0.0))
     image, truth = render(board, CAMERA, T), project(board, CAMERA, T)
-    sb = cv2.findChessboardCornersSB
+    from handeye.vision.chessboard_region import Region
 
-    def only_without_flags(gray, size, flags=0):
-        return sb(gray, size, flags=flags) if flags == 0 else (False, None)
+    find = Region.find  # by flag set: SB normalize searches the equalised crop with no flag
 
-    monkeypatch.setattr(cv2, "findChessboardCornersSB", only_without_flags)
+    def only_without_flags(region, flags):
+        return find(region, flags) if flags == 0 else None
+
+    monkeypatch.setattr(Region, "find", only_without_flags)
     found = detect(image, board)
     assert (found.method, [a.method for a in found.alternatives]) == ("cornerSubPix on SB", ["SB"])
     assert error(found, truth) < 0.05

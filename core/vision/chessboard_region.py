@@ -13,13 +13,13 @@ ACCURACY ~0.7x SB's default flags on the full image instead of ~4x).
 - the crop is the located corners' bounding box with `MARGIN_SQUARES` of the board's largest
   square, at least `MARGIN_PX`, on every side, clipped to the image; SB runs on it and its
   corners are shifted back to full-image pixels;
-- NORMALIZE_IMAGE with ACCURACY: the full image's histogram is equalised first, as SB itself does,
-  and the crop is cut from that and searched with ACCURACY (a crop's own histogram is another:
-  SB with NORMALIZE on the bare crop lay 0.19-0.27 px from the truth instead of 0.06-0.08);
-  NORMALIZE_IMAGE alone keeps the full image, as before: the equalised crop would be searched
-  with no flag at all, and each call to OpenCV keeps the flag set's own flags. It costs ~0.1 s on
-  the probe images of an image set only: a plan keeps it where it fits best, and on the real and
-  rendered sets it never did.
+- NORMALIZE_IMAGE: the full image's histogram is equalised first, as SB itself does, and the crop
+  is cut from that and searched with the flag set's other flags (ACCURACY, or none for NORMALIZE
+  alone): a crop's own histogram is another (SB with NORMALIZE | ACCURACY on the bare crop lay
+  0.19-0.27 px from the truth instead of 0.06-0.08). NORMALIZE alone searched the full image
+  until measured: 150-170 ms a call on a 1.3 MP render against 20-40 ms on the crop, so ~0.5 s of
+  CPU on an image set's 4 probe images (~6 s for the 30 bench renders' detection in all), the
+  corners as near the truth (figures below).
 
 Every doubt falls back to the full image, so no board found before is lost: no location, a crop of
 most of the image anyway (`FULL_FRACTION`), the board not found in the crop, or corners there that
@@ -30,15 +30,20 @@ its centre and looks for corners on a grid anchored at its top-left pixel, so a 
 differently. Measured (OpenCV 4.14), crop against full image:
 
 - the 30 rendered 1.3 MP images of bench/images_speed.py (truth from the renderer): SB accuracy
-  0.013 px RMS apart (0.09 px at most), 0.0262 px from the truth both; NORMALIZE | ACCURACY 0.015
-  apart, 0.063 both; SB's default flags 0.019 apart, 0.048 / 0.049. The best-corner rule kept SB
+  0.013 px RMS apart (0.09 px at most), 0.0262 px from the truth both (RMS over all corners);
+  NORMALIZE | ACCURACY 0.015 apart, 0.063 both; SB's default flags 0.019 apart, 0.048 / 0.049;
+  NORMALIZE alone 0.028 apart (0.25 at most), 0.0761 / 0.0748 (PnP residual 1.8 % larger, as
+  NORMALIZE | ACCURACY's 1 %; never kept, so the kept corners, K and dist stayed bit-identical,
+  in a full run and with the plan). The best-corner rule kept SB
   accuracy on 26 images instead of 25 (cornerSubPix on it on the others; the kept corners 0.0226
   px from the truth against 0.0223), fx, fy, cx, cy moved by 0.07, 0.07, -0.03, 0.04 px (their
   1-sigma 0.05-0.07 px; fx, fy and cy nearer the truth), the calibration RMS 0.01562 px against
   0.01556;
 - 2 x 18 real 640 x 480 images (docs/boards.md): SB accuracy kept on every image as before, its
   corners 0.010-0.011 px RMS apart, PnP residual 0.3 % smaller; fx, fy, cx, cy within a quarter
-  of their 1-sigma (1.6-2.6 px).
+  of their 1-sigma (1.6-2.6 px). NORMALIZE alone 0.070-0.071 px RMS apart (0.40 at most), as SB's
+  default flags in the crop (0.066-0.073), its PnP residual 1.6 % larger / 2.6 % smaller; never
+  kept, before or after: the kept corners, K and dist bit-identical.
 
 The cornerSubPix candidate refined from SB's corners moves by 0.0003 px at most.
 tests/test_detection_speed.py checks the agreement, the truth and the fall-backs on renders.
@@ -80,10 +85,8 @@ class Region:
 
     def find(self, flags: int) -> np.ndarray | None:
         """SB's corners (n, 2) of the (cols, rows) = `size` board with `flags`, in OpenCV's order and
-        full-image pixels: searched in the crop, then in the full image if that fails
-        (NORMALIZE_IMAGE alone: the full image); None when the board is not found."""
-        if flags & cv2.CALIB_CB_NORMALIZE_IMAGE and not flags & cv2.CALIB_CB_ACCURACY:
-            return self._full(flags)
+        full-image pixels: searched in the crop, then in the full image if that fails; None when the
+        board is not found."""
         if not self._settled:
             self._settled = True
             self.located = locate(self.gray, self.size)
