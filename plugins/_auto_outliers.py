@@ -18,6 +18,7 @@ from handeye.estimation.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
 from handeye.estimation.whitening import Whitening, estimate_sigmas
 from handeye.framework.errors import DegenerateDataError, HandEyeError
 from handeye.framework.problem import item_listing
+from handeye.geometry.linalg import einsum
 from handeye.plugins import refine as _refine
 
 
@@ -48,7 +49,7 @@ def _beyond(e: np.ndarray, W: Whitening | None, scale: float, data: Any = None) 
     estimated = W is None
     W = W if W is not None else estimate_sigmas(e, scale, robust=True)
     ew = W.residual(e)
-    q = np.einsum("ni,ni->n", ew, ew)
+    q = einsum("ni,ni->n", ew, ew)
     groups = getattr(data, "item_groups", None) if estimated else None
     return q > OUTLIER_CHI2 * (_group_variances(q, groups) if groups else 1.0)
 

@@ -50,6 +50,7 @@ too. The answer carries a warning naming the value assumed.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any
 
 import numpy as np
@@ -132,20 +133,45 @@ class Options:
                 f"option init of auto must be a solver name, got {type(self.init).__name__}; to "
                 "start from given poses use solver='refine' with init_X (and init_Y)"
             )
-        refine_options = self.refine_options()  # validates everything
-        object.__setattr__(self, "covariance", refine_options.covariance)
+        self.refine_options()  # validates everything
+        if self.covariance is not None:  # kept as stated (refine takes its Cholesky factor each time), read-only
+            covariance = np.array(self.covariance, dtype=float)
+            covariance.setflags(write=False)
+            object.__setattr__(self, "covariance", covariance)
 
     def refine_options(self, problem: Problem | None = None, **overrides: Any) -> _refine.Options:
-        """refine's options for `problem` with these values (the covariance given as its
-        Cholesky factor, as refine keeps it after validation); without a problem, the options
+        """refine's options for `problem` with these values; without a problem, the options
         common to every problem."""
-        values = {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.name != "outliers"}
+        values = {name: getattr(self, name) for name in _passed_on(type(self))}
         values["noise"] = "groups"  # the noise sources are auto's last step (`_noise_step`)
         values.update(overrides)
-        return (_refine.Options if problem is None else _refine.options_for(problem))(**values)
+        cls = _refine.Options if problem is None else _refine.options_for(problem)
+        if all(type(v) in _PLAIN for v in values.values()):  # the usual case: the defaults, or plain values
+            return _validated(cls, tuple((k, type(v), v) for k, v in values.items()))
+        return cls(**values)
 
     def _noise_estimated(self) -> bool:
         return self.sigma_rot is None and self.sigma_trans is None and self.covariance is None and self.loss == "linear"
+
+
+#: the types of option values `_validated` keeps the validated options for (immutable, hashable,
+#: equal only to values of the same meaning once the type is part of the key)
+_PLAIN = (str, int, float, bool, type(None))
+
+
+@functools.lru_cache(maxsize=64)
+def _validated(cls: type, items: tuple[tuple[str, type, Any], ...]) -> _refine.Options:
+    """refine's options `cls` with the values `items` ((name, type, value), the type in the key so
+    that True and 1, or 1 and 1.0, stay apart), validated once: they are frozen, and auto makes
+    the same ones twice a solve (~8 us each; a refusal raises and is not kept)."""
+    return cls(**{name: value for name, _, value in items})
+
+
+@functools.cache
+def _passed_on(cls: type) -> tuple[str, ...]:
+    """The fields of auto's options class `cls` that are refine's (all but ``outliers``), in
+    order, listed once (`Options.refine_options` runs twice a solve)."""
+    return tuple(f.name for f in dataclasses.fields(cls) if f.name != "outliers")
 
 
 def run(data: Any, options: Options, backend: str) -> SolverOutput:

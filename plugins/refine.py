@@ -55,14 +55,20 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.checks.validation import pose_stack
+from handeye import SolverOutput, SolverSpec, Status, hookimpl, run_registered
+from handeye.checks.validation import float_array, pose_stack
 from handeye.estimation import camera_scale, nlls, noise_sources
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, LOSSES
 from handeye.estimation.whitening import covariance_factor, stated
-from handeye.framework.errors import BackendUnavailableError, InputError, SolverError
-from handeye.framework.options import check_choice, check_positive
+from handeye.framework.errors import (
+    BackendUnavailableError,
+    InputError,
+    SolverError,
+    shown,
+)
+from handeye.framework.options import check_choice, check_int, check_positive
 from handeye.framework.problem import Problem, flatten, unflatten
+from handeye.framework.registry import get_registry
 from handeye.framework.solution import jsonable
 
 #: values of option `noise`: "groups", one noise level per residual group (rotation,
@@ -114,10 +120,6 @@ class Options:
     noise: str = "groups"
 
     def __post_init__(self) -> None:
-        from handeye.checks.validation import float_array
-        from handeye.framework.errors import shown
-        from handeye.framework.options import check_int
-
         check_choice("loss", self.loss, LOSSES)
         check_choice("noise", self.noise, NOISE_MODELS)
         check_choice("estimate", self.estimate, nlls.ESTIMATES)
@@ -210,8 +212,6 @@ def _pose_options(values: list[Any], names: list[str]) -> list[np.ndarray]:
 def problem_for(data: Any) -> Problem:
     """The registered problem whose validated data `data` are (`Registry.problem_of`), with
     the model refine needs; InputError otherwise."""
-    from handeye.framework.registry import get_registry
-
     problem = get_registry().problem_of(data)
     if not problem.refinable:
         raise InputError(f"refine does not solve problem {problem.name!r}: it gives no least-squares model "
@@ -237,14 +237,10 @@ def model_of(data: Any) -> nlls.PoseModel:
 
 def starts_of(problem: str) -> tuple[str, ...]:
     """The start solvers of `problem`, in order of preference (`Problem.starts`)."""
-    from handeye.framework.registry import get_registry
-
     return tuple(get_registry().problem(problem).starts)
 
 
 def _available(name: str, problem: str, planar: bool = False) -> bool:
-    from handeye.framework.registry import get_registry
-
     spec = get_registry().solvers.get(name, {}).get(problem)
     return (spec is not None and spec.unavailable_reason(spec.default_backend) is None
             and (spec.planar_mode or not planar))
@@ -254,8 +250,6 @@ def default_init(problem: str | None = None, planar: bool = False) -> str:
     """The first of the starts of `problem` (default: the default problem) that is registered and
     available here, with a planar mode when `planar` (else the last, whose absence then raises an
     error listing the solvers)."""
-    from handeye.framework.registry import get_registry
-
     problem = problem or get_registry().default_problem()
     starts = starts_of(problem)
     return next((name for name in starts if _available(name, problem, planar)), starts[-1])
@@ -317,8 +311,6 @@ def start(data: Any, requested: str | None) -> tuple[str, tuple[np.ndarray, ...]
 def run_init(name: str, data: Any) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """Run registered solver `name` (default backend and options) on validated data through the
     host (`handeye.run_registered`): (poses in `flat_names` order, status, diagnostics)."""
-    from handeye import get_registry, run_registered
-
     if name in RECURSIVE:
         raise InputError(f"init solver {name!r} would call refine recursively")
     problem = problem_for(data)

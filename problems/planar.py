@@ -41,6 +41,7 @@ import numpy as np
 from handeye.estimation.noise import NoiseModel
 from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.geometry import so3_fast
+from handeye.geometry.linalg import eigvalsh
 from handeye.geometry.se3 import inverse, make_pose, so3_exp
 
 #: Spread of the robot's rotation axes (rad, `main_axis`) below which the data are planar. The
@@ -154,7 +155,7 @@ def _scatter(rotation_vectors: np.ndarray) -> np.ndarray | None:
 
 def _spread(S: np.ndarray) -> float:
     """The spread of `main_axis` from S (eigenvalues only: the cheap test every validation runs)."""
-    w = np.linalg.eigvalsh(S)
+    w = eigvalsh(S)
     return float(2.0 * np.arctan(np.sqrt(max(w[1], 0.0) / w[2])))
 
 

@@ -411,3 +411,37 @@ def test_drifting_camera_poses_take_the_consecutive_motions():
         kept = handeye.solve("axyb", **clean)
         assert kept.diagnostics["drift_autocorrelation"] < DRIFT_AUTOCORRELATION and "formulation" not in kept.diagnostics
     assert np.median(drift_err) < 0.5 * np.median(axyb_err)
+
+
+def test_refine_options_validated_once_per_values():
+    """auto's refine options are validated once per set of plain values and kept (frozen): the
+    same values give the same object; values that compare equal but mean otherwise (1 and True,
+    1 and 1.0) are told apart, so a refused value stays refused after an accepted one."""
+    from handeye.plugins import auto
+
+    first = auto.Options(max_iter=1).refine_options(PROBLEM)
+    assert auto.Options(max_iter=1).refine_options(PROBLEM) is first and first.max_iter == 1
+    assert type(first) is refine.options_for(PROBLEM)
+    for bad in (True, 1.0):
+        with pytest.raises(InputError, match="max_iter"):
+            auto.Options(max_iter=bad)
+    assert auto.Options(tol=1e-10).refine_options().tol == 1e-10
+
+
+@pytest.mark.parametrize("correlated", [False, True])
+def test_a_stated_covariance_weighs_auto_as_it_weighs_refine(correlated):
+    """auto passes a stated covariance on to refine as given: the same weights, so the same
+    answer (it once handed refine its own Cholesky factor, which refine factored again: a
+    correlated covariance was refused as asymmetric, a diagonal one weighted by the fourth root
+    of its variances)."""
+    data, _ = PROBLEM.simulate(pairs=30, seed=1, noise=NoiseModel.on(("A", "B"), 0.002, 0.5))
+    C = np.diag([4e-6] * 3 + [1.0] * 3)
+    if correlated:
+        C[0, 1] = C[1, 0] = 1e-6
+    given = C.copy()
+    plain = handeye.solve("axyb", solver="refine", covariance=C, **data)
+    weighted = handeye.solve("axyb", solver="auto", covariance=C, **data)
+    assert weighted.status == Status.OPTIMAL
+    for k in ("X", "Y"):
+        np.testing.assert_allclose(weighted.unknowns[k], plain.unknowns[k], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(C, given)  # the caller's array untouched

@@ -12,6 +12,7 @@ import numpy as np
 from handeye.estimation import nlls
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
 from handeye.estimation.whitening import Whitening, estimate_sigmas
+from handeye.geometry.linalg import einsum
 
 #: iterations of the local fit (it starts at the answer; good answers converge in a few) and
 #: its tolerance: the fit stops when a Gauss-Newton step would lower the objective (~3m, in
@@ -80,4 +81,4 @@ def robust_fit(model: Any, least_squares: tuple[np.ndarray, ...], answer: tuple[
 def beyond(e: np.ndarray, scale: float) -> np.ndarray:
     """Pairs whose residual, whitened by median-based scales, is beyond OUTLIER_CHI2."""
     ew = estimate_sigmas(e, scale, robust=True).residual(e)
-    return np.einsum("ni,ni->n", ew, ew) > OUTLIER_CHI2
+    return einsum("ni,ni->n", ew, ew) > OUTLIER_CHI2

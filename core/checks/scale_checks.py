@@ -17,6 +17,7 @@ from handeye.checks.best_fit import FIT_TOL, MAX_ITER, best_fit
 from handeye.estimation import camera_scale, camera_scales, nlls
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE
 from handeye.framework.errors import DegenerateDataError
+from handeye.geometry.linalg import solve
 
 #: check 5: the camera's translations need a factor s to fit the robot's: a failure beyond a
 #: factor SCALE_FAIL either way (a unit mix-up, m against mm or inch, or a monocular camera), a
@@ -143,7 +144,7 @@ def scale_effect(model: Any, cov: np.ndarray, slope: np.ndarray, s: float) -> tu
         t = slope[6 * j + 3:6 * j + 6] * (s - 1.0)
         block = cov[6 * j + 3:6 * j + 6, 6 * j + 3:6 * j + 6]
         try:
-            sigmas = math.sqrt(max(float(t @ np.linalg.solve(block, t)), 0.0))
+            sigmas = math.sqrt(max(float(t @ solve(block, t)), 0.0))
         except np.linalg.LinAlgError:
             continue
         if sigmas > worst[1]:

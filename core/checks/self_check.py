@@ -84,7 +84,7 @@ from handeye.estimation.whitening import CHI3_MEDIAN
 from handeye.framework.errors import DegenerateDataError
 from handeye.framework.problem import item_listing
 from handeye.geometry import so3_fast
-from handeye.geometry.linalg import median, row_norms
+from handeye.geometry.linalg import eigh_stack, einsum, median, row_norms, solve
 
 #: check 1: median residual rotation beyond this many times what the data's noise gives
 ROTATION_RESIDUAL_FACTOR = 10.0
@@ -157,8 +157,8 @@ def pitch_noise(phi_A: np.ndarray, t_A: np.ndarray, phi_B: np.ndarray, t_B: np.n
     use = (angle_A > MIN_ANGLE) & (angle_B > MIN_ANGLE)
     if use.sum() < MIN_MOTIONS:
         return None
-    pitch_A = np.einsum("ij,ij->i", phi_A[use], t_A[use]) / angle_A[use]
-    pitch_B = np.einsum("ij,ij->i", phi_B[use], t_B[use]) / angle_B[use]
+    pitch_A = einsum("ij,ij->i", phi_A[use], t_A[use]) / angle_A[use]
+    pitch_B = einsum("ij,ij->i", phi_B[use], t_B[use]) / angle_B[use]
     return MAD_TO_SIGMA * median(np.abs(pitch_A - pitch_B))
 
 
@@ -290,13 +290,14 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
     names = model.unknowns
     delta = _difference(poses, fit)
     chosen = [j for j, n in enumerate(names) if n in interest]
-    floor = np.array([NUMERICAL_FLOOR] * 3 + [NUMERICAL_FLOOR * model.scale] * 3) ** 2
+    # the floors' variances, once per chosen unknown (the list repeated: np.tile's numbers, ~3 us less)
+    floor = np.diag(np.array(([NUMERICAL_FLOOR] * 3 + [NUMERICAL_FLOOR * model.scale] * 3) * len(chosen)) ** 2)
     if len(chosen) == len(names):  # every unknown (the usual case): cov and delta as they are
-        sigma = cov + np.diag(np.tile(floor, len(chosen)))
+        sigma = cov + floor
     else:
         keep = np.concatenate([np.arange(6 * j, 6 * j + 6) for j in chosen])
-        sigma, delta = cov[np.ix_(keep, keep)] + np.diag(np.tile(floor, len(chosen))), delta[keep]
-    d = math.sqrt(max(float(delta @ np.linalg.solve(sigma, delta)), 0.0))
+        sigma, delta = cov[np.ix_(keep, keep)] + floor, delta[keep]
+    d = math.sqrt(max(float(delta @ solve(sigma, delta)), 0.0))
     figures["distance_sigmas"] = d
 
     def gap_text() -> str:  # for the messages only
@@ -355,10 +356,10 @@ def _difference(poses: Any, fit: Any) -> np.ndarray:
     """xi_j with T_j = F_j exp(xi_j) (to first order in the translation) for every answer T_j and
     fit F_j (k of each, or one pose each), stacked (6k,): (omega, v) in F_j's frame (one batched
     log for all of them)."""
-    T, F = np.reshape(poses, (-1, 4, 4)), np.reshape(fit, (-1, 4, 4))
+    T, F = np.array(poses).reshape(-1, 4, 4), np.array(fit).reshape(-1, 4, 4)  # np.reshape's arrays, ~2 us less
     RFt = np.swapaxes(F[:, :3, :3], 1, 2)
     omega = so3_fast.log(RFt @ T[:, :3, :3])
-    v = np.einsum("kij,kj->ki", RFt, T[:, :3, 3] - F[:, :3, 3])
+    v = einsum("kij,kj->ki", RFt, T[:, :3, 3] - F[:, :3, 3])
     return np.concatenate([omega, v], axis=1).ravel()
 
 
@@ -371,7 +372,7 @@ def _precision(problem: Any, data: Any, model: Any, fit: tuple[np.ndarray, ...],
     out: dict[str, Any] = {}
     chosen = [j for j, name in enumerate(model.unknowns) if name in interest]
     blocks = np.stack([cov[i:i + 3, i:i + 3] for j in chosen for i in (6 * j, 6 * j + 3)])
-    w, V = np.linalg.eigh(0.5 * (blocks + np.swapaxes(blocks, 1, 2)))  # one call for every block
+    w, V = eigh_stack(0.5 * (blocks + np.swapaxes(blocks, 1, 2)))  # one call for every block
     for n, j in enumerate(chosen):
         name, R = model.unknowns[j], fit[j][:3, :3]
         rot_deg = math.degrees(math.sqrt(max(float(w[2 * n, 2]), 0.0)))

@@ -114,7 +114,7 @@ def configuration_test(ew: np.ndarray, J: np.ndarray, Z: np.ndarray,
     if k == 0 or dof < 2 * k:
         return None
     rss0 = float(y @ y)
-    explained = float(np.sum((U2.T @ y) ** 2))
+    explained = float(((U2.T @ y) ** 2).sum())
     rss1 = max(rss0 - explained, 1e-300)
     F = (explained / k) / (rss1 / dof)
     return {"F": F, "p_value": float(fdtrc(k, dof, F)), "dof_num": k, "dof_den": dof,

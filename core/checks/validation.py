@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from handeye.framework.errors import DegenerateDataError, InputError
-from handeye.geometry.linalg import median
+from handeye.geometry.linalg import det, einsum, median
 from handeye.geometry.se3 import ORTHONORMALITY_TOL, orthonormality_error
 
 LAST_ROW_TOL = 1e-9
@@ -163,7 +163,7 @@ def _valid_poses(T: np.ndarray) -> bool:
         R = T[:, :3, :3]
         if not orthonormality_error(R).max() <= (1.0 - 1e-6) * ORTHONORMALITY_TOL:
             return False
-        return bool(np.linalg.det(R).min() > 0.5)  # +-1 given the previous check
+        return bool(det(R).min() > 0.5)  # +-1 given the previous check
 
 
 def _valid_rotations_by_entry(T: np.ndarray) -> bool:
@@ -209,7 +209,7 @@ def check_motion_beyond_noise(angle_A: np.ndarray, angle_B: np.ndarray, what: st
     if not len(angle_A):
         return
     noise = median(np.abs(angle_A - angle_B))
-    largest = float(np.max(np.minimum(angle_A, angle_B)))
+    largest = float(np.minimum(angle_A, angle_B).max())
     if noise > 0 and largest <= MOTION_NOISE_FACTOR * noise and largest < MOTION_NOISE_MAX_ANGLE:
         raise DegenerateDataError(
             f"the {what} do not move beyond their noise: the largest rotation between them is "
@@ -267,8 +267,8 @@ def agreement_angles(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarr
     RA, RB = A[k, :3, :3], B[k, :3, :3]
 
     def angles(R: np.ndarray) -> np.ndarray:  # (n, n) angles of R_j^T R_i, from tr(R_j^T R_i)
-        trace = np.einsum("jab,iab->ij", R, R)
-        return np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
+        trace = einsum("jab,iab->ij", R, R)
+        return np.arccos((0.5 * (trace - 1.0)).clip(-1.0, 1.0))
 
     return k, angles(RA), angles(RB)
 

@@ -12,13 +12,13 @@ it to the 24x24 (or smaller) triangular form of eqs. 10-12 (`reduce_normal_equat
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
+from handeye.framework.caching import cached_property
 from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.geometry.linalg import cholesky_upper, solve_triangular
 from handeye.geometry.se3 import gram
@@ -90,7 +90,7 @@ def reduce_normal_equations(N: np.ndarray, g: np.ndarray, ww: float) -> Kronecke
     Raises InputError when N, g or ww are not finite (translations so large their sums
     overflow), DegenerateDataError when N is singular.
     """
-    if not (np.all(np.isfinite(N)) and np.all(np.isfinite(g)) and np.isfinite(ww)):
+    if not (np.isfinite(N).all() and np.isfinite(g).all() and np.isfinite(ww)):
         raise overflow_error("the sums of the linear system")
     d = np.sqrt(np.diag(N))
     try:  # LAPACK directly (`handeye.linalg`: scipy's numbers without its checks, ~30 us at 24 x 24)
@@ -137,7 +137,7 @@ class TranslationSums:
         RA3 = RA.reshape(3 * m, 3)
         return cls(GA=RA3.T @ RA3, sum_RA=RA.sum(axis=0), C=(tB.T @ RA.reshape(m, 9)).reshape(3, 3, 3),
                    sum_tB=tB.sum(axis=0), RAt_tA=RA3.T @ tA.reshape(3 * m),
-                   sum_tA=tA.sum(axis=0), tB_tA=tB.T @ tA, tA_tA=float(np.sum(tA * tA)), TB=tB.T @ tB, m=m)
+                   sum_tA=tA.sum(axis=0), tB_tA=tB.T @ tA, tA_tA=float((tA * tA).sum()), TB=tB.T @ tB, m=m)
 
     def RAt_R_tB(self, R: np.ndarray) -> np.ndarray:
         """sum_i R_Ai^T R t_Bi for a 3x3 R: (3,), from C without a pass over the pairs."""
@@ -180,7 +180,7 @@ def translation_rms(*stacks: np.ndarray) -> float:
     """RMS norm of every translation of the pose stacks (1 when all are zero): the data's length
     unit, for normalisation."""
     t = np.concatenate([T[:, :3, 3] for T in stacks])
-    scale = math.sqrt(float(np.sum(t * t, axis=1).sum()) / len(t)) if len(t) else math.nan  # np.mean's arithmetic
+    scale = math.sqrt(float((t * t).sum(axis=1).sum()) / len(t)) if len(t) else math.nan  # np.mean's arithmetic
     return scale if scale > 0 else 1.0
 
 
@@ -220,7 +220,7 @@ class PosePairs:
     def m(self) -> int:
         return len(self.A)
 
-    @functools.cached_property
+    @cached_property
     def translation_scale(self) -> float:
         """RMS norm of all translations of A and B: the data's length unit, for normalisation."""
         return translation_rms(self.A, self.B)
@@ -230,19 +230,19 @@ class PosePairs:
         A, B = scaled_stacks((self.A, self.B), s)
         return dataclasses.replace(self, A=A, B=B)
 
-    @functools.cached_property
+    @cached_property
     def rotation_sum(self) -> np.ndarray:
         """S = sum_i R_Bi kron R_Ai: (9, 9), the rotation block of the normal matrices (computed
         once; shared by the excitation checks, the normal equations and Shah's method)."""
         return kron_sum(np.ascontiguousarray(self.B[:, :3, :3]), np.ascontiguousarray(self.A[:, :3, :3]))
 
-    @functools.cached_property
+    @cached_property
     def rotation_gram_sum(self) -> np.ndarray:
         """sum_i (R_Bi^T R_Bi) kron (R_Ai^T R_Ai): (9, 9), the K^T K block of the normal matrices
         (the identity times m for exact rotations)."""
         return kron_sum(gram(self.B[:, :3, :3]), gram(self.A[:, :3, :3]))
 
-    @functools.cached_property
+    @cached_property
     def translation_sums(self) -> TranslationSums:
         """The O(m) sums behind the translation rows (computed once)."""
         return TranslationSums.of(self.A, self.B)
@@ -251,7 +251,7 @@ class PosePairs:
         """N = H^T H, g = H^T w, w^T w of the problem's linear system, translations divided by scale."""
         raise NotImplementedError
 
-    @functools.cached_property
+    @cached_property
     def kronecker_system(self) -> KroneckerSystem:
         """The reduced linear system in the data's units (computed once)."""
         return self.kronecker(1.0)
@@ -265,6 +265,6 @@ class PosePairs:
             systems[scale] = reduce_normal_equations(*self.normal_equations(scale))
         return systems[scale]
 
-    @functools.cached_property
+    @cached_property
     def _kronecker_systems(self) -> dict[float, KroneckerSystem]:
         return {}

@@ -51,7 +51,7 @@ from handeye.estimation.whitening import (
 from handeye.framework.errors import DegenerateDataError
 from handeye.framework.solution import Status
 from handeye.geometry import so3_fast
-from handeye.geometry.linalg import row_sums_of_squares
+from handeye.geometry.linalg import einsum, row_sums_of_squares
 
 ESTIMATES = ("profile", "initial")
 #: a Gauss-Newton step whose predicted decrease is below JUDGE_TOL * |objective| is taken without
@@ -239,7 +239,7 @@ def _jacobian_model(e: np.ndarray, J: np.ndarray, W: Whitening, mode: str, loss:
     if mode != "profile":
         return Jf.T @ ew.reshape(-1), Hw, Hw, F
     m = len(e)
-    a = np.einsum("ngik,ngi->gk", Jw.reshape(m, 2, 3, n), ew.reshape(m, 2, 3))  # gradient per group
+    a = einsum("ngik,ngi->gk", Jw.reshape(m, 2, 3, n), ew.reshape(m, 2, 3))  # gradient per group
     return a[0] + a[1], _profile_hessian(Hw, a, W, m, scale), Hw, F
 
 
@@ -247,7 +247,7 @@ def _sums_model(model: PoseModel, poses: Poses, e: np.ndarray, W: Whitening, mod
                 c: float, scale: float, P: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """`_jacobian_model` for per-group sigmas from the model's closed-form `normal_equations`."""
     ew = W.residual(e)
-    rho, d = loss_terms(np.einsum("ni,ni->n", ew, ew), loss, c)
+    rho, d = loss_terms(einsum("ni,ni->n", ew, ew), loss, c)
     F = 0.5 * float(np.sum(rho))
     g_rot, g_trans, Hw = model.normal_equations(poses, e, 1.0 / W.sigma_rot**2, 1.0 / W.sigma_trans**2, d)
     if P is not None:
@@ -290,6 +290,9 @@ class LMResult:
     mode: str
     e0: np.ndarray  # (m, 6) residuals at the start
     P: np.ndarray | None = None  # (6k, n) basis of the allowed perturbations at the end (`fixed_basis`), None: all
+    #: the objective at the start where it does not depend on the weights at the end (the profile
+    #: likelihood's), else None
+    cost0: float | None = None
 
 
 def levenberg_marquardt(model: PoseModel, poses: Poses, W: Whitening | None, loss: str, c: float,
@@ -312,8 +315,10 @@ def levenberg_marquardt(model: PoseModel, poses: Poses, W: Whitening | None, los
     fixed = model.fixed
     mode = mode_of(W, loss, model.m, estimate, model.profile_min_pairs)
     e0 = e = model.residuals(poses)
+    cost0 = None
     if mode == "profile":  # the objective (carried along with e: each point is evaluated once) and its weights
         value, W = objective(e, None, mode, loss, c, scale)
+        cost0 = value
     elif mode != "fixed":
         W = estimate_sigmas(e, scale, robust=loss != "linear")
     weight_change = np.inf if mode == "irls" else 0.0
@@ -414,15 +419,17 @@ def levenberg_marquardt(model: PoseModel, poses: Poses, W: Whitening | None, los
     elif last_step_unjudged:
         # the last move was the Gauss-Newton step below tol: the information matrix evaluated just
         # before it holds at the end to the step's relative size (~1e-7 of the noise at most), so
-        # only F is evaluated again (the model's Jacobian is most of an iteration: 0.15 s at 1e5)
+        # only F is evaluated again (the model's Jacobian is most of an iteration: 0.15 s at 1e5),
+        # where it is the objective (the profile likelihood's was evaluated with e)
         P, Hw = evaluated[2], evaluated[3]
-        F = objective(e, W, "fixed", loss, c, scale)[0]
+        if mode != "profile":
+            F = objective(e, W, "fixed", loss, c, scale)[0]
     else:
         P = fixed_basis(poses, fixed)
         _, _, Hw, F = local_model(model, poses, e, W, "fixed", loss, c, scale, P)
     if mode != "profile":
         value = F
-    return LMResult(poses, W, value, iterations, converged, Hw, W.residual(e), e, mode, e0, P)
+    return LMResult(poses, W, value, iterations, converged, Hw, W.residual(e), e, mode, e0, P, cost0)
 
 
 #: residuals below this (rad, and times the data's length scale) are rounding: the data are
@@ -436,9 +443,12 @@ def _at_rounding(e: np.ndarray, scale: float) -> bool:
     noisy data are told by them (at m = 1e5 the full pass costs 3 ms)."""
     if not len(e):
         return True
+    limit = ROUNDING * scale
     for rows in (e[:_HEAD_ROWS], e) if len(e) > _HEAD_ROWS else (e,):
-        top = np.abs(rows).max(axis=0)  # numpy's max: NaN stays NaN (not at rounding)
-        if not (top[:3].max() <= ROUNDING and top[3:].max() <= ROUNDING * scale):
+        top = np.abs(rows).max(axis=0).tolist()  # numpy's max: NaN stays NaN (not at rounding)
+        # each column's largest against its bound, in Python floats (a NaN fails its comparison)
+        if not (top[0] <= ROUNDING and top[1] <= ROUNDING and top[2] <= ROUNDING
+                and top[3] <= limit and top[4] <= limit and top[5] <= limit):
             return False
     return True
 
@@ -527,7 +537,7 @@ def refine(model: PoseModel, poses0: Sequence[np.ndarray], settings: Settings) -
     # profile likelihood are monotone; with "irls" the weights moved on the way, so a start that
     # is better under the final weights (another basin) is refined under them too and the better
     # answer kept.
-    initial_cost = objective(res.e0, res.W, res.mode, loss, c, scale)[0]
+    initial_cost = res.cost0 if res.cost0 is not None else objective(res.e0, res.W, res.mode, loss, c, scale)[0]
     if res.mode == "irls" and initial_cost < res.cost:
         again = levenberg_marquardt(model, poses0, res.W, loss, c, max_iter, settings.tol)
         iterations += again.iterations

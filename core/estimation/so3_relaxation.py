@@ -41,7 +41,7 @@ from handeye.estimation.rotation_cost import (
 )
 from handeye.framework.errors import SolverError
 from handeye.geometry import so3_fast
-from handeye.geometry.linalg import lstsq, vector_norm
+from handeye.geometry.linalg import eigvalsh, einsum, lstsq, vector_norm
 from handeye.geometry.se3 import project_to_so3, skew
 
 #: Certificate thresholds (docs/solvers/so3-sdp.md: 1400 solves of ``axyb`` at m = 3, simulated
@@ -225,8 +225,8 @@ def certificate(M: np.ndarray, y: np.ndarray, nu: np.ndarray, redundant: bool) -
     L = (A.reshape(-1, len(y)) @ y).reshape(len(A), len(y)).T
     correction = lstsq(L, M @ y - L @ nu)  # LAPACK directly (`handeye.linalg.lstsq`: numpy's numbers)
     nu = nu + correction
-    S = M - np.einsum("k,kij->ij", nu, A)
-    lam = np.linalg.eigvalsh(S)
+    S = M - einsum("k,kij->ij", nu, A)
+    lam = eigvalsh(S)
     lam_min = float(lam[0])
     value = float(y @ M @ y)
     lower = float(nu @ b + trace_z(rotations) * min(0.0, lam_min))

@@ -41,6 +41,8 @@ from handeye.geometry.linalg import eigh, vector_norm
 HARD_CASE_RTOL = 1e-13
 #: The secular iteration stops when mu changes by less than this (relative), or after MAX_ITER.
 STEP_RTOL = 4 * np.finfo(float).eps
+#: the smallest normal float (a floor of the spread below)
+_TINY = np.finfo(float).tiny
 MAX_ITER = 100
 #: `refine_trust_region`: at most this many Newton steps (it converges quadratically: 2-3 from
 #: an SDP solver's ~1e-7), and the tolerances of its global-optimality test: lambda <= d_1 +
@@ -77,7 +79,7 @@ def solve_trust_region(P: np.ndarray, p: np.ndarray, rho: float) -> TrustRegionS
     P = np.asarray(P, dtype=float)
     p = np.asarray(p, dtype=float).ravel()
     n = len(p)
-    if P.shape != (n, n) or not (np.all(np.isfinite(P)) and np.all(np.isfinite(p))):
+    if P.shape != (n, n) or not (np.isfinite(P).all() and np.isfinite(p).all()):
         raise InputError(f"trust region: expected a finite P of shape ({n}, {n}) and p of shape ({n},), "
                          f"got {P.shape} and {p.shape}")
     if not (np.isfinite(rho) and rho > 0):
@@ -85,7 +87,7 @@ def solve_trust_region(P: np.ndarray, p: np.ndarray, rho: float) -> TrustRegionS
     d, V = eigh(0.5 * (P + P.T))  # LAPACK directly (`handeye.linalg.eigh`)
     q = V.T @ p
     q_norm = vector_norm(q)
-    spread = max(float(np.max(np.abs(d))), q_norm / rho, np.finfo(float).tiny)
+    spread = max(float(np.abs(d).max()), q_norm / rho, _TINY)
     first = d - d[0] <= HARD_CASE_RTOL * spread  # the eigenspace of d_1
     q_first = vector_norm(q[first])
 

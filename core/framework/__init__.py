@@ -5,6 +5,6 @@ Solution, Status), `errors`, `hookspecs` and `registry` (plugins found through e
 pluggy), and the host: `api` (`solve`, `run_registered`: the one door to a solver, its checks
 before and the self-check after), `isolation` (a solver in a worker process under a time limit)
 `processes` (worker processes that end with their parent) and `threads` (one BLAS thread while
-solving). Depends on the layers below it
-(checks, estimation, geometry), never on a built-in problem or plugin.
+solving); `caching` (functools.cached_property without Python 3.11's lock). Depends on the layers
+below it (checks, estimation, geometry), never on a built-in problem or plugin.
 """

@@ -298,7 +298,7 @@ def _checked_pose(unknowns: Any, name: str, solver: str, stack: int | None = Non
         raise SolverError(f"solver {solver!r} did not return unknown {name!r}")
     try:
         raw = np.asarray(unknowns[name])
-        if np.iscomplexobj(raw):
+        if raw.dtype.kind == "c":  # np.iscomplexobj's test on an array, without its wrapper
             raise SolverError(f"solver {solver!r} returned {name} with complex entries; a pose is real")
         T = np.array(raw, dtype=float)
     except (TypeError, ValueError) as exc:

@@ -36,6 +36,8 @@ def parse_options(cls: type[T], values: Mapping[str, Any], solver: str) -> T:
 
     An option whose default is a bool must be given a bool (`check_bool`), for every solver,
     third parties' included: ``"False"`` would otherwise mean True."""
+    if not values:  # nothing to check: the defaults (twice a solve: the solver's and its start's)
+        return cls()
     fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
     for key, value in values.items():
         if key not in fields:

@@ -19,6 +19,7 @@ import weakref
 
 import numpy as np
 
+from handeye.geometry.linalg import einsum
 from handeye.geometry.se3 import so3_log
 
 #: v @ _SKEW = [v]_x flattened row-major: (..., 3) -> (..., 9)
@@ -76,7 +77,7 @@ def consecutive_logs(T: np.ndarray, moving: bool = True) -> np.ndarray:
     if moving:
         phi = log(np.swapaxes(R[:-1], 1, 2) @ R[1:])
     else:  # R_k+1 R_k^T = R_k (R_k^T R_k+1) R_k^T: the moving frame's rotation vector, turned by R_k
-        phi = np.einsum("nij,nj->ni", R[:-1], consecutive_logs(T, moving=True))
+        phi = einsum("nij,nj->ni", R[:-1], consecutive_logs(T, moving=True))
     if not T.flags.writeable:
         phi.setflags(write=False)
         _LOGS.pop(key, None)
@@ -107,9 +108,9 @@ def exp(w: np.ndarray) -> np.ndarray:
     else:
         a, b = math.sin(theta) / theta, (1.0 - math.cos(theta)) / theta2
     ax, ay, az, bx, by, bz = a * x, a * y, a * z, b * x, b * y, b * z
-    return np.array([[1.0 - by * y - bz * z, bx * y - az, bx * z + ay],
-                     [bx * y + az, 1.0 - bx * x - bz * z, by * z - ax],
-                     [bx * z - ay, by * z + ax, 1.0 - bx * x - by * y]])
+    return np.array([1.0 - by * y - bz * z, bx * y - az, bx * z + ay,  # one flat list: ~0.3 us less
+                     bx * y + az, 1.0 - bx * x - bz * z, by * z - ax,
+                     bx * z - ay, by * z + ax, 1.0 - bx * x - by * y]).reshape(3, 3)
 
 
 def skew(v: np.ndarray) -> np.ndarray:

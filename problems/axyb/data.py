@@ -17,7 +17,6 @@ Shared by the solvers here:
 from __future__ import annotations
 
 import dataclasses
-import functools
 from typing import Any
 
 import numpy as np
@@ -33,6 +32,7 @@ from handeye.estimation.kronecker import (
     PosePairs,
     reduce_normal_equations,
 )
+from handeye.framework.caching import cached_property
 from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.geometry.kinematics import PAPER_X, PAPER_Y  # noqa: F401 (re-exported: the paper's truth)
 from handeye.geometry.linalg import singular_values
@@ -69,7 +69,7 @@ class AXYBData(PosePairs):
             out = dataclasses.replace(out, planar=self.planar.scaled(s))
         return out if self.images is None else dataclasses.replace(out, images=self.images.scaled(s))
 
-    @functools.cached_property
+    @cached_property
     def rotation_excitation(self) -> float:
         """How well the rotations determine R_X, R_Y, in [0, 1]: 1 - sigma_2(S) / m.
 
@@ -81,7 +81,7 @@ class AXYBData(PosePairs):
         sigma = singular_values(self.rotation_sum)  # LAPACK directly (`handeye.linalg`: numpy's numbers)
         return float(max(0.0, 1.0 - sigma[1] / self.m))
 
-    @functools.cached_property
+    @cached_property
     def pose_model(self) -> Any:
         """The engine's model of these data (`axyb_geometry.AXYBModel`), built once: the solver's
         refinement, its outlier step and the host's self-check all use it (read-only)."""
@@ -89,7 +89,7 @@ class AXYBData(PosePairs):
 
         return axyb_geometry.AXYBModel(self)
 
-    @functools.cached_property
+    @cached_property
     def consecutive_motions(self) -> tuple[np.ndarray, ...]:
         """`axyb_geometry.consecutive_motions` of the stations, computed once (the self-check's
         noise estimate and its naming of directions both use them); beyond MOTION_SAMPLE + 1
@@ -103,13 +103,13 @@ class AXYBData(PosePairs):
         pairs = [np.stack([T[k], T[k + 1]], axis=1).reshape(-1, 4, 4) for T in (self.A, self.B)]
         return tuple(x[::2] for x in axyb_geometry.consecutive_motions(*pairs))  # k -> k + 1, not k + 1 -> next k
 
-    @functools.cached_property
+    @cached_property
     def agreeing_group(self) -> np.ndarray:
         """(m,) bool: the largest group of pairs that agree with each other, without X or Y
         (`handeye.validation.agreeing_group`): a robust start, and a majority or not."""
         return agreeing_group(self.A, self.B, self._agreement_angles)
 
-    @functools.cached_property
+    @cached_property
     def _agreement_angles(self) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """`handeye.validation.agreement_angles` of the stations, once: the validation's motion
         check and `agreeing_group` both read them."""
@@ -245,7 +245,7 @@ def station_angles(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
     def angles(T: np.ndarray) -> np.ndarray:  # from tr(R_j^T R_i) = sum of R_j * R_i: no matrix products
         trace = np.einsum("nab,nab->n", T[j, :3, :3], T[i, :3, :3])
-        return np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
+        return np.arccos((0.5 * (trace - 1.0)).clip(-1.0, 1.0))
 
     return angles(A), angles(B)
 

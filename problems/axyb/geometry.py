@@ -30,7 +30,7 @@ from handeye.estimation import camera_scale
 from handeye.estimation.kronecker import PosePairs
 from handeye.estimation.nlls import PoseModel, Poses
 from handeye.geometry import so3_fast
-from handeye.geometry.linalg import row_norms
+from handeye.geometry.linalg import einsum, row_norms
 from handeye.problems.axyb import noise
 
 #: from this many pairs on, the normal equations are summed in closed form (`normal_equations`)
@@ -268,8 +268,8 @@ def consecutive_motions(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.nd
     rotation vectors and translations of the camera's B_k^-1 B_k+1: (phi_right, phi_left, t_right,
     phi_cam, t_cam), each (m-1, 3), and the angles of phi_right (m-1,)."""
     RAt, RBt = np.swapaxes(A[:-1, :3, :3], 1, 2), np.swapaxes(B[:-1, :3, :3], 1, 2)
-    t_right = np.einsum("nij,nj->ni", RAt, A[1:, :3, 3] - A[:-1, :3, 3])
-    t_cam = np.einsum("nij,nj->ni", RBt, B[1:, :3, 3] - B[:-1, :3, 3])
+    t_right = einsum("nij,nj->ni", RAt, A[1:, :3, 3] - A[:-1, :3, 3])
+    t_cam = einsum("nij,nj->ni", RBt, B[1:, :3, 3] - B[:-1, :3, 3])
     phi_right = so3_fast.consecutive_logs(A)
     return (phi_right, so3_fast.consecutive_logs(A, moving=False), t_right, so3_fast.consecutive_logs(B), t_cam,
             row_norms(phi_right))
