@@ -13,7 +13,7 @@ import numpy as np
 
 from handeye import Status
 from handeye.checks.self_check import MAJORITY
-from handeye.estimation import nlls
+from handeye.estimation import lm_objective, nlls
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
 from handeye.estimation.whitening import Whitening, estimate_sigmas
 from handeye.framework.errors import DegenerateDataError, HandEyeError
@@ -166,7 +166,7 @@ def _better_robust_fit(data: Any, model: Any, fit: tuple[np.ndarray, ...], robus
     except HandEyeError:
         return fit
     W = estimate_sigmas(_refine.model_of(subset).residuals(other), model.scale, robust=True)
-    cost = [nlls.cost_of(model, poses, W, "cauchy", DEFAULT_LOSS_SCALE) for poses in (fit, other)]
+    cost = [lm_objective.cost_of(model, poses, W, "cauchy", DEFAULT_LOSS_SCALE) for poses in (fit, other)]
     return other if cost[1] < cost[0] else fit
 
 

@@ -56,7 +56,7 @@ from typing import Any
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.estimation import nlls, noise_sources
+from handeye.estimation import lm_objective, noise_sources
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
 from handeye.estimation.whitening import Whitening
 from handeye.framework.errors import (
@@ -222,10 +222,10 @@ def _run(data: Any, options: Options, backend: str, stations: bool = False) -> S
         # estimated scales are compared under common weights (those of the first run)
         settings = _refine.settings_of(ropts, data.m)
         model = _refine.model_of(data)
-        if nlls.mode_of(settings.W, settings.loss, data.m, settings.estimate, model.profile_min_pairs) in ("irls", "initial"):
+        if lm_objective.mode_of(settings.W, settings.loss, data.m, settings.estimate, model.profile_min_pairs) in ("irls", "initial"):
             W = Whitening(diag["sigma_rot"], diag["sigma_trans"])
-            cost_a = nlls.cost_of(model, poses, W, settings.loss, settings.loss_scale)
-            cost_b = nlls.cost_of(model, poses_b, W, settings.loss, settings.loss_scale)
+            cost_a = lm_objective.cost_of(model, poses, W, settings.loss, settings.loss_scale)
+            cost_b = lm_objective.cost_of(model, poses_b, W, settings.loss, settings.loss_scale)
         else:
             cost_a, cost_b = diag["final_cost"], diag_b["final_cost"]
         starts.append({"init": other, "init_status": str(status1), "final_cost": diag_b["final_cost"],

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.estimation import nlls
+from handeye.estimation import lm_objective
 from handeye.estimation.noise import NoiseModel
 from handeye.estimation.whitening import Whitening
 from handeye.geometry.se3 import inverse, make_pose, so3_exp
@@ -56,7 +56,7 @@ def test_closed_form_normal_equations_equal_the_jacobians(m, seed, protocol):
 
 
 def test_the_engine_takes_the_sums_from_sums_min_pairs_on_with_the_same_step():
-    """`nlls.local_model` switches to the closed form at `sums_min_pairs`; the gradient and the
+    """`lm_objective.local_model` switches to the closed form at `sums_min_pairs`; the gradient and the
     (profile) Hessian it returns are those of the Jacobian route."""
     model, poses = model_at(60, 4)
     e = model.residuals(poses)
@@ -64,7 +64,7 @@ def test_the_engine_takes_the_sums_from_sums_min_pairs_on_with_the_same_step():
     routes = []
     for threshold in (np.inf, 0):
         model.sums_min_pairs = threshold
-        routes.append(nlls.local_model(model, poses, e, W, "profile", "linear", 1.0, model.scale))
+        routes.append(lm_objective.local_model(model, poses, e, W, "profile", "linear", 1.0, model.scale))
     for a, b in zip(*routes):
         np.testing.assert_allclose(a, b, rtol=1e-11, atol=1e-12 * np.abs(np.asarray(b)).max())
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.estimation import nlls
+from handeye.estimation import lm_objective, nlls
 from handeye.estimation.noise import NoiseModel
 from handeye.estimation.whitening import estimate_sigmas
 from handeye.framework.errors import InputError, UnknownPluginError
@@ -252,7 +252,7 @@ def test_init_as_mapping_of_poses(noisy16):
 
 
 def _profile_objective(P, X, Y, scale):
-    return nlls.objective(P.residuals((X, Y)), None, "profile", "linear", 1.0, scale)[0]
+    return lm_objective.objective(P.residuals((X, Y)), None, "profile", "linear", 1.0, scale)[0]
 
 
 def test_estimated_weights_are_the_profile_likelihood_optimum(noisy16):
@@ -309,8 +309,8 @@ def test_block_normal_equations_equal_the_jacobian_ones(loss, mode):
     X, Y = _perturb(truth["X"], rng, rot=0.4), _perturb(truth["Y"], rng, rot=0.4)
     e = P.residuals((X, Y))
     W = estimate_sigmas(e, d.translation_scale, robust=loss != "linear")
-    fast = nlls._sums_model(P, (X, Y), e, W, mode, loss, 2.0, d.translation_scale)
-    ref = nlls._jacobian_model(e, P.jacobian((X, Y), e), W, mode, loss, 2.0, d.translation_scale)
+    fast = lm_objective.sums_model(P, (X, Y), e, W, mode, loss, 2.0, d.translation_scale)
+    ref = lm_objective.jacobian_model(e, P.jacobian((X, Y), e), W, mode, loss, 2.0, d.translation_scale)
     for a, b in zip(fast[:3], ref[:3]):  # g, H, Hw
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * np.abs(b).max())
     assert fast[3] == pytest.approx(ref[3], rel=1e-12)
@@ -376,8 +376,8 @@ def test_axxb_block_normal_equations_equal_the_jacobian_ones(loss, mode):
     X = _perturb(truth["X"], rng, rot=0.4)
     e = P.residuals((X,))
     W = estimate_sigmas(e, d.translation_scale, robust=loss != "linear")
-    fast = nlls._sums_model(P, (X,), e, W, mode, loss, 2.0, d.translation_scale)
-    ref = nlls._jacobian_model(e, P.jacobian((X,), e), W, mode, loss, 2.0, d.translation_scale)
+    fast = lm_objective.sums_model(P, (X,), e, W, mode, loss, 2.0, d.translation_scale)
+    ref = lm_objective.jacobian_model(e, P.jacobian((X,), e), W, mode, loss, 2.0, d.translation_scale)
     for a, b in zip(fast[:3], ref[:3]):
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * np.abs(b).max())
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.estimation import nlls
+from handeye.estimation import lm_objective, nlls
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
 from handeye.estimation.whitening import Whitening, estimate_sigmas
 from handeye.geometry.linalg import einsum
@@ -74,7 +74,7 @@ def robust_fit(model: Any, least_squares: tuple[np.ndarray, ...], answer: tuple[
             for start in (least_squares, answer)]
     scales = [estimate_sigmas(f.e, model.scale, robust=True) for f in fits]
     W = Whitening(min(s.sigma_rot for s in scales), min(s.sigma_trans for s in scales))
-    cost = [nlls.cost_of(model, f.poses, W, "cauchy", DEFAULT_LOSS_SCALE) for f in fits]
+    cost = [lm_objective.cost_of(model, f.poses, W, "cauchy", DEFAULT_LOSS_SCALE) for f in fits]
     return fits[1] if cost[1] < cost[0] else fits[0]
 
 
