@@ -9,11 +9,11 @@ derives them.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.linalg import lapack
 
+from handeye.estimation.pose_model import PoseModel, Poses
 from handeye.estimation.robust import loss_terms
 from handeye.estimation.whitening import (
     SIGMA_FLOOR,
@@ -22,9 +22,6 @@ from handeye.estimation.whitening import (
     sums_of_squares,
 )
 from handeye.geometry.linalg import einsum, row_sums_of_squares
-
-if TYPE_CHECKING:
-    from handeye.estimation.nlls import PoseModel, Poses
 
 
 def mode_of(W: Whitening | None, loss: str, m: int, estimate: str = "profile", profile_min_pairs: int = 4) -> str:

@@ -1,11 +1,11 @@
 """Weighted, robust nonlinear least squares on SE(3)^k: the engine of `refine` for every problem.
 
 A problem with k unknown poses (A X = Y B: X, Y; A X = X B: X; A X B = Y C Z: X, Y, Z) supplies
-a `PoseModel`: per pair i a residual 6-vector e_i = [r_i; t_i] (rotation group in rad, then
-translation group in data units) at the unknowns, and its Jacobian (m, 6, 6k) with respect to
-right perturbations of each pose, T <- T exp(xi), xi = (omega, v) in the frame of T, retracted
-as (R exp([omega]_x), t + R v) (`retract`; SE(3)'s exp to first order). Everything else is here,
-once:
+a `PoseModel` (`handeye.estimation.pose_model`): per pair i a residual 6-vector e_i = [r_i; t_i]
+(rotation group in rad, then translation group in data units) at the unknowns, and its Jacobian
+(m, 6, 6k) with respect to right perturbations of each pose, T <- T exp(xi), xi = (omega, v) in
+the frame of T, retracted as (R exp([omega]_x), t + R v) (`retract`; SE(3)'s exp to first
+order). Everything else is here, once:
 
 - the objective F = 1/2 sum_i rho(|W^(1/2) e_i|^2) with the whitening of `handeye.whitening`
   (stated per-group sigmas or a Cholesky covariance, or estimated) and the losses of
@@ -31,7 +31,6 @@ docs/solvers/refine.md derives the models and states the measured accuracy and s
 
 from __future__ import annotations
 
-import abc
 import dataclasses
 import math
 from collections.abc import Sequence
@@ -41,6 +40,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from handeye.estimation.lm_objective import local_model, mode_of, objective
+from handeye.estimation.pose_model import PoseModel, Poses
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, loss_terms
 from handeye.estimation.whitening import (
     Whitening,
@@ -75,54 +75,6 @@ MIN_DAMPING = 1e-3
 PROFILE_NEAR = 1.0
 #: relative change of estimated sigmas between iterations that counts as a fixed point.
 WEIGHT_TOL = 1e-6
-
-Poses = tuple[np.ndarray, ...]
-
-
-class PoseModel(abc.ABC):
-    """What a problem supplies to the engine: residuals and Jacobians of its equation.
-
-    Attributes: `unknowns` (names of the k poses, in parameter order), `m` (pairs), `scale` (the
-    data's length unit, e.g. RMS translation, for the floors of estimated sigmas),
-    `profile_min_pairs` (fewest pairs for which the profile likelihood is bounded: below it the
-    translation residuals can be fitted exactly), `sums_min_pairs` (from this many pairs on,
-    `normal_equations` replaces the Jacobian for per-group sigmas; inf: never), `fixed`
-    (translation components the refinement keeps: pairs (index of the unknown, unit direction d
-    in the frame its translation is expressed in), so that t_j . d stays as it starts; empty: none).
-    The constraint travels with the model, not with a solver's settings, so that every fit of
-    the same data (a solver's, the host's self-check) honours it.
-    """
-
-    unknowns: tuple[str, ...]
-    m: int
-    scale: float
-    profile_min_pairs: int
-    sums_min_pairs: float = math.inf
-    fixed: tuple[tuple[int, np.ndarray], ...] = ()
-    #: the model states where its residuals' noise comes from (`noise_factors`), for
-    #: `handeye.noise_sources`
-    noise_sources: bool = False
-
-    @abc.abstractmethod
-    def residuals(self, poses: Poses) -> np.ndarray:
-        """e: (m, 6) = [r_i; t_i] at the poses (each (4, 4))."""
-
-    @abc.abstractmethod
-    def jacobian(self, poses: Poses, e: np.ndarray) -> np.ndarray:
-        """J: (m, 6, 6k) = d e_i / d (xi_1, ..., xi_k) at the poses, e from `residuals`."""
-
-    def noise_factors(self, data: Any, poses: Poses) -> Any:
-        """Where `noise_sources` is True: the noise sources of the residuals at the poses, a
-        `handeye.noise_sources.Sources`."""
-        raise NotImplementedError
-
-    def normal_equations(self, poses: Poses, e: np.ndarray, wr: float, wt: float,
-                         d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Optional closed-form sums, for C = diag(I3 / wr, I3 / wt) and pair weights d: (m,):
-        g_rot, g_trans: (6k,) = sum_i d_i J_i,group^T C^-1 e_i,group per residual group, and
-        Hw: (6k, 6k) = sum_i d_i J_i^T C^-1 J_i (symmetric)."""
-        raise NotImplementedError
-
 
 def retract(T: np.ndarray, xi: np.ndarray) -> np.ndarray:
     """T exp(xi) to first order: (R exp([omega]_x), t + R v) for xi = (omega, v) and a pose T
