@@ -12,7 +12,6 @@ eye-to-hand and exp(-delta_i) M_i eye-in-hand (`residuals` with ``robot``).
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from typing import Any
 
@@ -20,6 +19,7 @@ import numpy as np
 
 from handeye.estimation.nlls import retract
 from handeye.estimation.robust import loss_terms
+from handeye.framework.caching import cached_property
 from handeye.framework.errors import SolverError
 from handeye.geometry.se3 import inverse, make_pose, so3_exp
 from handeye.problems.axyb import AXYBData
@@ -55,17 +55,17 @@ class Cell:
         """The corners of each station."""
         return np.array([len(u) for u in self.pixels])
 
-    @functools.cached_property
+    @cached_property
     def station(self) -> np.ndarray:
         """(n,) each corner's station."""
         return np.repeat(np.arange(len(self.pixels)), self.counts)
 
-    @functools.cached_property
+    @cached_property
     def object_points(self) -> np.ndarray:
         """(n, 3) every station's board points, stacked."""
         return np.concatenate(self.points).astype(float, copy=False).reshape(-1, 3)
 
-    @functools.cached_property
+    @cached_property
     def image_points(self) -> np.ndarray:
         """(n, 2) every station's detected corners, stacked."""
         return np.concatenate(self.pixels).astype(float, copy=False).reshape(-1, 2)
