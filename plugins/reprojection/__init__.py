@@ -308,8 +308,8 @@ def _compare_held_out(data: AXYBData, options: Options) -> dict[str, Any]:
     fold: dict[str, Any] = {}  # what was fitted on the current fold's training data (`fitted`)
 
     def fitted(train: AXYBData, what: str, fit: Any) -> Any:
-        """fit(train), once per fold: the corner fits share the pose-based start and the exact-robot
-        fit (the joint fit starts from it, as in `run`)."""
+        """fit(train), once per fold: the corner fits share the fold's corner model, the pose-based
+        start and the exact-robot fit (the joint fit starts from it, as in `run`)."""
         if fold.get("train") is not train:
             fold.clear()
             fold["train"] = train
@@ -329,13 +329,13 @@ def _compare_held_out(data: AXYBData, options: Options) -> dict[str, Any]:
             poses0 = {k: np.asarray(start.unknowns[k], dtype=float) for k in ("X", "Y")}
         else:
             poses0 = _start(train, plain)[0]
-        return levenberg_marquardt(Cell.of(train), poses0, train.images.camera, plain.refine_intrinsics, plain.loss,
-                                   plain.loss_scale, plain.max_iter)
+        return levenberg_marquardt(fitted(train, "cell", Cell.of), poses0, train.images.camera,
+                                   plain.refine_intrinsics, plain.loss, plain.loss_scale, plain.max_iter)
 
     def joint_fit(train: AXYBData) -> dict[str, np.ndarray]:
         """`run`'s joint fit with the robot's noise estimated, from the exact-robot fit."""
         fit = fitted(train, "exact_robot", exact_fit)
-        cell = Cell.of(train)
+        cell = fitted(train, "cell", Cell.of)
         sigmas = _start_sigmas(train, cell, fit, pnp_rms(train))
         return robot_noise.fit(cell, fit.poses, train.images.camera, plain.refine_intrinsics, sigmas).poses
 
