@@ -196,8 +196,8 @@ def test_neither_images_nor_camera_exits_2(capsys, tmp_path):
     assert code == 2 and "--camera FILE --camera-format FORMAT (board poses) or --images DIR" in err
 
 
-def test_wrong_board_size_finds_nothing_and_exits_2(tmp_path, capsys):
-    """A 9x6 chessboard given as 8x6: no image usable, one line naming the board, exit 2."""
+def test_wrong_board_size_is_named_and_exits_2(tmp_path, capsys):
+    """A 9x6 chessboard given as 8x6: one line naming the size the images show, exit 2."""
     board = parse_board("chessboard:9x6:25mm")
     camera = Camera(np.array([[300.0, 0, 160], [0, 300.0, 120], [0, 0, 1]]), np.zeros(0), (320, 240))
     cell = simulated_cell(2, "eye-in-hand", board=board, seed=23, distance=(450.0, 500.0), tilt_deg=10.0)
@@ -209,8 +209,8 @@ def test_wrong_board_size_finds_nothing_and_exits_2(tmp_path, capsys):
                            "--robot", tmp_path / "robot.csv", "--robot-format", "matrix", "--robot-unit", "mm",
                            "--setup", "eye-in-hand")
     assert code == 2 and err.count("\n") == 1
-    assert "chessboard 8x6 inner corners, 25 mm squares) was found in none of the 2 images" in err
-    assert "check the board size" in err
+    assert "the images show a 9x6 chessboard (inner corners), not the 8x6 given: found in 2 of the 2 images" in err
+    assert "give the board as chessboard:9x6:25mm" in err
 
 
 # ----------------------------------------------------------------------------- real images
@@ -308,7 +308,8 @@ def test_intrinsics_calibrated_from_the_images_are_in_the_1_sigma(tmp_path, caps
     jackknife over the images, 2x OpenCV's 0.39%). The corner fit holds the intrinsics exact; its
     1-sigma now carries theirs. Checked against the answer itself: intrinsics 1-sigma off in focal
     length (given as a file, so exact there) move Y by about its reported 1-sigma (3.8 mm), 20x
-    its 1-sigma with the intrinsics exact (0.18 mm)."""
+    its 1-sigma with the intrinsics exact (1.1 mm: the stations' jackknife, the robot's errors being
+    systematic; 0.18 mm from independent pixel errors)."""
     monkeypatch.setenv("HANDEYE_NO_CACHE", "1")
     folder = SHARED / "test_set_charuco"
     common = ["calibrate", "--images", folder / "images", "--board", "charuco:5x7:36.195mm:18.256mm:DICT_6X6_250",
@@ -329,8 +330,11 @@ def test_intrinsics_calibrated_from_the_images_are_in_the_1_sigma(tmp_path, caps
     fs.release()
     code, out, err = run_cli(capsys, *common, "--intrinsics", tmp_path / "k.yaml", "-o", tmp_path / "b.json")
     assert code == 0, err
-    assert "a focal length 0.1% off would move it by" in out  # given intrinsics: what they would do, printed
+    # the robot's errors dominate: the 1-sigma of the intrinsics held exact is the stations' spread (a
+    # jackknife, 1.1 mm in Y), which a 0.1% focal length (~0.5 mm) stays below, so that line is not printed
+    assert "the 1-sigma is from a jackknife over the stations" in out
+    assert "a focal length 0.1% off would move it by" not in out
     b = json.loads((tmp_path / "b.json").read_text())
     shift = float(np.linalg.norm(np.array(a["Y"])[:3, 3] - np.array(b["Y"])[:3, 3]))
     sigma = a["std"]["Y"]["translation"]
-    assert 0.7 * sigma < shift < 1.4 * sigma and sigma > 5 * b["std"]["Y"]["translation"]
+    assert 0.7 * sigma < shift < 1.4 * sigma and sigma > 3 * b["std"]["Y"]["translation"]

@@ -301,8 +301,11 @@ def test_real_charuco_pose_based_answer_and_a_file_1_percent_off(tmp_path, monke
                                                              cal.camera.dist)))
     note = [w for w in off.warnings if "takes the intrinsics given as exact" in w]
     assert len(note) == 1 and "would move Y by" in note[0] and "know the focal length only to 0.7" in note[0], note
-    assert off.solution.diagnostics["focal_per_permille"]["Y"] > standard_deviations(off.solution.diagnostics)["Y"][
-        "translation"]
+    # the robot's systematic errors widen Y's 1-sigma (a jackknife over the stations, ~1.1 mm) beyond what 0.1%
+    # does (~0.5 mm), but not beyond what the 0.7% the images cannot rule out does: that is why the note stands
+    moved, sigma = (off.solution.diagnostics["focal_per_permille"]["Y"],
+                    standard_deviations(off.solution.diagnostics)["Y"]["translation"])
+    assert moved < sigma < 7 * moved
 
 
 def _recalibrating_jackknife(views, size, fix_k3, images, groups=12):

@@ -176,11 +176,14 @@ def _stations(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def assess_configuration(configurations: np.ndarray | None, model: Any, res: Any, flagged: np.ndarray,
-                         warnings: list[str], figures: dict[str, Any]) -> None:
+                         warnings: list[str], figures: dict[str, Any], covered: bool = False) -> None:
     """The check for `handeye.self_check`: the residuals of its best fit `res` (the engine's
     result for `model`) regressed on the flange positions `configurations` ((m, 4, 4), one per
     row of the model; None: the problem gives none), the rows `flagged` far off left out; a
-    warning beyond P_WARN, the figures in ``figures["systematic"]``."""
+    warning beyond P_WARN, the figures in ``figures["systematic"]``. `covered`: the answer's
+    1-sigma was estimated from the spread over its stations (a jackknife), which takes in
+    errors shared by a station's measurements; the warning then says so instead of calling it
+    too small."""
     if configurations is None:
         return
     poses = np.asarray(configurations, dtype=float)
@@ -224,8 +227,10 @@ def assess_configuration(configurations: np.ndarray | None, model: Any, res: Any
         warnings.append(
             f"self-check: the residuals follow the arm's configuration: the flange's position explains "
             f"{out['explained']:.0%} of them (F test, p = {out['p_value']:.1g}), which noise does not do. "
-            "That is the mark of systematic robot errors (its kinematics: DH parameters), which the stated "
-            "uncertainty of the answer leaves out: it may be off by several of its sigmas (a camera scale that "
-            "drifts, or a clock offset between the streams, leave the same mark). Record the joint angles and "
+            "That is the mark of systematic robot errors (its kinematics: DH parameters), which "
+            + ("the stated 1-sigma takes in (estimated from the spread over the stations, not from the noise)"
+               if covered else "the stated uncertainty of the answer leaves out: it may be off by several of its sigmas")
+            + " (a camera scale that drifts, or a clock offset between the streams, leave the same mark). "
+            "To remove them rather than carry them, record the joint angles and "
             "calibrate the kinematics with the hand-eye (problem 'axyb-kinematic', docs/kinematic.md), or spread "
             "the stations over the whole workspace the cell uses")

@@ -430,8 +430,8 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
     if r["status"] in ("not_converged", "failed"):
         lines.append(f"warning: status {r['status']}: the solver did not reach its answer; do not use it")
     elif r["status"] == "unreliable":
-        lines.append("warning: status unreliable: the residuals are implausible for a calibrated cell; do not use "
-                     "this answer (the first warning below says why)")
+        lines.append("warning: status unreliable: the checks found this answer unusable; do not use it (the first "
+                     "warning below says why)")
     elif r["status"] == "uncertified":
         lines.append("note: status uncertified: a valid answer, but the solver could not prove it globally optimal")
     lines += [f"warning: {w}" for w in r["warnings"]]

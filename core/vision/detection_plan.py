@@ -24,6 +24,10 @@ run, about half the detection work (SB with ACCURACY, kept on 25 of the 30 image
 set the plan runs). Boards of the other kinds run everything (their detectors cost 20-60 ms an
 image), as does a chessboard set of fewer than `PLAN_MIN_IMAGES` images, or one whose probe cannot
 be judged (fewer than three boards found and no intrinsics).
+
+Before any of this, a chessboard set's probe images are surveyed for the board they show
+(`handeye.vision.board_survey`, ~0.5 s): a wrong board size is named at once instead of after the
+long search (skipped when the probe images' detections are in the cache).
 """
 
 from __future__ import annotations
@@ -56,9 +60,13 @@ def detect_set(files: Sequence[Path], board: Board, camera: Camera | None = None
     progress bar on a terminal."""
     from handeye.vision.detection_pool import progress_bar
 
+    from handeye.vision.board_survey import check_chessboard_size
+
     everything = range(len(files))
     with progress_bar(len(files), progress) as bar:
         run = _Runner(files, board, DetectionCache.resolve(cache), workers, bar.update)
+        if board.kind == "chessboard" and not run.cached(probe_indices(len(files))):
+            check_chessboard_size(files, board, workers)  # a wrong board size named before the long search
         if board.kind != "chessboard" or len(files) < PLAN_MIN_IMAGES:
             found = run(everything, None)
         else:
@@ -144,6 +152,12 @@ class _Runner:
             if keys[k] is not None:
                 self.store.put(keys[k], outcome)
         return out
+
+    def cached(self, indices: Sequence[int]) -> bool:
+        """Whether every one of `indices` has its outcome (with every flag set) in the cache: the
+        images were detected before, and their board size surveyed then."""
+        keys = [self._key(k, None) for k in indices]
+        return bool(keys) and all(key is not None and self.store.get(key, self.board) is not None for key in keys)
 
     def _key(self, k: int, plan: tuple[str, ...] | None) -> str | None:
         if self.store is None or self.digests[k] is None:

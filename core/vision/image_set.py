@@ -19,7 +19,8 @@ which robot pose, the board's pose in each kept image, and why the others were d
    where the detector offers several detections of an image (OpenCV detectors or flag sets), the
    one fitting the camera best is kept (`handeye.vision.best_corners.choose`: with the given
    intrinsics, or with intrinsics calibrated from the images);
-4. without intrinsics, calibrates the camera from the detections (`handeye.vision.intrinsics`);
+4. without intrinsics, calibrates the camera from the detections (`handeye.vision.intrinsics`),
+   and refuses intrinsics no real lens gives (`handeye.vision.lens_check`: a board described wrongly);
 5. solves each board pose (`handeye.vision.camera_poses`) in the robot's length unit (board
    lengths converted) and drops images whose reprojection error is far above the others'
    (recalibrating the intrinsics without them when they were calibrated here).
@@ -52,6 +53,7 @@ from handeye.vision.camera_poses import board_pose, flag_outliers
 from handeye.vision.image_files import depth_name, read_any, read_image, to_8bit  # noqa: F401 (re-exported)
 from handeye.vision.intrinsics import CameraCalibration, calibrate_camera
 from handeye.vision.intrinsics_check import focal_check, focal_warning, with_jackknife
+from handeye.vision.lens_check import lens_problem
 from handeye.vision.observations import BoardObservations, Camera
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
@@ -437,6 +439,8 @@ def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, ca
         if not keep:
             raise InputError(f"no usable image left: {bad[0][1]}")
     focal = None  # the images' own focal length against given intrinsics (`_intrinsics_check`)
+    if calibration is not None and (problem := lens_problem(calibration, board)):
+        raise InputError(problem)
     if calibration is not None:  # its 1-sigma as a jackknife over the images finds it, where larger than OpenCV's
         calibration = with_jackknife(calibration, [found[k] for k in keep], size)
     else:

@@ -241,22 +241,28 @@ def focal_warning(check: FocalCheck | None) -> str | None:
 def exactness_note(per_permille: Mapping[str, float], std: Mapping[str, Mapping[str, float]],
                    check: FocalCheck | None, labels: Mapping[str, str] | None = None) -> str | None:
     """The statement where intrinsics given apart are taken as exact and that matters: a focal
-    length 0.1% off (`per_permille`: how far it moves each unknown's translation) moves some
-    unknown by more than its translation 1-sigma (`std`, as `handeye.standard_deviations` gives
-    it), with how well these images alone know the focal length (`check`). None where no unknown
+    length off by what these images alone cannot confirm (`check`: their own focal length's
+    1-sigma, at least 0.1%; `per_permille`: how far 0.1% moves each unknown's translation) moves
+    some unknown by more than its translation 1-sigma (`std`, as `handeye.standard_deviations`
+    gives it). (Where the robot's systematic errors widen the 1-sigma, 0.1% alone may not.) None where no unknown
     moves that far, where `check` already warns (its own warning says more), or without a check
     (intrinsics passed to the library with the images, e.g. a simulation's true ones: nothing
     says they are less than exact; ``focal_per_permille`` in the diagnostics still says what
     0.1% would do)."""
     if check is None or check.off:
         return None
-    moved = [(name, shift, std[name]["translation"]) for name, shift in per_permille.items()
-             if name in std and shift > EXACT_GROWTH * std[name]["translation"] > 0]
+    percent = 100.0 * float(np.mean(check.std)) / float(np.mean(check.own))
+    unconfirmed = max(1.0, percent / 0.1)  # the focal error these images cannot rule out, in units of 0.1%
+
+    def beyond(factor: float) -> list[tuple[str, float, float]]:
+        return [(name, shift, std[name]["translation"]) for name, shift in per_permille.items()
+                if name in std and factor * shift > EXACT_GROWTH * std[name]["translation"] > 0]
+
+    moved = beyond(1.0) or beyond(unconfirmed)  # 0.1% beyond the 1-sigma, else what the images cannot rule out
     if not moved:
         return None
     which = " and ".join(f"{(labels or {}).get(n, n)} by {shift:.3g} ({shift / s:.2g}x its 1-sigma)"
                          for n, shift, s in moved)
-    percent = 100.0 * float(np.mean(check.std)) / float(np.mean(check.own))
     return (f"the answer's 1-sigma takes the intrinsics given as exact, yet a focal length 0.1% off would move "
             f"{which}, in the data's length unit; these {check.views} images alone know the focal length only to "
             f"{percent:.2g}% (fx {check.own[0]:.1f} +- {check.std[0]:.2g} px against the {check.given[0]:.1f} given), "

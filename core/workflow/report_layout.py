@@ -394,7 +394,7 @@ def status_line(r: Mapping[str, Any]) -> str:
     if s in ("not_converged", "failed"):
         return f"status {s}: the solver did not reach its answer; do not use it"
     if s == "unreliable":
-        return "status unreliable: the residuals are implausible for a calibrated cell; do not use this answer"
+        return "status unreliable: the checks found this answer unusable; do not use it"
     if s == "uncertified":
         return "status uncertified: a valid answer, not proven globally optimal"
     return f"status {s}"

@@ -239,6 +239,31 @@ def covariance(fit: Fit, free: int) -> tuple[np.ndarray, float]:
     return sigma2 * np.linalg.pinv(H), sigma2
 
 
+def station_jackknife(fit: Fit, station: np.ndarray, free: int) -> np.ndarray | None:
+    """Covariance of the first `free` parameters of `fit` by a delete-one-station jackknife,
+    linearised (one Gauss-Newton step from the full fit per station left out: theta_(-i) - theta =
+    (H - H_i)^-1 g_i, H_i and g_i station i's share of J^T W J and J^T W r), `station`: (n,) each
+    corner's station, in order. Where the robot's poses are off systematically every corner of a
+    station shares the error, and sigma^2 (J^T W J)^-1, which counts each corner as independent,
+    is several times too small; the jackknife treats the stations as the independent units (a
+    cluster-robust, CR3-type estimate). None when a station cannot be left out (the rest do not
+    determine the parameters)."""
+    J = fit.J[:, :, :free]
+    weighted = J * fit.weights[:, None, None]
+    starts = np.flatnonzero(np.r_[True, station[1:] != station[:-1]])
+    if len(starts) < 3:
+        return None
+    H_i = np.add.reduceat(np.einsum("nki,nkj->nij", weighted, J), starts, axis=0)
+    g_i = np.add.reduceat(np.einsum("nki,nk->ni", weighted, fit.r), starts, axis=0)
+    try:
+        steps = np.linalg.solve(H_i.sum(axis=0) - H_i, g_i[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        return None
+    steps -= steps.mean(axis=0)
+    m = len(starts)
+    return (m - 1) / m * steps.T @ steps
+
+
 def pnp_rms(data: AXYBData) -> float:
     """The corners' RMS error when each image keeps its own board pose (the PnP poses in B)."""
     from handeye.vision.projection import project
