@@ -445,3 +445,27 @@ def test_a_stated_covariance_weighs_auto_as_it_weighs_refine(correlated):
     for k in ("X", "Y"):
         np.testing.assert_allclose(weighted.unknowns[k], plain.unknowns[k], rtol=0, atol=1e-12)
     np.testing.assert_array_equal(C, given)  # the caller's array untouched
+
+
+def test_the_drift_switch_is_taken_only_where_held_out_stations_agree(monkeypatch):
+    """The switch to consecutive motions is judged by held-out prediction (5 contiguous blocks of
+    stations): on drifting poses the two answers predict held-out stations alike (ratio 0.9-1.2)
+    and the switch is taken; where the consecutive motions' answer predicts worse than the
+    tolerance allows (here made 0.5 so that it must), A X = Y B is kept with a warning giving both
+    figures, as on a real rig whose residuals correlate through the arm's configuration."""
+    from handeye.plugins import _auto_steps
+
+    data, truth = PROBLEM.simulate(pairs=40, seed=2)
+    B = drifting(data["B"], np.random.default_rng(2))
+    switched = handeye.solve("axyb", A=data["A"], B=B)
+    figures = switched.diagnostics["drift_held_out"]
+    ratio = figures["drift_translation"] / figures["axyb_translation"]
+    assert figures["drift_agrees"] and 0.8 < ratio < _auto_steps.DRIFT_TOLERANCE and figures["folds"] == 5
+    monkeypatch.setattr(_auto_steps, "DRIFT_TOLERANCE", 0.5)
+    kept = handeye.solve("axyb", A=data["A"], B=B)
+    plain = handeye.solve("axyb", solver="auto", A=data["A"], B=B, init="so3-sdp")  # no drift step with a start
+    assert "formulation" not in kept.diagnostics and not kept.diagnostics["drift_held_out"]["drift_agrees"]
+    assert kept.diagnostics["drift_held_out"]["drift_translation"] == figures["drift_translation"]
+    warning = [w for w in kept.warnings if "predicts held-out stations worse" in w]
+    assert len(warning) == 1 and f"{figures['drift_translation']:.3g} against {figures['axyb_translation']:.3g}" in warning[0]
+    np.testing.assert_allclose(kept.unknowns["X"], plain.unknowns["X"], atol=1e-6)

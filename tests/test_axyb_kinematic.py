@@ -196,7 +196,8 @@ def test_inputs_are_not_modified_and_the_answer_does_not_depend_on_the_unit():
     for name in ("X", "Y", "links"):
         a, b = np.asarray(sol.unknowns[name]), np.array(in_metres.unknowns[name])
         b[..., :3, 3] *= 1000.0
-        np.testing.assert_allclose(b, a, atol=1e-8)
+        # the same to the fit's own convergence, a nanometre (with today's numpy and scipy the links differ by 8e-8 mm)
+        np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-6)
     for (name, (value, _)), (other, (v_m, _)) in zip(corrections(sol).items(), corrections(in_metres).items()):
         factor = 1000.0 if name.split()[1] in ("a", "d") else 1.0
         assert name == other and abs(v_m * factor - value) < 1e-8 * max(1.0, factor), (name, value, v_m)
