@@ -41,6 +41,7 @@ from handeye import (
     run_registered,
 )
 from handeye.framework.errors import shown
+from handeye.framework.solution import USABLE as USABLE_STATUSES
 from handeye.geometry.se3 import make_pose, project_to_so3, rotation_angle
 
 if TYPE_CHECKING:
@@ -50,7 +51,7 @@ if TYPE_CHECKING:
 PROBLEM = "axyb-multi"
 PAIR_PROBLEM = "axyb"
 #: statuses of a pair's answer that are averaged (others: the pair is skipped)
-USABLE = (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED)
+USABLE = USABLE_STATUSES
 
 
 @dataclasses.dataclass(frozen=True)

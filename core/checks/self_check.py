@@ -15,7 +15,8 @@ solver's (third parties' too), against the data it was computed from:
    data (`handeye.nlls`, the engine of ``refine``; Cauchy loss when some pairs are far off the
    others) gives the best answer near it and its covariance. The answer's distance from it in
    standard deviations, d = sqrt(delta^T Sigma^-1 delta), is ~0-3 for a good estimator; beyond
-   `DISTANCE_WARN` a warning says how far and that ``auto`` fits better; beyond `DISTANCE_FAIL`
+   `DISTANCE_WARN` a warning says how far and that ``auto`` fits better (and the host makes the
+   status ``suboptimal``: an ``optimal`` answer beside that warning would contradict it); beyond `DISTANCE_FAIL`
    the answer is unreliable. (Sigma gets a floor of NUMERICAL_FLOOR so that noise-free data, where
    every numerical solver is "infinitely many sigmas" from the exact answer at 1e-8, pass.)
 3. **Gross pairs.** Pairs whose whitened residual exceeds OUTLIER_CHI2 (`handeye.robust`) at the
@@ -199,16 +200,18 @@ def rotation_block_figures(M: np.ndarray) -> dict[str, Any]:
     return {"det": float(np.sign(det)), "singular_values": (s / scale).tolist()}
 
 
-def assess(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any]) -> Assessment:
-    """Run the checks of the module docstring on `unknowns`, the answer a solver gave for the
-    validated `data` of `problem` (with its `diagnostics`)."""
+def assess(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
+           solver: str | None = None) -> Assessment:
+    """Run the checks of the module docstring on `unknowns`, the answer a solver (named `solver`,
+    for the advice its messages give) gave for the validated `data` of `problem` (with its
+    `diagnostics`)."""
     failures: list[str] = []
     warnings: list[str] = []
     figures: dict[str, Any] = {}
     spec = problem.check_model(data, unknowns)
     rotation = None
     if spec is not None:
-        rotation = _local_fit(problem, data, spec, diagnostics, failures, warnings, figures)
+        rotation = _local_fit(problem, data, spec, diagnostics, failures, warnings, figures, solver)
     _rotation_residual(problem, data, unknowns, failures, figures, rotation, held_out_best(diagnostics), warnings)
     _rotation_blocks(diagnostics, failures, figures)
     failures.sort(key=lambda f: not f.startswith("the answer leaves"))  # check 1 first: it says the most
@@ -288,7 +291,7 @@ def _rotation_blocks(diagnostics: Mapping[str, Any], failures: list[str], figure
 
 def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...], tuple[str, ...]],
                diagnostics: Mapping[str, Any], failures: list[str], warnings: list[str],
-               figures: dict[str, Any]) -> np.ndarray | None:
+               figures: dict[str, Any], solver: str | None = None) -> np.ndarray | None:
     """Checks 2, 3 and 5, and the observability warnings; returns the rotation residuals of the
     data's pairs at the answer (for check 1) when the model is on those pairs, else None."""
     model, poses, interest = spec
@@ -339,9 +342,10 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
     if d > DISTANCE_FAIL:
         failures.append(f"the answer is {d:.3g} standard deviations from the best fit of these data ({gap_text()}){why}")
     elif d > DISTANCE_WARN and not _own_model(diagnostics):
+        figures["better_fit"] = True  # the host makes an `optimal` status `suboptimal`: they must agree
+        advice = "" if solver == "auto" else "; solver 'auto' returns the best fit"
         warnings.append(f"self-check: the answer is {d:.3g} standard deviations from the best fit of these data "
-                        f"({gap_text()}), so the data support it far less than that fit{why}; solver 'auto' returns "
-                        "the best fit")
+                        f"({gap_text()}), so the data support it far less than that fit{why}{advice}")
     figures["std"] = _precision(problem, data, model, fit, cov, interest, warnings, figures)
     _imprecise(figures["std"], model.scale, failures)
     # the rotation residuals of the data's own pairs at the answer, when the model is on them
@@ -357,7 +361,9 @@ def _own_model(diagnostics: Mapping[str, Any]) -> bool:
     weighted answer several of the one-level fit's sigmas, rightly."""
     refine = diagnostics.get("refine")
     model = diagnostics.get("noise_model") or (refine.get("noise_model") if isinstance(refine, Mapping) else None)
-    return diagnostics.get("fitted_to", "poses") != "poses" or model == "sources"
+    drift = diagnostics.get("drift_held_out")  # auto's X from the consecutive motions, held-out stations agreeing
+    return (diagnostics.get("fitted_to", "poses") != "poses" or model == "sources"
+            or (isinstance(drift, Mapping) and drift.get("drift_agrees") is True and "formulation" in diagnostics))
 
 
 def _disagreeing(data: Any) -> bool:

@@ -432,6 +432,9 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
     elif r["status"] == "unreliable":
         lines.append("warning: status unreliable: the checks found this answer unusable; do not use it (the first "
                      "warning below says why)")
+    elif r["status"] == "suboptimal":
+        lines.append("note: status suboptimal: a usable answer, but the data support another fit far better "
+                     "(the self-check's warning below says how far)")
     elif r["status"] == "uncertified":
         lines.append("note: status uncertified: a valid answer, but the solver could not prove it globally optimal")
     lines += [f"warning: {w}" for w in r["warnings"]]

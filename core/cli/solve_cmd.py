@@ -307,6 +307,9 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
     elif r["status"] == Status.UNCERTIFIED:
         lines.append("note: status uncertified: a valid answer, but the solver could not prove it "
                      "globally optimal")
+    elif r["status"] == Status.SUBOPTIMAL:
+        lines.append("note: status suboptimal: a usable answer, but the data support another fit far better "
+                     "(the self-check's warning below says how far; solver auto returns that fit)")
     for w in r["warnings"]:
         lines.append(f"warning: {w}")
     return "\n".join(lines)

@@ -41,6 +41,7 @@ from handeye.cli._common import (
     workspace_of,
 )
 from handeye.framework.errors import InputError
+from handeye.framework.solution import USABLE
 from handeye.io.pose_formats import format_names, parse_format
 from handeye.planning.plan import Noise, planners
 from handeye.planning.session import Session, Tolerance, Update
@@ -304,4 +305,4 @@ def _final(args: argparse.Namespace, session: Session | None, unit: str | None) 
               + (f"; {_std_text(shown, unit)}" if shown else ""), flush=True)
         for name, T in solution.unknowns.items():
             print(f"  {name} = " + "; ".join(" ".join(f"{v:.6g}" for v in row) for row in np.asarray(T)[:3]))
-    return 0 if status in ("optimal", "optimal_inaccurate", "uncertified") else 1
+    return 0 if status in {s.value for s in USABLE} else 1

@@ -24,7 +24,7 @@ from handeye.framework.errors import (
 from handeye.framework.isolation import call_with_time_limit
 from handeye.framework.options import parse_options
 from handeye.framework.registry import get_registry
-from handeye.framework.solution import Solution, SolverOutput, Status
+from handeye.framework.solution import USABLE, Solution, SolverOutput, Status
 from handeye.framework.threads import one_blas_thread
 from handeye.geometry.se3 import orthonormality_error
 
@@ -192,19 +192,22 @@ def _host(registry: Any, problem: str, solver: str, spec: Any, backend: str, dat
     if "camera_scale" in diagnostics and getattr(data, "camera_scale_unknown", True) is False:
         check_data = dataclasses.replace(data, camera_scale_unknown=True)
     with _problem_faults(registry, problem):
-        check = assess(spec_problem, check_data, unknowns, diagnostics)
+        check = assess(spec_problem, check_data, unknowns, diagnostics, solver)
     diagnostics["self_check"] = {"reliable": check.reliable, "failures": list(check.failures), **check.figures}
     warnings += list(check.warnings)
     if not check.reliable:
         instead = ("use solver 'auto'" if solver != DEFAULT_SOLVER else
                    "check the data (handeye calibrate checks files for the usual setup mistakes)")
         message = f"self-check failed, do not use this answer: {'; '.join(check.failures)}; {instead}"
-        if status in (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED):
+        if status in USABLE:
             diagnostics["status_before_checks"] = status.value  # the solver's own, kept for the record
             status = Status.UNRELIABLE
             warnings.insert(0, message)  # the reason for the status comes first
         else:
             warnings.append(message)  # the solver's own reason for its status comes first
+    elif check.figures.get("better_fit") and status is Status.OPTIMAL:  # never `optimal` beside that warning
+        diagnostics["status_before_checks"] = status.value
+        status = Status.SUBOPTIMAL
     diagnostics["warnings"] = warnings
     diagnostics.setdefault("data", weak)
     return Solution(unknowns=unknowns, problem=problem, solver=solver, backend=backend, status=status,

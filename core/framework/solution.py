@@ -16,6 +16,10 @@ class Status(str, enum.Enum):
     - ``optimal``: the method solved its own problem to its tolerance (closed forms: exactly).
     - ``optimal_inaccurate``: the numerical solver stopped close to, but not at, its tolerance.
     - ``uncertified``: a certifiable method found a solution but could not prove it globally optimal.
+    - ``suboptimal``: set by the host, not by a solver: the solver solved its own problem, but the
+      self-check finds a fit of the same data that the data support far better (the answer beyond
+      `handeye.checks.self_check.DISTANCE_WARN` standard deviations from it, with a warning); usable,
+      not the best these data give (solver ``auto`` returns that fit).
     - ``not_converged``: an iterative method hit its iteration limit or diverged; the returned
       unknowns are its last iterate and must not be trusted.
     - ``failed``: no usable answer (used by the harness for solvers that raised).
@@ -30,9 +34,14 @@ class Status(str, enum.Enum):
     NOT_CONVERGED = "not_converged"
     FAILED = "failed"
     UNRELIABLE = "unreliable"
+    SUBOPTIMAL = "suboptimal"
 
     def __str__(self) -> str:
         return self.value
+
+
+#: statuses whose unknowns may be used (the others: shown for inspection only)
+USABLE = (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED, Status.SUBOPTIMAL)
 
 
 @dataclass(frozen=True)

@@ -395,6 +395,8 @@ def status_line(r: Mapping[str, Any]) -> str:
         return f"status {s}: the solver did not reach its answer; do not use it"
     if s == "unreliable":
         return "status unreliable: the checks found this answer unusable; do not use it"
+    if s == "suboptimal":
+        return "status suboptimal: usable, but the data support another fit far better (see the warnings)"
     if s == "uncertified":
         return "status uncertified: a valid answer, not proven globally optimal"
     return f"status {s}"

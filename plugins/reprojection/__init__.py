@@ -40,7 +40,7 @@ from handeye.checks.validation import float_array, pose_stack
 from handeye.estimation.robust import LOSSES
 from handeye.framework.errors import InputError, SolverError
 from handeye.framework.options import check_choice, check_int, check_positive
-from handeye.framework.solution import Status, jsonable
+from handeye.framework.solution import USABLE, Status, jsonable
 from handeye.framework.solver import SolverOutput, SolverSpec
 from handeye.geometry.se3 import rotation_angle
 from handeye.plugins.reprojection import held_out, robot_noise
@@ -134,7 +134,7 @@ def _start(data: AXYBData, options: Options) -> tuple[dict[str, np.ndarray], str
     from handeye import run_registered
 
     output = run_registered(START, data, problem="axyb")
-    if Status(output.status) not in (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED):
+    if Status(output.status) not in USABLE:
         raise SolverError(f"reprojection: its start, solver {START!r} on the board poses, ended {output.status}")
     warnings = [w for w in output.diagnostics.get("warnings", []) if "left out" not in w]
     return {k: np.asarray(output.unknowns[k], dtype=float) for k in ("X", "Y")}, START, warnings
@@ -339,7 +339,7 @@ def _compare_held_out(data: AXYBData, options: Options) -> dict[str, Any]:
         """`run`'s corner fit with the robot's poses exact, from the pose-based start (or, where
         that ended badly, from `run`'s own start, which then refuses it as alone)."""
         start = pose_based(train)
-        if Status(start.status) in (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED):
+        if Status(start.status) in USABLE:
             poses0 = {k: np.asarray(start.unknowns[k], dtype=float) for k in ("X", "Y")}
         else:
             poses0 = _start(train, plain)[0]
