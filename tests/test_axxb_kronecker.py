@@ -16,6 +16,7 @@ import pytest
 from scipy.optimize import minimize
 
 import handeye
+from tolerances import solved
 from handeye import Status
 from handeye.estimation.noise import NoiseModel
 from handeye.estimation.rotation_cost import (
@@ -219,7 +220,7 @@ def test_so3_sdp_certifies_and_beats_kron_lstsq(backend):
         raw, _ = PROBLEM.simulate(pairs=6, seed=seed, noise=NoiseModel.on(("A", "B"), 0.02, 2.0))
         sol = solve(raw, "so3-sdp", backend, **SDP)
         d = sol.diagnostics
-        assert sol.status is Status.OPTIMAL and d["certified"]
+        assert solved(sol) and d["certified"]
         assert d["eigenvalue_ratio"] < 1e-3 and d["relative_gap"] < 1e-6 and d["lower_bound"] <= d["cost"]
         cost = cost_of(raw)
         kron = solve(raw, "kron-lstsq")

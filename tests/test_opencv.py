@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import handeye
+from tolerances import solved
 from handeye.cli import main as cli_main
 from handeye.cli.list_cmd import collect
 from handeye.estimation.noise import NoiseModel
@@ -74,7 +75,7 @@ def test_method_routing_matches_cv2_called_directly():
         assert sol.diagnostics["method"] == method
         assert sol.diagnostics["opencv_version"] == cv2.__version__
         assert sol.diagnostics["reprojected"] == []
-        assert sol.backend == "opencv" and sol.status is handeye.Status.OPTIMAL
+        assert sol.backend == "opencv" and solved(sol)
     # on noisy data the two methods differ clearly
     assert rotation_angle(sols["shah"].X[:3, :3] @ sols["li"].X[:3, :3].T) > 1e-5
     assert np.linalg.norm(sols["shah"].Y[:3, 3] - sols["li"].Y[:3, 3]) > 1e-3

@@ -146,3 +146,17 @@ def clean_on_noisy(problem: str, solver: str, backend: str) -> bool | None:
     seed of the table (None: not in the table)."""
     entry = MEASURED.get(measured_key(problem, solver, backend))
     return None if entry is None else bool(entry["clean"])
+
+
+def solved(sol) -> bool:
+    """The solver solved its own problem and the host agrees with its status: ``optimal`` with no
+    better-supported fit in sight, or ``suboptimal`` exactly where the self-check found a fit of
+    the same data far better supported than an answer its solver called optimal (closed forms and
+    certified relaxations whose cost is not the likelihood, on noisy data)."""
+    from handeye.framework.solution import Status
+
+    better = bool(sol.diagnostics.get("self_check", {}).get("better_fit"))
+    if sol.status is Status.OPTIMAL:
+        return not better
+    return (sol.status is Status.SUBOPTIMAL and better
+            and sol.diagnostics.get("status_before_checks") == Status.OPTIMAL.value)

@@ -252,8 +252,9 @@ def _groups_off(best: tuple[list[str], float, dict[str, Any]], failures: list[st
         failures.append(f"{text}: is each camera in the cell's length unit? For cameras known only up to scale "
                         f"(monocular SLAM), give camera_scale={named!r}")
     else:
-        warnings.append(f"self-check: {text}: check those cameras' board sizes and focal lengths (a PnP pose's "
-                        f"distance scales with both); camera_scale={named!r} fits their factors")
+        warnings.append(f"self-check: {text}: check the printed size of those boards or markers and the focal length "
+                        f"of the cameras that see them (a PnP pose's distance scales with both); "
+                        f"camera_scale={named!r} fits their factors")
     return True
 
 
@@ -287,9 +288,10 @@ def _groups_moving(model: Any, res: Any, cov: np.ndarray, screens: list[camera_s
                       f"translation by {by:.3g}, {sigmas:.3g} times its stated 1-sigma" for x, (moved, sigmas, by) in named)
     names = [x.name for x, _ in named]
     warnings.append(f"self-check: the camera translations fit the robot's best at another scale: {parts} (lengths in "
-                    f"the data's unit), so the answer is less certain than stated: check those cameras' board sizes "
-                    f"and focal lengths (a PnP pose's distance scales with both), or the robot's own errors, which can "
-                    f"mimic a scale; camera_scale={names!r} fits their factors")
+                    f"the data's unit), so the answer is less certain than stated: check the printed size of those "
+                    f"boards or markers and the focal length of the cameras that see them (a PnP pose's distance "
+                    f"scales with both), or the robot's own errors, which can mimic a scale; camera_scale={names!r} "
+                    f"fits their factors")
 
 
 def _robust_std(model: Any, res: Any, x: camera_scales.GroupScreen, parts: dict[str, np.ndarray]) -> float:
