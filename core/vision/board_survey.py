@@ -6,8 +6,8 @@ detector happens to lock on, and the camera calibrated from such corners fits th
 with an impossible focal length; a larger one (28x17) is found in none, after the detector has
 searched every image with every flag set (minutes on 30 images of 2 MP).
 
-`check_chessboard_size` looks first, on a few probe images (`handeye.vision.detection_plan.
-probe_indices`), at what is printed: OpenCV's ``findChessboardCornersSBWithMeta`` with
+`check_chessboard_size` looks first, on a few probe images (those of
+`handeye.vision.detection_plan.probe_indices`), at what is printed: OpenCV's ``findChessboardCornersSBWithMeta`` with
 ``CALIB_CB_LARGER`` grows a small seed pattern (`SEED`) to the whole board it sits in, on the image
 shrunk to `SURVEY_SIDE` pixels (~0.1-0.2 s an image; ``CALIB_CB_EXHAUSTIVE`` is needed for it to
 grow beyond the seed). When most probe images with a board show one size, none shows the size
@@ -102,14 +102,12 @@ def survey(files: Sequence[Path], board: Board, workers: int | None = None) -> S
                             map_in_order(lambda f: _on_image(f, chessboard_grid, board), list(files), workers))))
 
 
-def check_chessboard_size(files: Sequence[Path], board: Board, workers: int | None = None) -> Survey | None:
-    """`BoardSizeError` when the probe images among `files` show another chessboard than `board`
-    (module docstring); the survey otherwise (None for boards of other kinds)."""
-    from handeye.vision.detection_plan import probe_indices
-
+def check_chessboard_size(probes: Sequence[Path], board: Board, workers: int | None = None) -> Survey | None:
+    """`BoardSizeError` when the probe images `probes` (a few spread over the set) show another
+    chessboard than `board` (module docstring); the survey otherwise (None for boards of other
+    kinds)."""
     if board.kind != "chessboard":
         return None
-    probes = [files[k] for k in probe_indices(len(files))]
     found = survey(probes, board, workers)
     verdict = found.verdict(board)
     if verdict is not None and any(a < b for a, b in zip(_key(verdict[0]), _key((board.cols, board.rows)))):  # confirm

@@ -65,8 +65,9 @@ def detect_set(files: Sequence[Path], board: Board, camera: Camera | None = None
     everything = range(len(files))
     with progress_bar(len(files), progress) as bar:
         run = _Runner(files, board, DetectionCache.resolve(cache), workers, bar.update)
-        if board.kind == "chessboard" and not run.cached(probe_indices(len(files))):
-            check_chessboard_size(files, board, workers)  # a wrong board size named before the long search
+        probes = probe_indices(len(files))
+        if board.kind == "chessboard" and not run.cached(probes):  # a wrong board size named before the long search
+            check_chessboard_size([files[k] for k in probes], board, workers)
         if board.kind != "chessboard" or len(files) < PLAN_MIN_IMAGES:
             found = run(everything, None)
         else:
