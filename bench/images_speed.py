@@ -33,7 +33,7 @@ The ratio column divides by ``opencv``. Targets: ``handeye`` no slower than ``op
 chessboard set; ``handeye rerun`` below 3 s.
 
 Usage: python bench/images_speed.py [--sets chessboard,charuco,circles] [--repeats 3] [--workers N] [--before]
-       [--full-image]
+       [--full-image] [--real-chessboard FOLDER BOARD ROBOT ...]
 """
 
 from __future__ import annotations
@@ -101,13 +101,20 @@ def render_chessboard_set(folder: Path) -> Path:
     return folder
 
 
-def image_sets(which: list[str], chess_dir: Path) -> list[dict]:
+def image_sets(which: list[str], chess_dir: Path, real: list[list[str]] | None = None) -> list[dict]:
     """Each set: name, images folder, board spec, CLI arguments of its robot poses and setup, and
-    the robot poses as T_base_flange (n, 4, 4) in the image order, for OpenCV."""
+    the robot poses as T_base_flange (n, 4, 4) in the image order, for OpenCV. `real`: real
+    chessboard sets given as (folder, board, robot file of row-major 4x4 matrices in metres, one a
+    line, paired with the images in order: the KUKA sets' RobotPosesVec.txt), eye in hand."""
     from handeye.io.examples import image_example_dir
     from handeye.io.pose_readers import read_pose_dir, read_poses
 
     sets = []
+    for folder, board, robot_file in real or []:
+        robot = read_poses(robot_file, "matrix", unit="m")
+        sets.append({"name": f"{board} (real, {Path(folder).name})", "images": Path(folder), "board": board,
+                     "robot": robot.poses, "setup": "eye-in-hand", "match": "index",
+                     "args": ["--robot", robot_file, "--robot-format", "matrix", "--robot-unit", "m"]})
     if "chessboard" in which:
         folder = render_chessboard_set(chess_dir)
         robot = read_poses(folder / "robot.csv", "xyz-quat-xyzw", unit="mm")
@@ -219,7 +226,7 @@ def handeye_run(image_set: dict, cache: Path | None, out: Path, workers: int | N
     saved = {k: os.environ.get(k) for k in env}
     plan_min, locate = detection_plan.PLAN_MIN_IMAGES, chessboard_region.locate
     argv = ["calibrate", "--images", image_set["images"], "--board", image_set["board"], *image_set["args"],
-            "--setup", image_set["setup"], "--match", "name", "-o", out, "--force"]
+            "--setup", image_set["setup"], "--match", image_set.get("match", "name"), "-o", out, "--force"]
     try:
         for k, v in env.items():
             os.environ.pop(k, None) if v is None else os.environ.__setitem__(k, v)
@@ -272,6 +279,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--full-image", action="store_true",
                         help="also time handeye with ACCURACY on the full image, as before the crop")
     parser.add_argument("--chessboard-dir", type=Path, default=Path(tempfile.gettempdir()) / "handeye-bench-chess")
+    parser.add_argument("--real-chessboard", nargs=3, action="append", metavar=("FOLDER", "BOARD", "ROBOT"),
+                        help="a real chessboard set: its images, board spec and robot file (4x4 per line, m, in order)")
     args = parser.parse_args(argv)
     from handeye.cli import main as cli_main
     from handeye.io.examples import image_example_dir
@@ -285,7 +294,7 @@ def main(argv: list[str] | None = None) -> None:
                       "eye-in-hand", "--match", "name", "-o", str(Path(scratch) / "warm.json"), "--force"])
         print(f"cores {len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else os.cpu_count()}, "
               f"OpenCV {cv2.__version__}, load {os.getloadavg()[0]:.1f}, median of {args.repeats}")
-        for image_set in image_sets(args.sets.split(","), args.chessboard_dir):
+        for image_set in image_sets(args.sets.split(","), args.chessboard_dir, args.real_chessboard):
             times = measure(image_set, args.repeats, args.workers, args.before, Path(scratch), args.full_image)
             reference = statistics.median(times["opencv"])
             print(f"\n{image_set['name']}")
