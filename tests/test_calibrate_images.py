@@ -211,6 +211,14 @@ def test_wrong_board_size_is_named_and_exits_2(tmp_path, capsys):
     assert code == 2 and err.count("\n") == 1
     assert "the images show a 9x6 chessboard (inner corners), not the 8x6 given: found in 2 of the 2 images" in err
     assert "give the board as chessboard:9x6:25mm" in err
+    # the report asked for is written all the same, saying why there is no answer
+    for report in ("r.md", "r.html"):
+        code, _, err = run_cli(capsys, "calibrate", "--images", tmp_path / "images", "--board", "chessboard:8x6:25mm",
+                               "--robot", tmp_path / "robot.csv", "--robot-format", "matrix", "--robot-unit", "mm",
+                               "--setup", "eye-in-hand", "--report", tmp_path / report)
+        text = (tmp_path / report).read_text()
+        assert code == 2 and f"wrote {tmp_path / report}" in err
+        assert "no answer" in text and "the images show a 9x6 chessboard" in text and "handeye calibrate" in text
 
 
 # ----------------------------------------------------------------------------- real images

@@ -58,7 +58,8 @@ Exit codes as handeye solve: 0 success; 2 bad input (file, format, unit, counts)
 failed or ended not_converged / failed, or the checks found the fit unreliable: these file
 checks, or the self-check every solve runs (residuals against the noise the data show, distance
 from the best fit; docs/reliability.md; not skipped by --no-checks). The answer is then printed
-for inspection, no -o / --yaml file is written; a --report is, to see why.
+for inspection, no -o / --yaml file is written; a --report is, to see why (also when the run ends
+without an answer: the report then holds the error and what was found before it).
 
 A cell file (YAML; docs/calibrate.md, "Cell files and Python") holds the same settings:
 ``--config cell.yaml`` reads them (relative paths relative to the file's folder), and flags
@@ -101,7 +102,7 @@ from handeye.cli._common import (
     parse_key_values,
 )
 from handeye.cli.solve_cmd import _setup_note, noise_lines
-from handeye.framework.errors import InputError
+from handeye.framework.errors import HandEyeError, InputError
 from handeye.framework.solution import Status
 from handeye.io.output_files import check_writable, write_text
 from handeye.io.pose_formats import format_names
@@ -117,7 +118,7 @@ from handeye.workflow.cell import (
 )
 from handeye.workflow.frames import equation_of, frame_names, unknown_of
 from handeye.workflow.joint_cell import kinematics_lines
-from handeye.workflow.quality_report import check_new_report, report_files
+from handeye.workflow.quality_report import check_new_report, report_files, write_failure_report
 from handeye.workflow.result import CalibrationResult
 from handeye.workflow.solving import UNUSABLE
 
@@ -297,12 +298,21 @@ def run(args: argparse.Namespace) -> int:
         check_new_file(flag, path, args.force)
 
     log_to = sys.stderr if args.json else sys.stdout
+    logged: list[str] = []
 
     def log(stage: str, text: str) -> None:  # the images' summary as soon as it is known; matching: --json only
+        logged.append(text)
         if stage == "images" or args.json:
             print(text, file=log_to)
 
-    result = calibrate(cell, log=log, **detecting)
+    try:
+        result = calibrate(cell, log=log, **detecting)
+    except HandEyeError as exc:  # no answer: a --report still says why (the error is then raised as usual)
+        if out.report:
+            written = write_failure_report(out.report, in_cli_words(str(exc)), logged,
+                                           getattr(args, "command_line", "handeye calibrate"), force=args.force)
+            print(f"wrote {written}", file=sys.stderr)
+        raise
     r = result.to_dict()
     r["warnings"] = [cell_words(w) for w in r["warnings"]]  # the cell's settings as flags; else as the library says
     written = [] if not result.usable else _write(r, out.json, out.yaml, args.force)

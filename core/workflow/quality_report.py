@@ -222,3 +222,26 @@ def write_report(path: str | Path, r: Mapping[str, Any], force: bool = False) ->
     written = [write_bytes(path.with_name(names[name]), png, force=force, flag="--report")
                for name, png in images.items()]
     return [write_text(path, build_markdown(r, names), force=force, flag="--report"), *written]
+
+
+def write_failure_report(path: str | Path, error: str, lines: Sequence[str], command: str,
+                         force: bool = False) -> Path:
+    """The report of a calibration that ended without an answer (bad input found while reading or
+    detecting, a solver that failed): the command, the error in the user's words, and what was
+    found before it (`lines`: the images' summary), so that the report the user asked for says
+    why (HTML or markdown by `path`'s extension; replaced only with `force`)."""
+    import html
+
+    fmt = check_report_path(path)
+    title = "handeye calibration report: no answer"
+    if fmt == "html":
+        found = "".join(f"<pre>{html.escape(text)}</pre>" for text in lines)
+        body = (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{title}</title></head><body>"
+                f"<h1>{title}</h1><p><b>error:</b> {html.escape(error)}</p><p><b>command:</b> "
+                f"<code>{html.escape(command)}</code></p>" + (f"<h2>What was found before</h2>{found}" if found else "")
+                + "</body></html>\n")
+    else:
+        found = "".join(f"```\n{text}\n```\n\n" for text in lines)
+        body = (f"# {title}\n\n**error:** {error}\n\n**command:** `{command}`\n\n"
+                + (f"## What was found before\n\n{found}" if found else ""))
+    return write_text(path, body, force=force, flag="--report")
