@@ -277,3 +277,23 @@ def test_the_self_checks_far_off_observations_are_named_by_camera_and_marker():
     failure = next(f for f in sol.diagnostics["self_check"]["failures"] if "far off the others" in f)
     first = int(sorted(cell.gross)[0])
     assert f"no. {first + 1} (index {first}: {cell.data['x_names'][cell.data['x_index'][first]]} with " in failure
+
+
+def test_a_pair_off_as_a_whole_is_named_as_the_pair_not_its_camera():
+    """Every observation of one marker-camera pair 20 deg off (a marker misread by one camera, as
+    one pair of a real rig of 8 cameras and 16 tags is): auto leaves them out and names that pair,
+    not the camera, and the others stay as accurate as without it."""
+    from handeye.geometry.se3 import make_pose, so3_exp
+
+    sim = simulate_cell(20, seed=1, noise=NOISE)
+    d = dict(sim.data)
+    pair = (d["x_index"] == 1) & (d["y_index"] == 2)
+    B = d["B"].copy()
+    B[pair] = B[pair] @ make_pose(so3_exp(np.array([0.35, 0.0, 0.0])), np.zeros(3))
+    sol = handeye.solve("axyb-multi", **{**d, "B": B})
+    clean = handeye.solve("axyb-multi", **d)
+    name = f"{d['x_names'][1]} with {d['y_names'][2]}"
+    named = [w for w in sol.warnings if f"every observation of {name} (all {int(pair.sum())})" in w]
+    assert len(named) == 1 and "not its camera or marker" in named[0], sol.warnings[:2]
+    assert not any("something wrong with" in w for w in sol.warnings)
+    assert relative_error(sol, sim.truth) < 2 * relative_error(clean, sim.truth) + 1e-3

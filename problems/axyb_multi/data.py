@@ -182,6 +182,14 @@ class AXYBMultiData:
         return {**{name: self.observations_of(x=j) for j, name in enumerate(self.x_names)},
                 **{name: self.observations_of(y=k) for k, name in enumerate(self.y_names)}}
 
+    @functools.cached_property
+    def pair_groups(self) -> dict[str, np.ndarray]:
+        """The observations of each (X, Y) pair, by the pair's name ("marker3 with cam5"): where
+        `auto`'s outlier step leaves out every observation of one pair, it names the pair (a tag
+        badly printed or seen edge-on by that camera) instead of listing observations."""
+        pairs, of = self.pair_index
+        return {f"{self.x_names[x]} with {self.y_names[y]}": np.flatnonzero(of == p) for p, (x, y) in enumerate(pairs)}
+
     def component_names(self, c: Component) -> str:
         """A component's unknowns for messages: "X 'marker0', X 'marker1' and Y 'cam0'"."""
         listed = lambda kind, names, ids: ", ".join(f"{kind} {names[k]!r}" for k in ids)  # noqa: E731
