@@ -86,3 +86,18 @@ def test_intrinsics_no_lens_gives_are_refused_naming_the_board():
     assert "2.9 px RMS" in lens_problem(calibration(1800.0, 1800.0, 2.9), board)
     assert lens_problem(calibration(2000.0, 1800.0, 0.1), board) is not None  # 11% apart
     assert lens_problem(calibration(1800.0, 1805.0, 0.52), board) is None  # the real ChArUco set's figures
+
+
+def test_a_sub_board_the_survey_does_not_see_is_refused_by_the_lens_check(images):
+    """With a detector of the caller's own (no survey), a 5x4 sub-board of the printed 9x6 is
+    found where the detector locks on, and the camera calibrated from such corners is no real
+    lens's (measured: 4.05 px RMS, fx 2422 against fy 14131): refused, naming the board, instead of
+    a hand-eye answer built on it."""
+    from handeye.vision.detect import detect
+    from handeye.vision.image_set import images_and_poses
+
+    with pytest.raises(InputError) as error:
+        images_and_poses(images[0].parent, parse_board("chessboard:5x4:25mm"), setup="eye-in-hand", cache=False,
+                         detector=lambda image, board: detect(image, board))
+    message = str(error.value)
+    assert "which no real lens gives" in message and "chessboard 5x4 inner corners, 25 mm squares" in message
