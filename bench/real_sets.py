@@ -41,11 +41,11 @@ from handeye.geometry.motions import relative_motions
 from handeye.io.pose_readers import write_poses
 from handeye.plugins.reprojection import held_out
 from handeye.problems.axyb.geometry import fitted_Y
+from handeye.workflow.solving import HELD_OUT_FOLDS as FOLDS
 from handeye.workflow.cell import Cell, Images, Matching, PoseStream
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "data" / "industrial_calibration_rct"
-FOLDS = 3
 
 
 @dataclasses.dataclass(frozen=True)

@@ -126,8 +126,7 @@ def drift(data: Any, options: Any, backend: str, output: SolverOutput,
             f"auto: the residuals of A_k X = Y B_k are correlated from one station to the next (lag-1 autocorrelation "
             f"{acf:.2f}), as a camera's drifting poses make them, but X from the consecutive motions predicts "
             f"held-out stations worse ({held_out['drift_translation']:.3g} against {held_out['axyb_translation']:.3g} "
-            f"in the data's "
-            f"length unit, median translation over {held_out['folds']} blocks of stations): neighbouring stations "
+            f"in the data's length unit, median translation over {held_out['folds']} blocks of stations): neighbouring stations "
             "share the arm's configuration, and its systematic errors correlate them; the A X = Y B answer is kept")]
         return SolverOutput(output.unknowns, output.status, kept)
     metric_B = np.array(B)

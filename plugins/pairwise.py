@@ -41,7 +41,7 @@ from handeye import (
     run_registered,
 )
 from handeye.framework.errors import shown
-from handeye.framework.solution import USABLE as USABLE_STATUSES
+from handeye.framework.solution import USABLE
 from handeye.geometry.se3 import make_pose, project_to_so3, rotation_angle
 
 if TYPE_CHECKING:
@@ -50,8 +50,6 @@ if TYPE_CHECKING:
 #: the problem it solves and the problem each pair is solved as
 PROBLEM = "axyb-multi"
 PAIR_PROBLEM = "axyb"
-#: statuses of a pair's answer that are averaged (others: the pair is skipped)
-USABLE = USABLE_STATUSES
 
 
 @dataclasses.dataclass(frozen=True)
@@ -112,7 +110,7 @@ def solve_pairs(data: AXYBMultiData, options: Options) -> tuple[list[dict[str, A
             record.update(used=False, reason=f"{options.pair_solver} failed: {_short(exc)}",
                           error=" ".join(str(exc).split()))
             continue
-        if solution.status not in USABLE:
+        if solution.status not in USABLE:  # an unusable pair's answer is skipped, not averaged
             record.update(used=False, reason=f"{options.pair_solver} returned status {solution.status.value}")
             continue
         record.update(used=True, status=solution.status.value)

@@ -31,7 +31,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from handeye.framework.solution import USABLE as USABLE_STATUSES
+from handeye.framework.solution import USABLE
 from handeye.io.output_files import new_file, write_text
 
 
@@ -64,8 +64,6 @@ SCALE_SUFFIX = "+scale"
 AUTO = AXYB_PREFIX + "auto"
 #: KinHEC's best AX=YB method (Shah's closed form + joint LM refinement), the head-to-head reference
 REFERENCE = "shah+lm"
-#: statuses whose answer a user may use (the CLI exits 1 on the others)
-USABLE = tuple(s.value for s in USABLE_STATUSES)
 #: what this module adds to the output folder of KinHEC's run_benchmark
 HANDEYE_FILES = ("handeye_head_to_head.csv", "handeye_head_to_head.md", "handeye_tracks.csv", "handeye_tracks.md")
 #: head-to-head: auto's X translation error above this multiple of shah+lm's is counted as worse

@@ -305,4 +305,4 @@ def _final(args: argparse.Namespace, session: Session | None, unit: str | None) 
               + (f"; {_std_text(shown, unit)}" if shown else ""), flush=True)
         for name, T in solution.unknowns.items():
             print(f"  {name} = " + "; ".join(" ".join(f"{v:.6g}" for v in row) for row in np.asarray(T)[:3]))
-    return 0 if status in {s.value for s in USABLE} else 1
+    return 0 if status in USABLE else 1

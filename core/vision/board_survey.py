@@ -74,9 +74,7 @@ def chessboard_grid(gray: np.ndarray, board: Board) -> tuple[int, int] | None:
     seed = (min(board.cols, SEED), min(board.rows, SEED))
     if min(seed) < 3:
         return None
-    scale = min(1.0, SURVEY_SIDE / max(gray.shape[:2]))
-    small = gray if scale == 1.0 else cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
-    found, _, meta = cv2.findChessboardCornersSBWithMeta(small, seed, flags=_FLAGS)
+    found, _, meta = cv2.findChessboardCornersSBWithMeta(_shrunk(gray), seed, flags=_FLAGS)
     if not found or meta is None:
         return None
     rows, cols = meta.shape[:2]
@@ -87,9 +85,7 @@ def shows_given(gray: np.ndarray, board: Board) -> bool:
     """Whether the given chessboard itself is found in the 8-bit image `gray` at the survey's scale:
     the check before naming a size smaller than the given one (the survey may stop growing short of
     a steeply seen board's far rows)."""
-    scale = min(1.0, SURVEY_SIDE / max(gray.shape[:2]))
-    small = gray if scale == 1.0 else cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
-    found, _ = cv2.findChessboardCornersSB(small, (board.cols, board.rows),
+    found, _ = cv2.findChessboardCornersSB(_shrunk(gray), (board.cols, board.rows),
                                            flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_NORMALIZE_IMAGE)
     return bool(found)
 
@@ -127,6 +123,12 @@ def check_chessboard_size(probes: Sequence[Path], board: Board, workers: int | N
             f"found in {votes} of the {len(probes)} images looked at first ({', '.join(n for n, _ in found.grids)}); "
             f"give the board as chessboard:{cols}x{rows}:{square} (and check the square size)")
     return found
+
+
+def _shrunk(gray: np.ndarray) -> np.ndarray:
+    """`gray` with its long side at most `SURVEY_SIDE` pixels (area-averaged)."""
+    scale = min(1.0, SURVEY_SIDE / max(gray.shape[:2]))
+    return gray if scale == 1.0 else cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
 
 
 def _on_image(path: Path, look, board: Board):

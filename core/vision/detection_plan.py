@@ -58,9 +58,8 @@ def detect_set(files: Sequence[Path], board: Board, camera: Camera | None = None
     plan's probe is judged with them); `workers`: detection threads (default: the cores);
     `cache`: None / True the environment's cache, False none, a folder that one; `progress`: a
     progress bar on a terminal."""
-    from handeye.vision.detection_pool import progress_bar
-
     from handeye.vision.board_survey import check_chessboard_size
+    from handeye.vision.detection_pool import progress_bar
 
     everything = range(len(files))
     with progress_bar(len(files), progress) as bar:

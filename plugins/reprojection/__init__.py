@@ -180,7 +180,7 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     dominate = robot_errors_dominate({"rms_px": exact_rms, "pnp_rms_px": pnp, "robot_misfit": misfit})
     widened = None
     if dominate and not robot:  # the robot's errors shared by each station's corners: the stations' jackknife
-        jack = station_jackknife(fit, cell.station, free)
+        jack = station_jackknife(fit, cell.counts, free)
         if jack is not None and np.trace(jack[:12, :12]) > np.trace(cov[:12, :12]):
             widened = math.sqrt(np.trace(jack[:12, :12]) / np.trace(cov[:12, :12]))
             cov = jack

@@ -239,28 +239,27 @@ def covariance(fit: Fit, free: int) -> tuple[np.ndarray, float]:
     return sigma2 * np.linalg.pinv(H), sigma2
 
 
-def station_jackknife(fit: Fit, station: np.ndarray, free: int) -> np.ndarray | None:
+def station_jackknife(fit: Fit, counts: np.ndarray, free: int) -> np.ndarray | None:
     """Covariance of the first `free` parameters of `fit` by a delete-one-station jackknife,
     linearised (one Gauss-Newton step from the full fit per station left out: theta_(-i) - theta =
-    (H - H_i)^-1 g_i, H_i and g_i station i's share of J^T W J and J^T W r), `station`: (n,) each
-    corner's station, in order. Where the robot's poses are off systematically every corner of a
+    (H - H_i)^-1 g_i, H_i and g_i station i's share of J^T W J and J^T W r), `counts`: the corners
+    of each station, in order. Where the robot's poses are off systematically every corner of a
     station shares the error, and sigma^2 (J^T W J)^-1, which counts each corner as independent,
     is several times too small; the jackknife treats the stations as the independent units (a
     cluster-robust, CR3-type estimate). None when a station cannot be left out (the rest do not
     determine the parameters)."""
-    J = fit.J[:, :, :free]
-    weighted = J * fit.weights[:, None, None]
-    starts = np.flatnonzero(np.r_[True, station[1:] != station[:-1]])
-    if len(starts) < 3:
+    if len(counts) < 3:
         return None
-    H_i = np.add.reduceat(np.einsum("nki,nkj->nij", weighted, J), starts, axis=0)
-    g_i = np.add.reduceat(np.einsum("nki,nk->ni", weighted, fit.r), starts, axis=0)
+    J = fit.J[:, :, :free]
+    H_i = station_grams(J * np.sqrt(fit.weights)[:, None, None], counts)
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    g_i = np.add.reduceat(np.einsum("nki,nk->ni", J * fit.weights[:, None, None], fit.r), starts, axis=0)
     try:
         steps = np.linalg.solve(H_i.sum(axis=0) - H_i, g_i[..., None])[..., 0]
     except np.linalg.LinAlgError:
         return None
     steps -= steps.mean(axis=0)
-    m = len(starts)
+    m = len(counts)
     return (m - 1) / m * steps.T @ steps
 
 
