@@ -19,15 +19,17 @@ board) was left out. The images of a cell of several cameras and targets (``axyb
 4. solves each board's pose by PnP (`handeye.vision.camera_poses.board_pose`, in the robot's
    unit) and drops a pose whose reprojection error is far above the camera's others (`flag_outliers`:
    a wrong detection, blur, a moved board), with a note, recalibrating intrinsics calibrated here;
-5. as for one camera's images (`handeye.vision.intrinsics_check`): intrinsics calibrated here get
-   the larger of OpenCV's 1-sigma and a delete-one jackknife's over the images (`with_jackknife`,
-   an image's boards left out together); intrinsics given have their focal length checked against
-   the camera calibrated from the same corners (`focal_check`), with the warning where the images
-   contradict it (`focal_warning`). The corners are kept (`CameraObservations.detections`) for
-   what the answer's uncertainty needs of them (`handeye.workflow.observation_images`).
+5. as for one camera's images (`handeye.vision.intrinsics_check`): intrinsics calibrated here are
+   refused where no real lens gives them (`handeye.vision.lens_check`: a board described wrongly)
+   and get the larger of OpenCV's 1-sigma and a delete-one jackknife's over the images
+   (`with_jackknife`, an image's boards left out together); intrinsics given are checked against
+   the camera calibrated from the same corners (`given_intrinsics_check`: their fit, their focal
+   length), with the warning where the images contradict them. The corners are kept
+   (`CameraObservations.detections`) for what the answer's uncertainty needs of them
+   (`handeye.workflow.observation_images`).
 
 InputError (one line) only when nothing usable remains or the input cannot apply (no folder,
-pairing impossible, intrinsics for another image size).
+pairing impossible, intrinsics for another image size, intrinsics no lens gives).
 """
 
 from __future__ import annotations
@@ -46,7 +48,6 @@ from handeye.vision.board_set import Detector, check_distinct, detect_board_file
 from handeye.vision.boards import UNITS, Board
 from handeye.vision.camera_poses import board_pose, flag_outliers
 from handeye.vision.image_set import (
-    INTRINSICS_CHECK_VIEWS,
     Dropped,
     _majority_size,
     list_images,
@@ -56,10 +57,11 @@ from handeye.vision.image_set import (
 from handeye.vision.intrinsics import CameraCalibration, calibrate_camera
 from handeye.vision.intrinsics_check import (
     FocalCheck,
-    focal_check,
-    focal_warning,
+    given_intrinsics_check,
+    given_std,
     with_jackknife,
 )
+from handeye.vision.lens_check import lens_problem
 from handeye.vision.observations import Camera
 
 
@@ -95,6 +97,15 @@ class CameraObservations:
 
     def __len__(self) -> int:
         return len(self.image)
+
+    @property
+    def intrinsics_std(self) -> tuple[tuple[float, float, float, float] | None, str]:
+        """The 1-sigma (px) of fx, fy, cx, cy that answers from these observations owe the
+        intrinsics, and where it comes from (`handeye.vision.observations.STD_SOURCES`): the
+        calibration here, else the file's own or the images' (`given_std`); None: exact."""
+        if self.calibration is not None:
+            return tuple(float(v) for v in self.calibration.std_fx_fy_cx_cy), "images"
+        return given_std(self.camera, self.focal_check)
 
 
 def camera_observations(folder: str | Path, boards: Mapping[str, Board], camera: Camera | None, *,
@@ -184,11 +195,13 @@ def camera_observations(folder: str | Path, boards: Mapping[str, Board], camera:
     detections = tuple(found[k][n] for k, n in views)
     stems = [used[k].stem for k, _ in views]  # an image's boards leave the jackknife together
     check = None
+    if calibration is not None and (problem := lens_problem(calibration, boards)):
+        raise InputError(f"images of {str(folder)!r}: {problem}")
     if calibration is not None:
         calibration = with_jackknife(calibration, detections, size, stems)
-    elif len(set(stems)) >= INTRINSICS_CHECK_VIEWS:  # as one camera's images check a file (image_set)
-        check = focal_check(detections, camera_used, size, images=stems)
-        warnings += [w for w in [focal_warning(check)] if w]
+    else:  # as one camera's images check a file (image_set)
+        checked, check = given_intrinsics_check(detections, np.array(errors), size, camera_used, stems)
+        warnings += checked
     T = np.array(poses, dtype=float).reshape(-1, 4, 4)
     T.setflags(write=False)
     return CameraObservations(
@@ -223,4 +236,10 @@ def summary(name: str, folder: Any, obs: CameraObservations) -> list[str]:
         lines.append(f"  intrinsics file's focal length fx {c.given[0]:.2f} fy {c.given[1]:.2f} px; calibrated from these "
                      f"{c.views} images: fx {c.own[0]:.2f} fy {c.own[1]:.2f} +- {c.std[0]:.2f} px (1-sigma); the file "
                      f"{c.percent:+.2f}%, {c.sigmas:+.1f} of that 1-sigma")
+    std, source = obs.intrinsics_std
+    if obs.calibration is None and std is not None:
+        lines.append(f"  the answer's 1-sigma carries the file's fx, fy, cx, cy to {std[0]:.2f}, {std[1]:.2f}, "
+                     f"{std[2]:.2f}, {std[3]:.2f} px: "
+                     + ("as the file states" if source == "file" else
+                        "the file states none, so the images' own (state the file's as std_px where it is known better)"))
     return lines

@@ -52,16 +52,16 @@ from handeye.vision.boards import UNITS, Board
 from handeye.vision.camera_poses import board_pose, flag_outliers
 from handeye.vision.image_files import depth_name, read_any, read_image, to_8bit  # noqa: F401 (re-exported)
 from handeye.vision.intrinsics import CameraCalibration, calibrate_camera
-from handeye.vision.intrinsics_check import focal_check, focal_warning, with_jackknife
+from handeye.vision.intrinsics_check import (
+    given_intrinsics_check,
+    given_std,
+    with_jackknife,
+)
 from handeye.vision.lens_check import lens_problem
 from handeye.vision.observations import BoardObservations, Camera
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
 MATCH_METHODS = ("name", "index", "time")
-#: `_intrinsics_check`: fewest images, and how much worse (ratio and pixels) given intrinsics may fit
-INTRINSICS_CHECK_VIEWS = 6
-INTRINSICS_MISFIT = 1.25
-INTRINSICS_MISFIT_PX = 0.1
 #: sidecar files holding an image's time stamp, tried in this order
 SIDECAR_EXTENSIONS = (".txt", ".json", ".yaml", ".yml")
 _STAMP_KEYS = ("stamp", "time", "t", "timestamp")
@@ -444,46 +444,17 @@ def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, ca
     if calibration is not None:  # its 1-sigma as a jackknife over the images finds it, where larger than OpenCV's
         calibration = with_jackknife(calibration, [found[k] for k in keep], size)
     else:
-        checked, focal = _intrinsics_check([found[k] for k in keep], np.array(errors), size, camera_used)
+        checked, focal = given_intrinsics_check([found[k] for k in keep], np.array(errors), size, camera_used)
         warnings += checked
     kept_names = tuple(files_used[k].stem for k in keep)
     T = np.array(poses)
     T.setflags(write=False)
+    std, source = ((tuple(float(v) for v in calibration.std_fx_fy_cx_cy), "images") if calibration is not None
+                   else given_std(camera_used, focal))
     observations = BoardObservations(tuple(found[k].image_points for k in keep),
                                      tuple(found[k].object_points * scale for k in keep), camera_used, setup,
-                                     kept_names, intrinsics_std=None if calibration is None else
-                                     tuple(float(v) for v in calibration.std_fx_fy_cx_cy),
-                                     focal_check=focal)
+                                     kept_names, intrinsics_std=std, intrinsics_std_from=source, focal_check=focal)
     rows = None if robot is None else np.array([robot_rows[k] for k in keep], dtype=np.intp)
     return ImageSet(kept_names, tuple(str(files_used[k]) for k in keep), T, observations, np.array(errors), rows,
                     None if rows is None else tuple(robot_names[r] for r in rows), tuple(dropped), camera_used,
                     calibration, unit, None if robot is None else pairing.method, pairing.note, tuple(warnings))
-
-
-def _intrinsics_check(detections: Sequence[Any], errors: np.ndarray, size: tuple[int, int] | None,
-                      camera: Camera) -> tuple[list[str], Any]:
-    """Warnings when the given intrinsics disagree with intrinsics calibrated from the same images:
-    they fit the images clearly worse (pooled PnP RMS more than `INTRINSICS_MISFIT` x the
-    calibration's and `INTRINSICS_MISFIT_PX` px above it, e.g. a lens with distortion the file
-    does not list; the calibration's extra parameters alone lower its RMS by a few per cent only),
-    or their focal length is off by more than the images' own uncertainty allows
-    (`handeye.vision.intrinsics_check`: a focal length off barely changes the fit, PnP absorbs it
-    into the distance, yet moves the answer). Also that focal-length check itself, or None."""
-
-    if size is None or len(detections) < INTRINSICS_CHECK_VIEWS:
-        return [], None
-    try:
-        own = calibrate_camera(detections, size)
-    except InputError:
-        return [], None
-    out = []
-    counts = np.array([len(d.image_points) for d in detections], dtype=float)
-    given = float(np.sqrt(np.sum(errors**2 * counts) / np.sum(counts)))
-    if given > INTRINSICS_MISFIT * own.rms and given - own.rms > INTRINSICS_MISFIT_PX:
-        out.append(f"the given intrinsics fit the images worse than intrinsics calibrated from them "
-                   f"({given:.2f} px against {own.rms:.2f} px RMS; calibrated distortion "
-                   f"{' '.join(f'{v:.3g}' for v in own.camera.dist)}): check the intrinsics file (a lens "
-                   "distortion it does not list?) or leave out --intrinsics to calibrate the camera from these images")
-    check = focal_check(detections, camera, size, own)
-    focal = focal_warning(check)
-    return out + ([focal] if focal else []), check

@@ -13,6 +13,14 @@ board detections.
 - ROS-Industrial industrial_calibration's ``cal_data.yaml`` (``intrinsics: {fx, fy, cx, cy}``, no
   distortion, no image size).
 
+Any of them may state the intrinsics' 1-sigma in pixels (`Camera.std`), which every answer
+calibrated with them carries in its own 1-sigma (`handeye.vision.intrinsics_effect`):
+``std_px: {fx, fy, cx, cy}`` (as handeye's result file writes a camera's), a ``std`` mapping
+inside ``intrinsics``, or OpenCV's ``stdDeviationsIntrinsics`` vector from
+``calibrateCameraExtended`` (its first four: fx, fy, cx, cy), spelled
+``std_deviations_intrinsics`` too. A file without one is taken as known as well as the images
+themselves know the camera (`handeye.vision.intrinsics_check.given_std`).
+
 `calibrate_camera(detections, image_size)` runs ``cv2.calibrateCameraExtended`` on the board
 points of several images. The model is OpenCV's default pinhole with k1, k2, p1, p2, k3; k3 is
 fixed at 0 with fewer than `K3_MIN_VIEWS` images (a sixth-order radial term is poorly determined
@@ -47,6 +55,9 @@ _K_KEYS = ("camera_matrix", "cameramatrix", "k", "intrinsic_matrix", "intrinsics
 _D_KEYS = ("distortion_coefficients", "dist_coeffs", "distcoeffs", "distortion", "d", "dist")
 _W_KEYS = ("image_width", "width", "imagewidth")
 _H_KEYS = ("image_height", "height", "imageheight")
+_STD_KEYS = ("std_px", "std", "stddeviationsintrinsics", "std_deviations_intrinsics", "intrinsics_std")
+#: the order of the 1-sigma stated as a list (OpenCV's stdDeviationsIntrinsics starts so)
+_STD_ORDER = ("fx", "fy", "cx", "cy")
 
 
 class PointsOfImage(Protocol):
@@ -184,7 +195,7 @@ def _camera_from_fields(fields: dict[str, Any], src: str) -> Camera:
             raise InputError(f"{src}: 'intrinsics' lacks {', '.join(missing)}; give fx, fy, cx, cy")
         v = {k: _scalar(cal[k], f"intrinsics.{k}", src) for k in ("fx", "fy", "cx", "cy")}
         K = np.array([[v["fx"], 0.0, v["cx"]], [0.0, v["fy"], v["cy"]], [0.0, 0.0, 1.0]])
-        return _camera(K, np.zeros(0), None, src)
+        return _camera(K, np.zeros(0), None, src, _std(_get(cal, _STD_KEYS), "intrinsics.std", src))
     k_value = _get(fields, _K_KEYS)
     if k_value is None:
         raise InputError(f"{src}: no camera matrix found (keys camera_matrix, K, or intrinsics: {{fx, fy, cx, cy}}); "
@@ -211,16 +222,34 @@ def _camera_from_fields(fields: dict[str, Any], src: str) -> Camera:
             size = (int(float(width)), int(float(height)))
         except (TypeError, ValueError):
             raise InputError(f"{src}: image_width and image_height must be numbers, got {width!r}, {height!r}") from None
-    return _camera(K.reshape(3, 3), dist, size, src)
+    return _camera(K.reshape(3, 3), dist, size, src, _std(_get(fields, _STD_KEYS), "std_px", src))
 
 
-def _camera(K: np.ndarray, dist: np.ndarray, size: tuple[int, int] | None, src: str) -> Camera:
+def _std(value: Any, what: str, src: str) -> tuple[float, ...] | None:
+    """The 1-sigma of fx, fy, cx, cy a file states: a mapping with those keys, or a list whose
+    first four they are (OpenCV's stdDeviationsIntrinsics, a column of 18); None where absent."""
+    if value is None:
+        return None
+    if isinstance(value, dict) and "data" not in value:
+        lowered = {str(k).lower(): v for k, v in value.items()}
+        missing = [k for k in _STD_ORDER if k not in lowered]
+        if missing:
+            raise InputError(f"{src}: {what} lacks {', '.join(missing)}; give the 1-sigma of fx, fy, cx, cy in pixels")
+        return tuple(_scalar(lowered[k], f"{what}.{k}", src) for k in _STD_ORDER)
+    values = _numbers(value, what, src).ravel()
+    if values.size < 4:
+        raise InputError(f"{src}: {what} must give the 1-sigma of fx, fy, cx, cy (pixels), got {values.size} numbers")
+    return tuple(float(v) for v in values[:4])
+
+
+def _camera(K: np.ndarray, dist: np.ndarray, size: tuple[int, int] | None, src: str,
+            std: tuple[float, ...] | None = None) -> Camera:
     if np.all(dist == 0):
         dist = np.zeros(0)
     if not (K[2, 2] == 1 and K[1, 0] == 0 and K[2, 0] == 0 and K[2, 1] == 0):
         raise InputError(f"{src}: camera_matrix must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]], got {K.tolist()}")
     try:
-        return Camera(K, dist, size)
+        return Camera(K, dist, size, std)
     except InputError as exc:
         raise InputError(f"{src}: {exc}") from None
 

@@ -29,14 +29,16 @@ images (own focal length to ~0.14%) the true intrinsics warn in 0 of 40, a file 
 / 2% off in 7 / 20 / 38 / 40 of 40; the real sets' files (their own calibration, and their
 cal_data.yaml) are quiet, and so is every error up to 2% there (own focal length to 0.75% and
 0.88%: 2.6 and 2.3 sigmas at 2%). The check finds a file as far off as `FOCAL_SIGMAS` times the
-images' own uncertainty and no closer; below that, `exactness_note` says what holding the file
-exact is worth.
+images' own uncertainty and no closer; below that, the answer's 1-sigma carries the file's own
+uncertainty where it states one, else the images' own (`given_std`): a file 1% off on the real
+ChArUco set is 1.3 of those 1-sigmas from the images' focal length, and moves Y by 5.0 mm, within
+its widened 1-sigma.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -47,10 +49,12 @@ from handeye.vision.observations import Camera
 #: the file's focal length this many of the images' 1-sigma from theirs: a warning. Simulated
 #: sets with the true intrinsics given: largest |z| 2.2 in 40, RMS 0.82 (Gaussian |z| > 3: 0.3%)
 FOCAL_SIGMAS = 3.0
-#: a focal length 0.1% off moving an unknown's translation by more than this many of its 1-sigma
-#: makes the answer state that it takes the given intrinsics as exact (`exactness_note`): a 0.1%
-#: focal length is a good calibration's precision (the real ChArUco set's own: 0.76%)
-EXACT_GROWTH = 1.0
+#: `given_intrinsics_check`: fewest images, and how much worse (ratio and pixels) given intrinsics
+#: may fit them than intrinsics calibrated from them (the calibration's extra parameters alone
+#: lower its RMS by a few per cent only)
+INTRINSICS_CHECK_VIEWS = 6
+INTRINSICS_MISFIT = 1.25
+INTRINSICS_MISFIT_PX = 0.1
 #: the jackknife deletes one of at most this many groups of the images at a time (cost: one
 #: Gauss-Newton step each from the full calibration, ~2 ms in all on 15-30 images)
 GROUPS = 12
@@ -60,8 +64,8 @@ GROUPS = 12
 class FocalCheck:
     """The file's focal length (fx, fy) against the images' own calibration: theirs (fx, fy),
     its 1-sigma used (the larger of OpenCV's and the jackknife's, px) and OpenCV's own, the
-    difference in those 1-sigmas (focal length: the mean of fx and fy) and in per cent, and the
-    number of images calibrated from (``views``)."""
+    difference in those 1-sigmas (focal length: the mean of fx and fy) and in per cent, the
+    number of images calibrated from (``views``), and the 1-sigma of their own cx, cy (px)."""
 
     given: tuple[float, float]
     own: tuple[float, float]
@@ -70,6 +74,7 @@ class FocalCheck:
     sigmas: float
     percent: float
     views: int
+    centre_std: tuple[float, float] = (0.0, 0.0)
 
     @property
     def off(self) -> bool:
@@ -212,7 +217,7 @@ def focal_check(views: Sequence[Any], camera: Camera, size: tuple[int, int], own
         own = with_jackknife(own or calibrate_camera(views, size), views, size, images)
     except InputError:
         return None
-    std = np.asarray(own.std_fx_fy_cx_cy, dtype=float)[:2]
+    std, centre = np.asarray(own.std_fx_fy_cx_cy, dtype=float)[:2], np.asarray(own.std_fx_fy_cx_cy, dtype=float)[2:4]
     opencv = std if own.opencv_std is None else np.asarray(own.opencv_std, dtype=float)[:2]
     given = np.array([camera.K[0, 0], camera.K[1, 1]])
     mine = np.array([own.camera.K[0, 0], own.camera.K[1, 1]])
@@ -220,7 +225,38 @@ def focal_check(views: Sequence[Any], camera: Camera, size: tuple[int, int], own
     sigmas = float(np.mean(given - mine) / np.mean(std))
     percent = float(100.0 * np.mean(given - mine) / np.mean(mine))
     return FocalCheck(tuple(given.tolist()), tuple(mine.tolist()), tuple(std.tolist()), tuple(opencv.tolist()),
-                      sigmas, percent, len(views) if images is None else len(set(images)))
+                      sigmas, percent, len(views) if images is None else len(set(images)), tuple(centre.tolist()))
+
+
+def given_intrinsics_check(views: Sequence[Any], errors: np.ndarray, size: tuple[int, int] | None, camera: Camera,
+                           images: Sequence[str] | None = None) -> tuple[list[str], FocalCheck | None]:
+    """Warnings where intrinsics given apart (`camera`) disagree with intrinsics calibrated from
+    the same views (per view ``image_points``, ``object_points``; `errors`: each view's RMS
+    reprojection error with `camera`, px; `images`: each view's image, as `focal_check`): they fit
+    the views clearly worse (pooled RMS more than `INTRINSICS_MISFIT` x the calibration's and
+    `INTRINSICS_MISFIT_PX` px above it, e.g. a lens distortion the file does not list), or their
+    focal length is off by more than the images' own uncertainty allows (`focal_warning`: PnP
+    absorbs a focal length off into the distance, the answer moves). Also that focal-length check
+    itself; ([], None) with fewer than `INTRINSICS_CHECK_VIEWS` images or no image size."""
+    from handeye.vision.intrinsics import calibrate_camera
+
+    if size is None or len(views if images is None else set(images)) < INTRINSICS_CHECK_VIEWS:
+        return [], None
+    try:
+        own = calibrate_camera(views, size)
+    except InputError:
+        return [], None
+    out = []
+    counts = np.array([len(v.image_points) for v in views], dtype=float)
+    given = float(np.sqrt(np.sum(np.asarray(errors, dtype=float) ** 2 * counts) / np.sum(counts)))
+    if given > INTRINSICS_MISFIT * own.rms and given - own.rms > INTRINSICS_MISFIT_PX:
+        out.append(f"the given intrinsics fit the images worse than intrinsics calibrated from them "
+                   f"({given:.2f} px against {own.rms:.2f} px RMS; calibrated distortion "
+                   f"{' '.join(f'{v:.3g}' for v in own.camera.dist)}): check the intrinsics file (a lens "
+                   "distortion it does not list?) or leave out its intrinsics to calibrate the camera from these "
+                   "images")
+    check = focal_check(views, camera, size, own, images)
+    return out + [w for w in [focal_warning(check)] if w], check
 
 
 def focal_warning(check: FocalCheck | None) -> str | None:
@@ -233,38 +269,21 @@ def focal_warning(check: FocalCheck | None) -> str | None:
             f"{abs(check.percent):.2g}% {longer} than these {check.views} images give when the camera is calibrated "
             f"from them (fx {check.own[0]:.1f}, fy {check.own[1]:.1f} px, 1-sigma {check.std[0]:.2g} px): "
             f"{abs(check.sigmas):.2g} of its 1-sigma apart. A focal length off scales every board's distance and "
-            "moves the answer with it, which its 1-sigma (the file taken as exact) does not contain: check that the "
+            "moves the answer with it, beyond its 1-sigma: check that the "
             "file is this camera's, at this resolution, zoom and focus, or leave out the intrinsics file to "
             "calibrate the camera from these images")
 
 
-def exactness_note(per_permille: Mapping[str, float], std: Mapping[str, Mapping[str, float]],
-                   check: FocalCheck | None, labels: Mapping[str, str] | None = None) -> str | None:
-    """The statement where intrinsics given apart are taken as exact and that matters: a focal
-    length off by what these images alone cannot confirm (`check`: their own focal length's
-    1-sigma, at least 0.1%; `per_permille`: how far 0.1% moves each unknown's translation) moves
-    some unknown by more than its translation 1-sigma (`std`, as `handeye.standard_deviations`
-    gives it). (Where the robot's systematic errors widen the 1-sigma, 0.1% alone may not.) None where no unknown
-    moves that far, where `check` already warns (its own warning says more), or without a check
-    (intrinsics passed to the library with the images, e.g. a simulation's true ones: nothing
-    says they are less than exact; ``focal_per_permille`` in the diagnostics still says what
-    0.1% would do)."""
-    if check is None or check.off:
-        return None
-    percent = 100.0 * float(np.mean(check.std)) / float(np.mean(check.own))
-    unconfirmed = max(1.0, percent / 0.1)  # the focal error these images cannot rule out, in units of 0.1%
-
-    def beyond(factor: float) -> list[tuple[str, float, float]]:
-        return [(name, shift, std[name]["translation"]) for name, shift in per_permille.items()
-                if name in std and factor * shift > EXACT_GROWTH * std[name]["translation"] > 0]
-
-    moved = beyond(1.0) or beyond(unconfirmed)  # 0.1% beyond the 1-sigma, else what the images cannot rule out
-    if not moved:
-        return None
-    which = " and ".join(f"{(labels or {}).get(n, n)} by {shift:.3g} ({shift / s:.2g}x its 1-sigma)"
-                         for n, shift, s in moved)
-    return (f"the answer's 1-sigma takes the intrinsics given as exact, yet a focal length 0.1% off would move "
-            f"{which}, in the data's length unit; these {check.views} images alone know the focal length only to "
-            f"{percent:.2g}% (fx {check.own[0]:.1f} +- {check.std[0]:.2g} px against the {check.given[0]:.1f} given), "
-            "so they cannot confirm it to better: the answer is as good as the intrinsics' focal length; give "
-            "intrinsics calibrated from many images at several distances and tilts")
+def given_std(camera: Camera, check: FocalCheck | None) -> tuple[tuple[float, float, float, float] | None, str]:
+    """The 1-sigma (px) of fx, fy, cx, cy of intrinsics given apart, and where it comes from
+    (`handeye.vision.observations.STD_SOURCES`): the file's own (`Camera.std`, "file"); for a
+    file that states none, what these images know of the camera themselves (`check`: their own
+    calibration's 1-sigma, the larger of OpenCV's and the jackknife's, "assumed"), since nothing
+    then says the file is known better and the images cannot confirm it to better (on the real
+    ChArUco set a file 1% off moved Y by 5.0 mm where the 1-sigma holding it exact was 1.1 mm);
+    (None, "file") where neither is known (too few images to calibrate from): taken as exact."""
+    if camera.std is not None:
+        return camera.std, "file"
+    if check is None:
+        return None, "file"
+    return (*check.std, *check.centre_std), "assumed"

@@ -146,10 +146,11 @@ def focal_change(camera: Camera) -> np.ndarray:
     return np.array([[PERMILLE * camera.K[0, 0]], [PERMILLE * camera.K[1, 1]], [0.0], [0.0]])
 
 
-def focal_moves(moves: np.ndarray, names: Sequence[str], percent: float) -> dict[str, Any]:
-    """The result's record of one camera's share: its focal length's 1-sigma (per cent) and how
-    far that moves each pose's translation (the first column of `moves`, `one_sigma_moves`)."""
-    return {"focal_percent": percent, "focal_moves": per_permille(np.asarray(moves)[:, 0], names)}
+def focal_moves(moves: np.ndarray, names: Sequence[str], percent: float, source: str = "images") -> dict[str, Any]:
+    """The result's record of one camera's share: its focal length's 1-sigma (per cent), where
+    that comes from (`handeye.vision.observations.STD_SOURCES`) and how far it moves each pose's
+    translation (the first column of `moves`, `one_sigma_moves`)."""
+    return {"focal_percent": percent, "std_from": source, "focal_moves": per_permille(np.asarray(moves)[:, 0], names)}
 
 
 def per_permille(moves: np.ndarray, names: Sequence[str]) -> dict[str, float]:
@@ -171,11 +172,13 @@ def translation_std(cov: np.ndarray, j: int) -> float:
 
 
 def growth_note(before: np.ndarray, after: np.ndarray, names: Sequence[str], percent: float,
-                whose: str = "the camera's intrinsics", labels: Mapping[str, str] | None = None) -> str | None:
+                whose: str = "the camera's intrinsics", labels: Mapping[str, str] | None = None,
+                source: str = "images") -> str | None:
     """The warning where the intrinsics at least double (`INTRINSICS_GROWTH`) a translation's
     1-sigma (covariances `before` / `after` of the unknowns `names`); `percent`: the focal
     length's 1-sigma in per cent (the largest, of several cameras); `whose`: the intrinsics in
-    words (a cell's cameras by name); `labels`: the user's name of a pose (``Y[0]``: ``cam0``)."""
+    words (a cell's cameras by name); `labels`: the user's name of a pose (``Y[0]``: ``cam0``);
+    `source`: where their 1-sigma comes from (`handeye.vision.observations.STD_SOURCES`)."""
     grown = []
     for j, name in enumerate(names):
         b, a = translation_std(before, j), translation_std(after, j)
@@ -183,10 +186,18 @@ def growth_note(before: np.ndarray, after: np.ndarray, names: Sequence[str], per
             grown.append(f"{(labels or {}).get(name, name)} to {a:.3g} (from {b:.3g} with them exact)")
     if not grown:
         return None
-    return (f"{whose}, calibrated from these same images, are known to {percent:.2g}% in focal length, and they "
-            f"leave the translation of {' and '.join(grown)} (1-sigma, the data's length unit; the 1-sigma reported "
-            "includes them): a focal length a little off scales the board's distance. Images at more distances "
-            "and tilts fix the intrinsics better, or calibrate the camera apart and give its intrinsics")
+    known = {"images": f"{whose}, calibrated from these same images, are known to {percent:.2g}% in focal length",
+             "file": f"{whose}, as the intrinsics file states their 1-sigma, are known to {percent:.2g}% in focal "
+                     "length",
+             "assumed": f"{whose} come from a file that states no 1-sigma for them, so they are taken as known as "
+                        f"these images know them, {percent:.2g}% in focal length"}[source]
+    advice = {"images": "Images at more distances and tilts fix the intrinsics better, or calibrate the camera apart "
+                        "and give its intrinsics",
+              "file": "A camera calibration from more images at several distances and tilts narrows it",
+              "assumed": "Where the file's intrinsics are known better, state their 1-sigma in it (std_px: {fx, fy, "
+                         "cx, cy} in pixels, or OpenCV's stdDeviationsIntrinsics)"}[source]
+    return (f"{known}, and they leave the translation of {' and '.join(grown)} (1-sigma, the data's length unit; the "
+            f"1-sigma reported includes them): a focal length a little off scales the board's distance. {advice}")
 
 
 def covariance_of(diagnostics: Mapping[str, Any], names: Sequence[str]) -> tuple[np.ndarray, str | None] | None:

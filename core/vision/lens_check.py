@@ -13,6 +13,8 @@ calibration is refused with the board named (`lens_problem`): the survey of the 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from handeye.vision.boards import Board
 from handeye.vision.intrinsics import CameraCalibration
 
@@ -24,14 +26,21 @@ RMS_LIMIT = 2.0
 ASPECT_LIMIT = 1.1
 
 
-def lens_problem(calibration: CameraCalibration, board: Board) -> str | None:
-    """Why the intrinsics calibrated from the images of `board` are no real lens's, or None."""
+def lens_problem(calibration: CameraCalibration, board: Board | Mapping[str, Board]) -> str | None:
+    """Why the intrinsics calibrated from the images of `board` (or of several boards, by name)
+    are no real lens's, or None."""
     fx, fy = float(calibration.camera.K[0, 0]), float(calibration.camera.K[1, 1])
     aspect = max(fx / fy, fy / fx) if fx > 0 and fy > 0 else float("inf")
     if calibration.rms <= RMS_LIMIT and aspect <= ASPECT_LIMIT:
         return None
     return (f"the camera calibrated from the images fits the board's points to {calibration.rms:.3g} px RMS with "
             f"fx {fx:.6g} px against fy {fy:.6g} px, which no real lens gives (a real camera: below {RMS_LIMIT:g} px, "
-            f"fx / fy within {ASPECT_LIMIT - 1:.0%} of 1): the board ({board.describe()}) is probably not the "
-            "one in the images; check its kind, counts (inner corners for a chessboard) and sizes, or give the "
-            "intrinsics")
+            f"fx / fy within {ASPECT_LIMIT - 1:.0%} of 1): {_named(board)} probably not the one in the images; "
+            "check its kind, counts (inner corners for a chessboard) and sizes, or give the intrinsics")
+
+
+def _named(board: Board | Mapping[str, Board]) -> str:
+    if isinstance(board, Board):
+        return f"the board ({board.describe()}) is"
+    boards = "; ".join(f"{name}: {b.describe()}" for name, b in board.items())
+    return f"the board ({boards}) is" if len(board) == 1 else f"one of the boards ({boards}) is"

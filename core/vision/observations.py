@@ -25,16 +25,22 @@ from handeye.framework.errors import InputError
 from handeye.geometry.se3 import inverse
 
 SETUPS = ("eye-in-hand", "eye-to-hand")
+#: where the intrinsics' 1-sigma comes from: calibrated from the images themselves, stated by an
+#: intrinsics file, or assumed for a file that states none (the images' own knowledge of them)
+STD_SOURCES = ("images", "file", "assumed")
 
 
 @dataclasses.dataclass(frozen=True)
 class Camera:
     """Pinhole intrinsics: K (3x3, pixels), dist (OpenCV's k1, k2, p1, p2[, k3, ...]; may be empty),
-    image size (width, height) in pixels or None."""
+    image size (width, height) in pixels or None, and `std`: the 1-sigma (pixels) of fx, fy, cx,
+    cy where whoever calibrated the camera stated it (an intrinsics file's ``std_px``, OpenCV's
+    ``stdDeviationsIntrinsics``), else None."""
 
     K: np.ndarray
     dist: np.ndarray
     size: tuple[int, int] | None = None
+    std: tuple[float, float, float, float] | None = None
 
     def __post_init__(self) -> None:
         K = float_array(self.K, "camera matrix K", "a 3x3 matrix of numbers")
@@ -49,6 +55,12 @@ class Camera:
             object.__setattr__(self, name, value)
         if self.size is not None:
             object.__setattr__(self, "size", (int(self.size[0]), int(self.size[1])))
+        if self.std is not None:
+            std = float_array(self.std, "the intrinsics' 1-sigma", "4 numbers (fx, fy, cx, cy in pixels)").ravel()
+            if std.size != 4 or not np.all(np.isfinite(std)) or np.any(std < 0):
+                raise InputError(f"the intrinsics' 1-sigma must be 4 finite numbers >= 0 (fx, fy, cx, cy in pixels), "
+                                 f"got {std.tolist()}")
+            object.__setattr__(self, "std", tuple(float(v) for v in std))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,10 +75,14 @@ class BoardObservations:
     camera: Camera
     setup: str
     names: tuple[str, ...] | None = None
-    #: the 1-sigma (px) of fx, fy, cx, cy where the intrinsics were calibrated from these images
-    #: (`handeye.vision.intrinsics.CameraCalibration`); None: given apart, taken as exact. A fit
-    #: to the corners owes them part of its uncertainty (the `reprojection` solver adds it)
+    #: the 1-sigma (px) of fx, fy, cx, cy of the intrinsics (None: taken as exact), and where it
+    #: comes from (`intrinsics_std_from`, one of `STD_SOURCES`): calibrated from these images
+    #: (`handeye.vision.intrinsics.CameraCalibration`), stated by the intrinsics file, or, for a
+    #: file that states none, what these images know of the camera themselves
+    #: (`handeye.vision.intrinsics_check.given_std`). A fit to the corners owes them part of its
+    #: uncertainty (the `reprojection` solver adds it)
     intrinsics_std: tuple[float, float, float, float] | None = None
+    intrinsics_std_from: str = "images"
     #: where the intrinsics were given apart: the images' own focal length against theirs
     #: (`handeye.vision.intrinsics_check.FocalCheck`), or None (not checked: too few images)
     focal_check: Any = None

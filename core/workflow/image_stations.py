@@ -89,7 +89,27 @@ def summary_lines(cell: Cell, board: Any, images: Any) -> list[str]:
                    + ")"),
                   "  K " + np.array2string(K, precision=3, suppress_small=True).replace("\n", ""),
                   "  dist (k1, k2, p1, p2, k3) " + " ".join(f"{v:.6g}" for v in cal.camera.dist)]
+    else:
+        lines += given_lines(images.camera, images.observations.intrinsics_std,
+                             images.observations.intrinsics_std_from, cell.images.intrinsics)
     return lines
+
+
+#: how the 1-sigma of intrinsics given apart is described (`given_lines`)
+_GIVEN_STD = {"file": "as the file states it", "assumed": "the file states none, so the images' own (state the file's "
+              "as std_px: {fx, fy, cx, cy} where it is known better)"}
+
+
+def given_lines(camera: Any, std: Any, source: str, given: str | None) -> list[str]:
+    """Intrinsics given apart, in lines: the file's values and the 1-sigma the answer carries for
+    them, with where that comes from (`handeye.vision.observations.STD_SOURCES`), or that they
+    are taken as exact."""
+    K = camera.K
+    head = (f"intrinsics {given or 'given'}: fx {K[0, 0]:.2f}, fy {K[1, 1]:.2f}, cx {K[0, 2]:.2f}, cy {K[1, 2]:.2f} px")
+    if std is None:
+        return [head, "  taken as exact (too few images to check them and the file states no 1-sigma)"]
+    return [head, (f"  1-sigma in the answer: fx {std[0]:.2f}, fy {std[1]:.2f}, cx {std[2]:.2f}, cy {std[3]:.2f} px, "
+                   + _GIVEN_STD[source])]
 
 
 def intrinsics_source(cell: Cell) -> str:
@@ -104,15 +124,19 @@ def inputs_entry(cell: Cell, images: Any) -> dict[str, Any]:
             "holds": "T_cam_target", "intrinsics": intrinsics_source(cell)}
 
 
-def intrinsics_entry(cam: Any, calibration: Any, given: str | None) -> dict[str, Any]:
+def intrinsics_entry(cam: Any, calibration: Any, given: str | None, std: Any = None,
+                     std_from: str | None = None) -> dict[str, Any]:
     """A camera's intrinsics as the result's ``camera`` entry: K, dist, image_size, source (the
     intrinsics file `given`, else ``calibrated``) and, when calibrated from the images
     (`calibration`, a `handeye.vision.intrinsics.CameraCalibration`), the model, the RMS
     reprojection error and the 1-sigma of fx, fy, cx, cy (px), and OpenCV's own where a
-    jackknife over the images widened it."""
+    jackknife over the images widened it; when given, the 1-sigma the answer carries for them
+    (`std`, px) and where it comes from (`std_from`: ``file`` or ``assumed``)."""
     entry: dict[str, Any] = {"K": cam.K.tolist(), "dist": cam.dist.tolist(),
                              "image_size": None if cam.size is None else list(cam.size),
                              "source": given or "calibrated"}
+    if calibration is None and std is not None:
+        entry.update({"std_px": dict(zip(("fx", "fy", "cx", "cy"), [float(v) for v in std])), "std_from": std_from})
     if calibration is not None:
         entry.update({"model": calibration.model, "rms_px": calibration.rms,
                       "std_px": dict(zip(("fx", "fy", "cx", "cy"), calibration.std_fx_fy_cx_cy.tolist()))})
@@ -123,7 +147,9 @@ def intrinsics_entry(cam: Any, calibration: Any, given: str | None) -> dict[str,
 
 def result_entries(cell: Cell, images: Any) -> dict[str, Any]:
     """The result's ``camera`` (intrinsics) and ``images`` (stations, errors, dropped) entries."""
-    camera = intrinsics_entry(images.camera, images.calibration, cell.images.intrinsics)
+    obs = images.observations
+    camera = intrinsics_entry(images.camera, images.calibration, cell.images.intrinsics, obs.intrinsics_std,
+                              obs.intrinsics_std_from)
     if images.calibration is not None:
         camera["per_image_rms_px"] = dict(zip(images.names, images.calibration.per_image_rms.tolist()))
     check = images.observations.focal_check  # given intrinsics against the images' own (docs/images.md)

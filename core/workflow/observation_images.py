@@ -102,7 +102,7 @@ def intrinsics_entries(cell: Cell, imaged: ImageTables) -> dict[str, dict[str, A
     given = {s.camera: s.intrinsics for s in cell.observations if s.images is not None}
     out = {}
     for name, obs in imaged.cameras.items():
-        out[name] = intrinsics_entry(obs.camera, obs.calibration, given.get(name))
+        out[name] = intrinsics_entry(obs.camera, obs.calibration, given.get(name), *obs.intrinsics_std)
         if obs.calibration is not None:
             out[name]["views"] = len(obs.calibration.per_image_rms)
     return out
@@ -123,27 +123,21 @@ def with_intrinsics(solution: Any, cell: Cell, imaged: ImageTables | None, obser
     """`solution` (of the cell's observations `observations`, a `handeye.framework.problem.
     Observations` whose rows of an imaged camera are its `imaged` table's) with what each imaged
     camera's intrinsics do to it (`handeye.vision.intrinsics_effect`), per camera its board poses
-    moved as PnP would move them (from the corners it found) and the problem re-solved:
-
-    - calibrated from its own images: their uncertainty (the larger of OpenCV's and the jackknife's
-      1-sigma) added to the answer's covariance and 1-sigma, the cameras independent, and the
-      warning where a translation's 1-sigma at least doubles (3 solves per camera);
-    - given in a file its images did not contradict (`CameraObservations.focal_check`): how far a
-      focal length 0.1% off moves each unknown (``diagnostics["given_focal_per_permille"]``, by
-      camera), and the statement where that exceeds an unknown's 1-sigma (`handeye.vision.
-      intrinsics_check.exactness_note`, naming the camera; 1 solve per camera).
+    moved as PnP would move them (from the corners it found) and the problem re-solved (3 solves
+    per camera): the uncertainty of the intrinsics (`CameraObservations.intrinsics_std`:
+    calibrated from its images, or given with a 1-sigma the file states or, stating none, the
+    images' own) added to the answer's covariance and 1-sigma, the cameras independent, and the
+    warning where a translation's 1-sigma at least doubles.
 
     Unchanged where no camera applies, the answer is unusable, or a moved solve fails."""
     from handeye.framework.api import solve
     from handeye.framework.errors import HandEyeError
     from handeye.framework.registry import get_registry
-    from handeye.framework.solution import jsonable, standard_deviations
+    from handeye.framework.solution import jsonable
     from handeye.vision import intrinsics_effect as effect
-    from handeye.vision.intrinsics_check import exactness_note
     from handeye.workflow.solving import UNUSABLE
 
-    cameras = {} if imaged is None else {n: o for n, o in imaged.cameras.items()
-                                         if o.calibration is not None or o.focal_check is not None}
+    cameras = {} if imaged is None else {n: o for n, o in imaged.cameras.items() if o.intrinsics_std[0] is not None}
     if not cameras or solution.status in UNUSABLE:
         return solution
     problem = get_registry().problem(cell.problem)
@@ -159,7 +153,7 @@ def with_intrinsics(solution: Any, cell: Cell, imaged: ImageTables | None, obser
         return solve(cell.problem, solver=solution.solver, backend=solution.backend, **dict(made.fields), **facts,
                      **options).unknowns
 
-    blocks, percents, shares, given = [], {}, {}, {}
+    blocks, percents, sources, shares = [], {}, {}, {}
     try:
         for name, obs in cameras.items():
             rows = np.flatnonzero(camera_of == name)
@@ -167,37 +161,24 @@ def with_intrinsics(solution: Any, cell: Cell, imaged: ImageTables | None, obser
                 continue
             slopes = [effect.pose_sensitivity(T0[r], points, obs.camera)
                       for r, points in zip(rows, _board_points(obs, boards))]
-            if obs.calibration is None:
-                moved = effect.answer_moves(resolve, solution.unknowns, names, T0, slopes,
-                                            effect.focal_change(obs.camera), rows)
-                given[name] = effect.per_permille(moved, names)
-                continue
-            std = obs.calibration.std_fx_fy_cx_cy
+            std, sources[name] = obs.intrinsics_std
             blocks.append(effect.answer_moves(resolve, solution.unknowns, names, T0, slopes,
                                               effect.one_sigma_moves(std), rows))
             percents[name] = effect.focal_percent(std, obs.camera)
-            shares[name] = effect.focal_moves(blocks[-1], names, percents[name])
+            shares[name] = effect.focal_moves(blocks[-1], names, percents[name], sources[name])
     except (HandEyeError, np.linalg.LinAlgError):
         return solution
-    if not blocks and not given:
+    if not blocks:
         return solution
-    diagnostics, notes = dict(solution.diagnostics), []
-    if blocks:
-        whose = (f"camera {next(iter(percents))}'s intrinsics" if len(percents) == 1
-                 else f"the intrinsics of cameras {', '.join(percents)}")
-        diagnostics, note = effect.with_moves(diagnostics, names, np.hstack(blocks),
-                                              lambda b, a: effect.growth_note(b, a, names, max(percents.values()),
-                                                                              whose, labels))
-        diagnostics["intrinsics_effect"] = shares
-        notes += [note] if note else []
-    if given:
-        diagnostics["given_focal_per_permille"] = given
-        std = standard_deviations(diagnostics)
-        for name, shifts in given.items():
-            note = exactness_note(shifts, std, cameras[name].focal_check, labels)
-            notes += [f"camera {name}: {note}"] if note else []
-    if notes:
-        diagnostics["warnings"] = [*diagnostics.get("warnings", []), *notes]
+    whose = (f"camera {next(iter(percents))}'s intrinsics" if len(percents) == 1
+             else f"the intrinsics of cameras {', '.join(percents)}")
+    widest = max(percents, key=percents.get)  # the note speaks of the least known camera's source
+    diagnostics, note = effect.with_moves(
+        dict(solution.diagnostics), names, np.hstack(blocks),
+        lambda b, a: effect.growth_note(b, a, names, percents[widest], whose, labels, sources[widest]))
+    diagnostics["intrinsics_effect"] = shares
+    if note:
+        diagnostics["warnings"] = [*diagnostics.get("warnings", []), note]
     return dataclasses.replace(solution, diagnostics=jsonable(diagnostics))
 
 

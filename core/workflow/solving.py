@@ -29,7 +29,7 @@ import numpy as np
 
 from handeye.framework.errors import HandEyeError, InputError
 from handeye.framework.registry import get_registry
-from handeye.framework.solution import Solution, Status, jsonable, standard_deviations
+from handeye.framework.solution import Solution, Status, jsonable
 
 #: solvers tried, in order, when none is chosen
 DEFAULT_SOLVERS = ("auto", "kron-lstsq")
@@ -152,16 +152,16 @@ def pose_based_intrinsics(solution: Solution, image_set: Any, robot_poses: np.nd
     """`solution`, a pose-based answer from the board poses of `image_set` (a
     `handeye.vision.image_set.ImageSet`; the robot's poses `robot_poses` in its station order),
     with ``diagnostics["focal_per_permille"]``: how far each unknown's translation moves for a
-    focal length 0.1% off; and, where the intrinsics were calibrated from these images
-    (``observations.intrinsics_std``), its covariance and 1-sigma widened by theirs, with the
-    warning where a translation's 1-sigma at least doubles (`handeye.vision.intrinsics_effect`).
-    Found by re-solving `cell`'s problem with the same solver, facts and options (4 solves of a
-    few ms). The corner fit (`REPROJECTION_SOLVER`), which does this itself, an unusable answer,
-    or no images: `solution` as it is."""
+    focal length 0.1% off; and, where the intrinsics carry a 1-sigma (``observations.
+    intrinsics_std``: calibrated from these images, or given with one stated or assumed), its
+    covariance and 1-sigma widened by theirs, with the warning where a translation's 1-sigma at
+    least doubles (`handeye.vision.intrinsics_effect`). Found by re-solving `cell`'s problem with
+    the same solver, facts and options (4 solves of a few ms). The corner fit
+    (`REPROJECTION_SOLVER`), which does this itself, an unusable answer, or no images: `solution`
+    as it is."""
     from handeye.framework.api import solve
     from handeye.io.data_files import from_poses
     from handeye.vision import intrinsics_effect as effect
-    from handeye.vision.intrinsics_check import exactness_note
 
     if (image_set is None or solution.solver == REPROJECTION_SOLVER or solution.status in UNUSABLE
             or len(robot_poses) != len(image_set.T_cam_target)):
@@ -184,13 +184,11 @@ def pose_based_intrinsics(solution: Solution, image_set: Any, robot_poses: np.nd
         return solution
     diagnostics, note = dict(solution.diagnostics), None
     if moves is not None:
-        percent = effect.focal_percent(obs.intrinsics_std, obs.camera)
+        percent, source = effect.focal_percent(obs.intrinsics_std, obs.camera), obs.intrinsics_std_from
         diagnostics, note = effect.with_moves(diagnostics, names, moves,
-                                              lambda b, a: effect.growth_note(b, a, names, percent))
-        diagnostics["intrinsics_effect"] = effect.focal_moves(moves, names, percent)
+                                              lambda b, a: effect.growth_note(b, a, names, percent, source=source))
+        diagnostics["intrinsics_effect"] = effect.focal_moves(moves, names, percent, source)
     diagnostics["focal_per_permille"] = effect.per_permille(focal, names)
-    if moves is None:  # given apart: say so where a 0.1% focal length matters
-        note = exactness_note(diagnostics["focal_per_permille"], standard_deviations(diagnostics), obs.focal_check)
     if note:
         diagnostics["warnings"] = [*diagnostics.get("warnings", []), note]
     return dataclasses.replace(solution, diagnostics=jsonable(diagnostics))

@@ -55,7 +55,6 @@ from handeye.plugins.reprojection.corners import (
 )
 from handeye.problems.axyb import AXYBData
 from handeye.vision import intrinsics_effect
-from handeye.vision.intrinsics_check import exactness_note
 
 #: the start solver (pose-based maximum likelihood)
 START = "auto"
@@ -221,12 +220,8 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     }
     if robot:
         diagnostics["robot_noise"] = robot
-    if not options.refine_intrinsics:  # what holding the intrinsics exact is worth (docs/images.md)
+    if not options.refine_intrinsics:  # what a focal length 0.1% off does to the answer (docs/images.md)
         diagnostics["focal_per_permille"] = _focal_per_permille(fit, camera)
-        if data.images.intrinsics_std is None:  # given apart: say so where a 0.1% focal length matters
-            note = exactness_note(diagnostics["focal_per_permille"], diagnostics["std"], data.images.focal_check)
-            if note:
-                warnings.append(note)
     if share:
         diagnostics["intrinsics_effect"] = share
     # the verdict itself, for whoever shows the answer (handeye.calibrate gives way to the pose-based
@@ -270,10 +265,10 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
 
 def _with_intrinsics(data: AXYBData, options: Options, fit: Any,
                      cov: np.ndarray) -> tuple[np.ndarray, str | None, dict[str, Any] | None]:
-    """The covariance of X, Y with the uncertainty of intrinsics calibrated from these images
-    added (`BoardObservations.intrinsics_std`), a warning where that at least doubles a
-    translation's 1-sigma, and the record of that share (`intrinsics_effect.focal_moves`); `cov`
-    as it is where the intrinsics were given apart.
+    """The covariance of X, Y with the intrinsics' uncertainty added (`BoardObservations.
+    intrinsics_std`: calibrated from these images, or given with a 1-sigma stated or assumed), a
+    warning where that at least doubles a translation's 1-sigma, and the record of that share
+    (`intrinsics_effect.focal_moves`); `cov` as it is where the intrinsics are taken as exact.
 
     The fit holds the intrinsics exact, at the values the camera's calibration gave them, each
     uncertain by its 1-sigma there (`handeye.vision.intrinsics_effect`). To first order the
@@ -285,9 +280,9 @@ def _with_intrinsics(data: AXYBData, options: Options, fit: Any,
     moves = _intrinsics_slope(fit) @ intrinsics_effect.one_sigma_moves(std)
     out = np.array(cov, dtype=float)
     out[:12, :12] = intrinsics_effect.widened(out[:12, :12], moves)
-    percent = intrinsics_effect.focal_percent(std, data.images.camera)
-    return (out, intrinsics_effect.growth_note(cov[:12, :12], out[:12, :12], ("X", "Y"), percent),
-            intrinsics_effect.focal_moves(moves, ("X", "Y"), percent))
+    percent, source = intrinsics_effect.focal_percent(std, data.images.camera), data.images.intrinsics_std_from
+    return (out, intrinsics_effect.growth_note(cov[:12, :12], out[:12, :12], ("X", "Y"), percent, source=source),
+            intrinsics_effect.focal_moves(moves, ("X", "Y"), percent, source))
 
 
 def _intrinsics_slope(fit: Any) -> np.ndarray:
