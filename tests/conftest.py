@@ -199,3 +199,12 @@ class SolverPlugin:
     def register_solvers(self, register: Callable[[Any], None]) -> None:
         for spec in self.specs:
             register(spec)
+
+
+def run_cli(capsys: pytest.CaptureFixture[str], *argv: Any) -> tuple[int, str, str]:
+    """(exit code, stdout, stderr) of ``handeye`` with `argv` (each turned into a string)."""
+    from handeye.cli import main
+
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err

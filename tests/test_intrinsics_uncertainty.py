@@ -99,8 +99,10 @@ def test_the_pose_based_answer_owes_the_intrinsics_their_share():
 def test_z_scores_of_the_widened_1_sigma_are_near_1(setup):
     """20 simulated sets with intrinsics calibrated from their own corners: RMS of |translation
     error| / 1-sigma of the camera-side unknown, over the sets, is 0.7-1.4 for the corner fit and
-    the widened pose-based answer (bench, 50 sets: 0.79-1.18), and above 1.6 with the
-    intrinsics taken as exact (measured 1.8-2.5)."""
+    the widened pose-based answer (bench, 50 sets: 0.79-1.18; here 0.79-0.91), and above 1.45 with
+    the intrinsics taken as exact (measured 1.54 eye-in-hand, 1.97 eye-to-hand; 1.8-2.5 before the
+    host widened every 1-sigma to the stations' spread, which sees part of a focal length off:
+    its move differs between stations at different distances)."""
     module = bench()
     side = "X" if setup == "eye-in-hand" else "Y"
     z = {"reprojection": [], "pose_based": [], "exact": []}
@@ -113,7 +115,7 @@ def test_z_scores_of_the_widened_1_sigma_are_near_1(setup):
             z[name].append(error / standard_deviations(sol.diagnostics)[side]["translation"])
     rms = {name: float(np.sqrt(np.mean(np.square(v)))) for name, v in z.items()}
     assert 0.7 < rms["reprojection"] < 1.4 and 0.7 < rms["pose_based"] < 1.4, rms
-    assert rms["exact"] > 1.6, rms
+    assert rms["exact"] > 1.45, rms
 
 
 def test_the_file_focal_check_warns_far_off_and_keeps_quiet_on_the_truth():

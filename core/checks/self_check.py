@@ -84,6 +84,7 @@ from handeye.estimation.robust import MAD_TO_SIGMA
 from handeye.estimation.whitening import CHI3_MEDIAN
 from handeye.framework.errors import DegenerateDataError
 from handeye.framework.problem import item_listing
+from handeye.framework.solution import standard_deviations
 from handeye.geometry import so3_fast
 from handeye.geometry.linalg import eigh_stack, einsum, median, row_norms, solve
 
@@ -310,7 +311,8 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
     camera_scale_noise(model, res, factor, failures, warnings, figures)
     configurations = getattr(problem, "configurations", None)
     systematic.assess_configuration(configurations(data) if configurations else None, model, res, flagged,
-                                    warnings, figures, covered=diagnostics.get("sigma_from") == "stations")
+                                    warnings, figures, covered=diagnostics.get("sigma_from") == "stations", cov=cov,
+                                    stated=bool(standard_deviations(diagnostics)))
     names = model.unknowns
     delta = _difference(poses, fit)
     chosen = [j for j, n in enumerate(names) if n in interest]

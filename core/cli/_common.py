@@ -48,6 +48,20 @@ def in_cli_words(text: str) -> str:
     return text
 
 
+#: a 1-sigma widened by at least this factor to the stations' spread says so where printed
+SPREAD_SHOWN = 1.05
+
+
+def spread_note(diagnostics: dict[str, Any], name: str) -> str:
+    """", widened 1.5x in rotation and 1.3x in translation to the answer's spread over groups of
+    stations" where the host widened the 1-sigma of `name` (``diagnostics["station_spread"]``,
+    `handeye.checks.systematic.station_spread`) by at least `SPREAD_SHOWN`, else ""."""
+    factors = (diagnostics.get("station_spread") or {}).get(name) or {}
+    parts = [f"{float(factors[kind]):.2g}x in {kind}" for kind in ("rotation", "translation")
+             if float(factors.get(kind, 1.0)) >= SPREAD_SHOWN]
+    return f", widened {' and '.join(parts)} to the answer's spread over groups of stations" if parts else ""
+
+
 def parse_key_values(items: Sequence[str] | None, what: str = "--option") -> dict[str, Any]:
     """``["k=v", ...]`` -> dict; v is a bool when it is ``true``/``false`` in any case (``False``
     as Python prints it), else parsed as a JSON literal when it is one (``1e-6``, ``"x"``,

@@ -100,6 +100,7 @@ from handeye.cli._common import (
     format_pose,
     in_cli_words,
     parse_key_values,
+    spread_note,
 )
 from handeye.cli.solve_cmd import _setup_note, noise_lines
 from handeye.framework.errors import HandEyeError, InputError
@@ -118,7 +119,11 @@ from handeye.workflow.cell import (
 )
 from handeye.workflow.frames import equation_of, frame_names, unknown_of
 from handeye.workflow.joint_cell import kinematics_lines
-from handeye.workflow.quality_report import check_new_report, report_files, write_failure_report
+from handeye.workflow.quality_report import (
+    check_new_report,
+    report_files,
+    write_failure_report,
+)
 from handeye.workflow.result import CalibrationResult
 from handeye.workflow.solving import UNUSABLE
 
@@ -409,7 +414,8 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]], diagnostics: di
             lines.append(f"  {inp['robot']['format']}  " + "  ".join(f"{k}={v:.6g}" for k, v in p["robot_format"].items()))
         if p["std"] is not None:
             lines.append(f"  1-sigma  rotation {p['std']['rotation_deg']:.3g} deg, translation "
-                         f"{p['std']['translation']:.3g} {unit} (root of the 3 axes' variances)")
+                         f"{p['std']['translation']:.3g} {unit} (root of the 3 axes' variances"
+                         + spread_note(diagnostics, name) + ")")
             lines += _scale_sensitivity(diagnostics, name, p["std"]["translation"], unit)
         else:
             lines.append(f"  1-sigma  not reported by solver {r['solver']} (solver auto or refine reports it)")

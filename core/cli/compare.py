@@ -19,7 +19,10 @@ starts afresh). The journal is removed once the final outputs are written.
 ``--data FILE -o OUTDIR`` (or ``--example NAME``) compares the solvers on your own data, which have
 no truth, by held-out residuals: k-fold cross-validation (``--folds``, default 5, seeded by
 ``--seed``) over the pairs, or over the stations of a file of absolute poses read as AX=XB
-(docs/harness.md, "Held-out residuals on your own data").
+(docs/harness.md, "Held-out residuals on your own data"). ``--cell FILE -o OUTDIR`` ranks every
+solver on a cell's board images by the corners of held-out images they predict (with what
+``handeye calibrate`` answers, and OpenCV's methods), and ``--real -o OUTDIR`` does so for every
+real recording handeye bundles (docs/harness.md, "Held-out corners on your own images").
 
 ``--problem axxb`` (A_i X = X B_i) compares the AX=XB solvers the same way: the simulator puts
 the noise on the robot poses (A) and the camera poses (B) of the stations (``--pairs``: how many),
@@ -68,6 +71,11 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                        help="your own data file: held-out residuals of every solver by k-fold cross-validation "
                             "(needs -o OUTDIR; docs/harness.md)")
     which.add_argument("--example", metavar="NAME", help="as --data, on a bundled example (eth-robot-arm, simulated)")
+    which.add_argument("--cell", metavar="FILE",
+                       help="a cell file of one camera (as calibrate --config): board images ranked by held-out "
+                            "board corners, pose files by held-out residuals (needs -o OUTDIR; docs/harness.md)")
+    which.add_argument("--real", action="store_true",
+                       help="every real recording handeye bundles, each as --cell / --example (needs -o OUTDIR)")
     parser.add_argument("--folds", type=int, default=None, metavar="K",
                         help="--data/--example: number of cross-validation folds (default 5)")
     parser.add_argument("--setup", choices=("eye-in-hand", "eye-to-hand"), default=None,
@@ -259,6 +267,11 @@ def run(args: argparse.Namespace) -> int:
         stop_on_signals,
     )
 
+    if args.cell or args.real:
+        from handeye.cli import compare_cell
+
+        args.problem = args.problem or get_registry().default_problem()
+        return compare_cell.run(args)
     if args.data or args.example:
         from handeye.cli import compare_data
 
@@ -266,7 +279,7 @@ def run(args: argparse.Namespace) -> int:
         return compare_data.run(args)
     for flag in ("folds", "setup"):
         if getattr(args, flag) is not None:
-            raise InputError(f"--{flag} applies to --data FILE / --example NAME only")
+            raise InputError(f"--{flag} applies to --data FILE / --example NAME / --cell FILE / --real only")
     study, outdir = build_study(args)
     if args.scheduler and args.executor != "dask":
         raise InputError("--scheduler needs --executor dask")

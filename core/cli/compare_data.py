@@ -68,27 +68,37 @@ def read(args: argparse.Namespace) -> tuple[Any, str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from handeye.harness import default_specs, parse_specs
-    from handeye.harness.crossval import run_crossval
-    from handeye.harness.crossval_report import heldout_table, write_crossval
-    from handeye.harness.interrupts import Interrupted, interruptible, stop_on_signals
+    check_flags(args)
+    if args.data and args.example:
+        raise InputError("give either --data FILE or --example NAME, not both")
+    cv, source = read(args)
+    return report(args, cv, source, args.name or (args.example or Path(args.data).stem), args.problem)
 
+
+def check_flags(args: argparse.Namespace) -> None:
+    """InputError for a flag of the simulated studies, or no output directory."""
     given = [f.replace("_", "-") for f in SIMULATION_FLAGS if getattr(args, f, None) not in (None, False)]
     if args.executor != "process":
         given.append("executor")
     if given:
         raise InputError(f"--{given[0]} belongs to the simulated studies (the folds run in this process); "
-                         "with --data/--example use --problem, --setup, --pairing, --solvers, --folds, --seed, "
-                         "--timeout, --name, -o")
-    if args.data and args.example:
-        raise InputError("give either --data FILE or --example NAME, not both")
+                         "with --data/--example/--cell/--real use --problem, --setup, --pairing, --solvers, --folds, "
+                         "--seed, --timeout, --name, -o")
     if not args.output:
         raise InputError("give an output directory with -o OUTDIR")
-    name = args.name or (args.example or Path(args.data).stem)
+
+
+def report(args: argparse.Namespace, cv: Any, source: str, name: str, problem: str) -> int:
+    """Cross-validate `cv` (`handeye.harness.crossval.CrossValData`, read from `source`) with the
+    solvers `args` names, write the files as `name` into ``-o`` and print the table."""
+    from handeye.harness import default_specs, parse_specs
+    from handeye.harness.crossval import run_crossval
+    from handeye.harness.crossval_report import heldout_table, write_crossval
+    from handeye.harness.interrupts import Interrupted, interruptible, stop_on_signals
+
     check_new_results("-o", args.output, [name + suffix for suffix in CROSSVAL_FILES], args.force)
     folds = DEFAULT_FOLDS if args.folds is None else args.folds
-    specs = parse_specs(args.solvers, args.problem) if args.solvers else default_specs(args.problem)
-    cv, source = read(args)
+    specs = parse_specs(args.solvers, problem) if args.solvers else default_specs(problem)
     timeout = 30.0 if args.timeout is None else (args.timeout if args.timeout > 0 else None)
     try:
         with stop_on_signals(), interruptible():  # in memory, in one go; the files are written whole or not at all
@@ -100,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
               f"{args.output}); run the command again", file=sys.stderr)
         return stop.exit_code
     failed = sum(r["status"] == "failed" for r in result.folds)
-    print(f"held-out residuals of {len(specs)} solver(s) on {source} ({args.problem}): {folds}-fold "
+    print(f"held-out residuals of {len(specs)} solver(s) on {source} ({problem}): {folds}-fold "
           f"cross-validation over {cv.count} {cv.item}s, seed {result.seed}; {failed} failed fit(s); "
           f"{result.seconds:.1f} s")
     print()

@@ -48,6 +48,7 @@ from handeye.cli._common import (
     format_pose,
     in_cli_words,
     parse_key_values,
+    spread_note,
     time_limit,
 )
 from handeye.framework.api import solve
@@ -270,6 +271,8 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
         if std is not None:
             lines.append(f"  1-sigma: rotation {_value('rotation', std['rotation'], unit)}   "
                          f"translation {_value('translation', std['translation'], unit)}")
+            if note := spread_note(diagnostics, name):
+                lines[-1] += f" ({note.removeprefix(', ')})"
     if "camera_scale" in diagnostics:
         std = diagnostics.get("camera_scale_std")
         sigma = "" if std is None else f" (1-sigma {std:.2g})"

@@ -24,7 +24,7 @@ from handeye.framework.errors import (
 from handeye.framework.isolation import call_with_time_limit
 from handeye.framework.options import parse_options
 from handeye.framework.registry import get_registry
-from handeye.framework.solution import USABLE, Solution, SolverOutput, Status
+from handeye.framework.solution import USABLE, Solution, SolverOutput, Status, with_spread
 from handeye.framework.threads import one_blas_thread
 from handeye.geometry.se3 import orthonormality_error
 
@@ -194,6 +194,9 @@ def _host(registry: Any, problem: str, solver: str, spec: Any, backend: str, dat
     with _problem_faults(registry, problem):
         check = assess(spec_problem, check_data, unknowns, diagnostics, solver)
     diagnostics["self_check"] = {"reliable": check.reliable, "failures": list(check.failures), **check.figures}
+    spread = (check.figures.get("systematic") or {}).get("spread")
+    if spread:  # systematic errors: the stated 1-sigma widened to the spread over groups of stations
+        with_spread(diagnostics, spread)
     warnings += list(check.warnings)
     if not check.reliable:
         instead = ("use solver 'auto'" if solver != DEFAULT_SOLVER else

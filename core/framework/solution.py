@@ -119,6 +119,32 @@ def standard_deviations(diagnostics: Mapping[str, Any]) -> dict[str, dict[str, f
             for name, s in std.items()}
 
 
+def with_spread(diagnostics: dict[str, Any], spread: dict[str, dict[str, float]]) -> None:
+    """The answer's stated covariance and 1-sigma (``diagnostics``' own and auto's ``refine``)
+    widened in place by the factors `spread` (`handeye.checks.systematic.station_spread`) of each unknown's rotation and
+    translation; the factors recorded as ``diagnostics["station_spread"]``."""
+    for entry in (diagnostics, diagnostics.get("refine")):
+        if not isinstance(entry, dict):
+            continue
+        for name, std in (entry.get("std") or {}).items():
+            if name in spread and isinstance(std, dict):
+                for kind in ("rotation", "translation"):
+                    std[kind] = float(std[kind]) * spread[name][kind]
+        blocks = entry.get("covariance")
+        if isinstance(blocks, dict):
+            names = list(blocks)
+            scale = np.concatenate([[spread.get(n, {}).get("rotation", 1.0)] * 3
+                                    + [spread.get(n, {}).get("translation", 1.0)] * 3 for n in names])
+            for j, name in enumerate(names):
+                block = np.asarray(blocks[name], dtype=float)
+                s = scale[6 * j:6 * j + 6]
+                blocks[name] = (block * np.outer(s, s)).tolist()
+            full_key = "covariance_" + "".join(names)
+            if full_key in entry:
+                entry[full_key] = (np.asarray(entry[full_key], dtype=float) * np.outer(scale, scale)).tolist()
+    diagnostics["station_spread"] = spread
+
+
 def jsonable(value: Any) -> Any:
     """`value` with numpy arrays, numpy scalars and enums turned into plain Python (JSON-ready);
     mappings (keys as str) and sequences converted recursively."""

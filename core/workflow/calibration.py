@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 from handeye.checks.plausibility import Streams, check
 from handeye.framework.api import solve
@@ -49,6 +50,46 @@ from handeye.workflow.solving import (
     time_limit,
 )
 from handeye.workflow.stations import Log, pose_stations, reliable, take
+
+
+@dataclasses.dataclass(frozen=True)
+class ReadStations:
+    """A cell of one camera read into its stations (steps 1-3 of the module docstring, before the
+    solve): the `Stations`, the camera poses as read (inverted where the file holds T_target_cam:
+    `invert`) and in the robot's unit, the problem's data (`handeye.io.PoseFile`), the solver's
+    options and the data's facts."""
+
+    stations: Any
+    camera_read: Any
+    camera: Any
+    pose_file: Any
+    options: dict[str, Any]
+    facts: dict[str, Any]
+    invert: bool
+
+
+def read_stations(cell: Cell, log: Log | None = None, *, workers: int | None = None,
+                  cache: bool | str | Path | None = None) -> ReadStations:
+    """`cell` (one camera: images or a pose file) read into its stations and the problem's data,
+    as `calibrate` reads it (InputError as there)."""
+    stations = (image_stations(cell, log, workers=workers, cache=cache) if cell.images is not None
+                else pose_stations(cell, log))
+    robot = stations.robot
+    invert = cell.camera is not None and cell.camera.poses == "camera-in-board"
+    camera_read = take(stations.camera_file, stations.camera_rows)
+    if invert:
+        inverted = inverse(camera_read.poses)
+        inverted.setflags(write=False)
+        camera_read = dataclasses.replace(camera_read, poses=inverted)
+    camera = camera_read.in_unit(robot.unit)
+    camera_source = cell.images.folder if cell.images is not None else cell.camera.file
+    pose_file = from_poses(robot.poses, camera.poses, cell.problem, setup=cell.setup, pairing=cell.pairing,
+                           metadata={"units": robot.unit}, source=f"{cell.robot.file} + {camera_source}")
+    options, facts = cell.solver_options(), cell.facts()
+    clash = sorted(set(options) & set(pose_file.data))
+    if clash:
+        raise InputError(f"`options` {clash} clash with the data field(s) of problem {cell.problem!r}")
+    return ReadStations(stations, camera_read, camera, pose_file, options, facts, invert)
 
 
 def calibrate(cell: Cell, *, log: Log | None = None, workers: int | None = None,
@@ -81,24 +122,11 @@ def calibrate(cell: Cell, *, log: Log | None = None, workers: int | None = None,
         if log is not None:
             log("matching", result.stations.matching["message"])
         return result
-    stations = (image_stations(cell, log, workers=workers, cache=cache) if cell.images is not None
-                else pose_stations(cell, log))
-    robot = stations.robot
+    read = read_stations(cell, log, workers=workers, cache=cache)
+    stations, robot, camera_read, camera, pose_file = (read.stations, read.stations.robot, read.camera_read,
+                                                       read.camera, read.pose_file)
+    options, facts, invert = read.options, read.facts, read.invert
     warnings = list(stations.warnings)
-    invert = cell.camera is not None and cell.camera.poses == "camera-in-board"
-    camera_read = take(stations.camera_file, stations.camera_rows)
-    if invert:
-        inverted = inverse(camera_read.poses)
-        inverted.setflags(write=False)
-        camera_read = dataclasses.replace(camera_read, poses=inverted)
-    camera = camera_read.in_unit(robot.unit)
-    camera_source = cell.images.folder if cell.images is not None else cell.camera.file
-    pose_file = from_poses(robot.poses, camera.poses, cell.problem, setup=cell.setup, pairing=cell.pairing,
-                           metadata={"units": robot.unit}, source=f"{cell.robot.file} + {camera_source}")
-    options, facts = cell.solver_options(), cell.facts()
-    clash = sorted(set(options) & set(pose_file.data))
-    if clash:
-        raise InputError(f"`options` {clash} clash with the data field(s) of problem {cell.problem!r}")
     images = stations.images
     solver = cell.solver or (images is not None and image_solver(cell.problem)) or default_solver(cell.problem)
     solution = solve(cell.problem, solver=solver, backend=cell.backend,
