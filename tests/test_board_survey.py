@@ -86,6 +86,12 @@ def test_intrinsics_no_lens_gives_are_refused_naming_the_board():
     assert "2.9 px RMS" in lens_problem(calibration(1800.0, 1800.0, 2.9), board)
     assert lens_problem(calibration(2000.0, 1800.0, 0.1), board) is not None  # 11% apart
     assert lens_problem(calibration(1800.0, 1805.0, 0.52), board) is None  # the real ChArUco set's figures
+    # a camera of a cell, which may see several boards: each named with its spec
+    other = parse_board("charuco:5x7:36.195mm:18.256mm:DICT_6X6_250")
+    several = lens_problem(calibration(8639.0, 1829.0, 12.9), {"left": board, "right": other})
+    assert f"one of the boards (left: {board.describe()}; right: {other.describe()}) is probably not" in several
+    assert f"the board (left: {board.describe()}) is probably not" in lens_problem(calibration(8639.0, 1829.0, 12.9),
+                                                                                   {"left": board})
 
 
 def test_a_sub_board_the_survey_does_not_see_is_refused_by_the_lens_check(images):

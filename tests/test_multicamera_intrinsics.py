@@ -137,3 +137,16 @@ def test_a_file_2_percent_off_warns_naming_its_camera_and_the_true_files_do_not(
 
     said = summary("cam0", "cam0/", imaged.cameras["cam0"])[-1]
     assert said.startswith("  the answer's 1-sigma carries the file's fx, fy, cx, cy to") and "states none" in said
+
+
+def test_a_file_whose_lens_model_misfits_the_images_is_named_with_its_camera(cell_folder):
+    """cam1's file lists a distortion its lens does not have (k1 = -0.3 on renders without any):
+    its corners fit worse than intrinsics calibrated from the same images, and the warning names
+    cam1, as one camera's image set names its file (`given_intrinsics_check`)."""
+    cell_file = write_files(cell_folder, {})
+    K = CAMERA.K.tolist()
+    (cell_folder / "cam1.json").write_text(json.dumps({"camera_matrix": K, "distortion_coefficients": [-0.3, 0, 0, 0, 0],
+                                                       "image_width": SIZE[0], "image_height": SIZE[1]}))
+    result = handeye.calibrate(Cell.from_file(cell_file), cache=cell_folder / "cache")
+    worse = [w for w in result.warnings if "fit the images worse than intrinsics calibrated from them" in w]
+    assert len(worse) == 1 and worse[0].startswith("camera cam1: the given intrinsics"), worse
