@@ -314,6 +314,15 @@ def test_real_charuco_pose_based_answer_and_a_file_1_percent_off(tmp_path, monke
     assert off.solution.diagnostics["intrinsics_effect"]["std_from"] == "assumed"
     note = [w for w in off.warnings if "come from a file that states no 1-sigma" in w]
     assert len(note) == 1 and "known as these images know them, 0.7" in note[0] and "std_px" in note[0], note
+    # held-out images see the focal length off: predicted best 1% shorter (1.47 px against 2.10), a warning;
+    # the images' own focal length gives no such warning (its best at -0.5%: 1.07x, below FOCAL_GAIN)
+    scan = off.solution.diagnostics["held_out"]["focal_scan"]
+    assert scan["best_percent"] == -1.0 and scan["gain"] > 1.3
+    assert any(w.startswith("the corners of images the fit was not given are predicted best with a focal length 1% "
+                            "or more shorter than the intrinsics given") for w in off.warnings), off.warnings
+    same = handeye.calibrate(_charuco(None, _write_intrinsics(tmp_path / "same.yaml", cal.camera.K, cal.camera.dist)))
+    assert same.solution.diagnostics["held_out"]["focal_scan"]["gain"] < 1.3
+    assert not any("predicted best with a focal length" in w for w in same.warnings)
 
 
 def test_a_file_stating_its_1_sigma_is_carried_into_the_answer(tmp_path, monkeypatch):

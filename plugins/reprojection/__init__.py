@@ -69,6 +69,11 @@ MISFIT_LIMIT = 1.5
 #: well as a detector finds them on real images, and a rendered set with exact robot poses
 #: (0.063 px RMS) is no sign of robot errors
 MISFIT_FLOOR_PX = 0.1
+#: a focal length other than the given one predicting held-out corners this many times better
+#: (`held_out.focal_scan`) makes a warning. Measured on the real ChArUco set: the images' own
+#: focal length 1.07 (its best at -0.5%), a file 0.5% long 1.26, 1% long 1.43, 2% long 2.0; the
+#: real circle grid's curve is flat (at most 1.02 for any file within 2%)
+FOCAL_GAIN = 1.3
 #: the held-out comparison's contenders in words
 LABELS = {"joint": "with the robot's noise estimated", "exact_robot": "with the robot's poses as measured",
           "pose_based": "the pose-based answer"}
@@ -249,6 +254,9 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
                         "solver 'auto' model noise on both sides")
     if compared is not None:
         diagnostics["held_out"] = compared
+        note = focal_note(compared.get("focal_scan"))
+        if note:
+            warnings.append(note)
     if options.refine_intrinsics:
         cam = camera_with(camera, theta)
         diagnostics["camera"] = {"K": cam.K.tolist(), "dist": cam.dist.tolist(),
@@ -355,6 +363,9 @@ def _compare_held_out(data: AXYBData, options: Options) -> dict[str, Any]:
         fitters["exact_robot"] = lambda train: fitted(train, "exact_robot", exact_fit).poses
     fitters["pose_based"] = lambda train: pose_based(train).unknowns
     found = held_out.held_out(data, fitters, k)
+    scan = None  # intrinsics given apart: is their focal length the one held-out images agree with?
+    if data.images.intrinsics_std_from != "images" and not options.refine_intrinsics and "exact_robot" in fitters:
+        scan = held_out.focal_scan(data, fitters["exact_robot"], k, found["exact_robot"])
     corner_fits = {name: px for name, px in found.items() if name != "pose_based" and px is not None}
     chosen = min(corner_fits, key=corner_fits.get) if corner_fits else next(iter(fitters))
     pose = found["pose_based"]
@@ -365,7 +376,25 @@ def _compare_held_out(data: AXYBData, options: Options) -> dict[str, Any]:
     return {"folds": k, **{f"{name}_px": px for name, px in found.items()}, "chosen": chosen,
             "reprojection_px": corner_fits.get(chosen), "pose_based_solver": START, "pose_based_better": better,
             "best": best, "measure": "board corners of held-out stations, px RMS",
-            "answer_px": corner_fits.get(chosen), "others_px": {LABELS[n]: px for n, px in found.items() if n != chosen}}
+            "answer_px": corner_fits.get(chosen), "others_px": {LABELS[n]: px for n, px in found.items() if n != chosen},
+            **({"focal_scan": scan} if scan is not None else {})}
+
+
+def focal_note(scan: Mapping[str, Any] | None) -> str | None:
+    """The warning where held-out images are predicted clearly better with another focal length
+    than the one given (`held_out.focal_scan`: its ``gain`` beyond `FOCAL_GAIN`), or None."""
+    if not scan or scan.get("gain") is None or scan["gain"] <= FOCAL_GAIN:
+        return None
+    best, edge = scan["best_percent"], max(abs(p) for p in scan["percent"])
+    given = scan["px"][scan["percent"].index(0.0)]
+    best_px = scan["px"][scan["percent"].index(best)]
+    way = "shorter" if best < 0 else "longer"
+    amount = f"{abs(best):g}% or more" if abs(best) >= edge else f"about {abs(best):g}%"
+    return (f"the corners of images the fit was not given are predicted best with a focal length {amount} {way} than "
+            f"the intrinsics given ({best_px:.3g} px RMS against {given:.3g} px with theirs): the given focal length is "
+            "likely off by about that, which scales every board's distance and moves the answer; check the "
+            "intrinsics file (this camera's, at this resolution and focus?), or leave it out to calibrate the camera "
+            "from these images")
 
 
 def _start_sigmas(data: AXYBData, cell: Cell, fit: Any, pnp: float) -> tuple[float, float, float]:
