@@ -141,19 +141,31 @@ def check_new_file(flag: str, path: str | Path | None, force: bool) -> None:
         raise InputError(f"{flag} {str(path)!r}: the file exists; pass --force to overwrite it, or name another file")
 
 
+def check_outputs(outputs: Sequence[tuple[str, str | Path | None]], inputs: Iterable[str | Path | None],
+                  force: bool) -> None:
+    """The one rule every command's output files follow, checked before any work: none is an input
+    of the same run (a file it reads, a folder of images it reads) or another of its outputs,
+    whatever the flags (`check_outputs_apart`), and none exists already unless `force`
+    (`check_new_file`). `outputs`: (flag, path) pairs, None where not given; `inputs`: every
+    file or folder the run reads (a spec that names no file never matches one)."""
+    check_outputs_apart(outputs, inputs)
+    for flag, path in outputs:
+        check_new_file(flag, path, force)
+
+
 def check_outputs_apart(outputs: Sequence[tuple[str, str | Path | None]], inputs: Iterable[str | Path | None]) -> None:
     """InputError when two outputs (flag, path) name the same file, or an output is one of the
     `inputs`, by name or as the same file under another name (a link)."""
     named = [(flag, Path(p)) for flag, p in outputs if p]
-    sources = [Path(p) for p in inputs if p]
+    sources = [Path(p) for p in inputs if p and isinstance(p, (str, Path))]
     for k, (flag, path) in enumerate(named):
         for other_flag, other in named[:k]:
             if _same_file(path, other):
                 raise InputError(f"{other_flag} and {flag} name the same file {str(path)!r}; give different files")
         for source in sources:
             if _same_file(path, source):
-                raise InputError(f"{flag} {str(path)!r} is the input file {str(source)!r} (or a link to it); it "
-                                 "would be overwritten: name another output file")
+                raise InputError(f"{flag} {str(path)!r} is the input file {str(source)!r} (or a link to it); it would be "
+                                 "overwritten: name another output file")
 
 
 def _same_file(a: Path, b: Path) -> bool:

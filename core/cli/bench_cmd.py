@@ -29,7 +29,7 @@ import json
 from typing import Any
 
 from handeye.cli import _kinhec
-from handeye.cli._common import add_force_flag, check_new_file
+from handeye.cli._common import add_force_flag, check_outputs
 from handeye.framework.errors import InputError
 from handeye.framework.registry import get_registry
 from handeye.harness import bench
@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--repeats must be >= 1, got {args.repeats}")
     if not args.budget > 0:
         raise InputError(f"--budget must be > 0 seconds, got {args.budget}")
-    check_new_file("--json", args.json, args.force)
+    check_outputs([("--json", args.json)], [getattr(args, "kinhec", None)], args.force)
     if args.json:
         check_writable("--json", args.json)  # before the benchmark, not after it
     result = bench.run_bench(args.problem, pairs, repeats=args.repeats, budget=args.budget, seed=args.seed,

@@ -93,7 +93,7 @@ from handeye.cli._common import (
     add_detection_flags,
     add_force_flag,
     add_time_limit_flag,
-    check_new_file,
+    check_outputs,
     check_outputs_apart,
     detection_options,
     dump_json,
@@ -287,9 +287,9 @@ def run(args: argparse.Namespace) -> int:
         inputs = [cell.robot.file, cell.images.folder if cell.images else cell.camera.file,
                   cell.images.intrinsics if cell.images else None, cell.images.board if cell.images else None,
                   *((cell.joints.file, cell.arm) if cell.joints is not None else ())]
+    inputs.append(args.config)
     if args.write_config:
-        check_outputs_apart([("--write-config", args.write_config)], inputs)
-        check_new_file("--write-config", args.write_config, args.force)
+        check_outputs([("--write-config", args.write_config)], inputs, args.force)
         check_writable("--write-config", args.write_config)
         print(f"wrote {cell.to_file(args.write_config, force=args.force)}")
         return 0
@@ -298,9 +298,8 @@ def run(args: argparse.Namespace) -> int:
     if out.report:
         check_new_report(out.report, args.force)
         outputs += [("--report", p) for p in report_files(out.report)]
+    check_outputs(outputs[:3], inputs, args.force)  # the report's files: check_new_report, above
     check_outputs_apart(outputs, inputs)
-    for flag, path in (("-o", out.json), ("--yaml", out.yaml), ("--arm-out", out.arm)):
-        check_new_file(flag, path, args.force)
 
     log_to = sys.stderr if args.json else sys.stdout
     logged: list[str] = []

@@ -20,7 +20,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from handeye.cli._common import check_new_results
+from handeye.cli._common import check_new_results, check_outputs_apart
 from handeye.framework.errors import InputError
 
 #: the bundled image example's board and pose files (`handeye.io.examples.image_example_dir`)
@@ -74,7 +74,9 @@ def _cell(args: argparse.Namespace, name: str, cell: Any) -> None:
                          "of joint readings or of several cameras' observations is not supported here")
     if cell.images is None:
         return _pose_cell(args, name, cell)
-    check_new_results("-o", args.output, [name + suffix for suffix in FILES], args.force)
+    files = [name + suffix for suffix in FILES]
+    check_outputs_apart([("-o", Path(args.output) / f) for f in files], [args.cell])
+    check_new_results("-o", args.output, files, args.force)
     specs = image_specs(cell.problem, _solvers(args, cell.problem))
     read = read_stations(cell)
     result = run_image_crossval(cell.problem, read.pose_file.data, read.stations.images.observations, specs,

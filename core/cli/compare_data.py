@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from handeye.cli._common import check_new_results
+from handeye.cli._common import check_new_results, check_outputs_apart
 from handeye.framework.errors import InputError
 from handeye.framework.registry import get_registry
 from handeye.geometry.se3 import inverse
@@ -96,7 +96,9 @@ def report(args: argparse.Namespace, cv: Any, source: str, name: str, problem: s
     from handeye.harness.crossval_report import heldout_table, write_crossval
     from handeye.harness.interrupts import Interrupted, interruptible, stop_on_signals
 
-    check_new_results("-o", args.output, [name + suffix for suffix in CROSSVAL_FILES], args.force)
+    files = [name + suffix for suffix in CROSSVAL_FILES]
+    check_outputs_apart([("-o", Path(args.output) / f) for f in files], [args.data, getattr(args, "cell", None)])
+    check_new_results("-o", args.output, files, args.force)
     folds = DEFAULT_FOLDS if args.folds is None else args.folds
     specs = parse_specs(args.solvers, problem) if args.solvers else default_specs(problem)
     timeout = 30.0 if args.timeout is None else (args.timeout if args.timeout > 0 else None)

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.cli._common import add_force_flag, check_new_file, workspace_of
+from handeye.cli._common import add_force_flag, check_outputs, workspace_of
 from handeye.framework.errors import InputError
 from handeye.geometry.se3 import make_pose
 from handeye.io.arm_files import read_arm
@@ -88,9 +88,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def run(args: argparse.Namespace) -> int:
-    for flag, path in (("--output", args.output), ("--figure", args.figure), ("--json", args.json),
-                       ("--joints-out", args.joints_out)):
-        check_new_file(flag, path, args.force)
+    check_outputs([("--output", args.output), ("--figure", args.figure), ("--json", args.json),
+                   ("--joints-out", args.joints_out)],
+                  [args.intrinsics, args.board, args.arm, args.recorded_robot, args.recorded_camera,
+                   getattr(args, "joint_limits", None)], args.force)
     if (args.joint_limits or args.joints_out) and not args.arm:
         raise InputError("--joint-limits and --joints-out need the arm's model (--arm FILE)")
     fmt = parse_format(args.pose_format)

@@ -23,7 +23,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from handeye.cli._common import add_force_flag, check_new_file
+from handeye.cli._common import add_force_flag, check_outputs
 from handeye.estimation.noise import NoiseModel
 from handeye.framework.api import plugin_faults
 from handeye.framework.errors import InputError
@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     if args.stations is not None and args.pairs is not None:
         raise InputError("give --pairs (data made from the stations) or --stations (the absolute poses), not both")
     _check_size(args, motions)
-    check_new_file("-o", args.output, args.force)
+    check_outputs([("-o", args.output)], [], args.force)
     noise = NoiseModel.on(stacks, args.noise_rot, args.noise_trans)
     metadata = {"units": "mm", "setup": "eye-in-hand", "source": "simulated by handeye"}
     options = {"pairing": args.pairing} if args.pairing is not None else {}

@@ -36,7 +36,7 @@ import numpy as np
 
 from handeye.cli._common import (
     add_force_flag,
-    check_new_file,
+    check_outputs,
     in_cli_words,
     workspace_of,
 )
@@ -137,7 +137,8 @@ def run(args: argparse.Namespace) -> int:
                          "the next poses need both)")
     target = None if args.target is None else parse_pair(args.target, "--target")
     camera_noise = None if args.camera_noise is None else parse_pair(args.camera_noise, "--camera-noise")
-    check_new_file("--next-out", args.next_out, args.force)
+    check_outputs([("--next-out", args.next_out)], [args.robot, args.camera, args.camera_intrinsics, args.board],
+                  args.force)
     camera = board = None
     if args.camera_intrinsics is not None:
         from handeye.vision.boards import parse_board
