@@ -19,7 +19,7 @@ PLAN = ["plan", "--setup", "eye-in-hand", "--x", "60,-20,100,17.19,0,0", "--y", 
 
 
 def _refused(capsys, *argv, says: str) -> None:
-    code, out, err = run_cli(capsys, *argv)
+    code, _, err = run_cli(capsys, *argv)
     assert code == 2 and len(err.strip().splitlines()) == 1 and says in err, (code, err)
 
 
