@@ -304,6 +304,27 @@ def test_match_name_and_time_on_shuffled_files(tmp_path, capsys):
     _bad(capsys, args(robot, camera, "fanuc-wpr", "opencv-rvec", "eye-in-hand", *ok, "--max-dt", "0.1"), "--match time")
 
 
+def test_time_matching_refuses_two_robot_poses_at_one_stamp(tmp_path, capsys):
+    """Two different robot poses at one time stamp: which was the station? Refused as interpolation
+    refuses it (one line naming the file, the stamp and both rows), not the first one taken (Y was
+    50 mm off). Stamps in milliseconds against the camera's seconds are named as such."""
+    robot, camera, _ = cell(tmp_path, stations=10)
+    stamps = [10.0 * i + 0.5 for i in range(10)]
+    _named(camera, [f"s{i}" for i in range(10)], stamps)
+    twice = list(stamps)
+    twice[4] = twice[3]  # the fifth pose stamped as the fourth
+    _named(robot, [f"s{i}" for i in range(10)], twice)
+    ok = ["--camera-unit", "mm", "--match", "time", "--max-dt", "0.01"]
+    _bad(capsys, args(robot, camera, "fanuc-wpr", "opencv-rvec", "eye-in-hand", *ok),
+         "time stamps carry two different poses", "rows 4 and 5", str(robot))
+    (tmp_path / "ms").mkdir()
+    robot2, camera2, _ = cell(tmp_path / "ms", stations=10)
+    _named(camera2, [f"s{i}" for i in range(10)], stamps)
+    _named(robot2, [f"s{i}" for i in range(10)], [1.7e12 + 1e4 * i for i in range(10)])
+    _bad(capsys, args(robot2, camera2, "fanuc-wpr", "opencv-rvec", "eye-in-hand", *ok),
+         "look like milli-, micro- or nanoseconds")
+
+
 def test_camera_in_board_is_inverted(tmp_path, capsys):
     robot, camera, truth = cell(tmp_path, camera_format="xyz-quat-xyzw")
     from handeye.io.pose_readers import read_poses

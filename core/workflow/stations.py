@@ -172,8 +172,15 @@ def _match_time(matching: Matching, robot: PoseStack, camera: PoseStack, robot_p
         raise InputError(f"`matching.method: time`: {' and '.join(missing)} has no time stamp column (a header 't', "
                          "'time' or 'stamp', or a first column of non-integer numbers); use `matching.method: row` "
                          "or name")
-    max_dt = default_max_dt(robot.stamps) if matching.max_dt is None else matching.max_dt
-    ri, ci, dt = match_by_time(robot.stamps, camera.stamps, max_dt)
+    # each stream checked as interpolation checks it (`handeye.streams.timeline.checked_stream`): a stamp
+    # with two different poses is ambiguous (which one was the station?), stamps in ms are not seconds
+    from handeye.streams.timeline import checked_stream
+
+    robot_kept, robot_rows, robot_notes = checked_stream(robot, f"`robot` {robot_path!r}")
+    camera_kept, camera_rows, camera_notes = checked_stream(camera, f"`camera` {camera_path!r}")
+    max_dt = default_max_dt(robot_kept.stamps) if matching.max_dt is None else matching.max_dt
+    ri, ci, dt = match_by_time(robot_kept.stamps, camera_kept.stamps, max_dt)
+    ri, ci = robot_rows[ri], camera_rows[ci]
     worst = float(np.max(np.abs(dt))) if len(dt) else float("nan")
     note = (f"matched {len(ci)} of {len(camera)} camera poses by time (max |dt| {worst * 1e3:.3g} ms, "
             f"limit {max_dt * 1e3:.3g} ms{'' if matching.max_dt is not None else ' = default'})")
@@ -184,7 +191,7 @@ def _match_time(matching: Matching, robot: PoseStack, camera: PoseStack, robot_p
                          "same clock and unit (seconds), or raise `matching.max_dt`")
     entry = {"method": "time", "matched": len(ci), "camera_poses": len(camera), "max_dt": max_dt,
              "max_abs_dt": worst, "median_abs_dt": float(np.median(np.abs(dt))), "message": note}
-    warnings = []
+    warnings = [*robot_notes, *camera_notes]
     if len(np.unique(ri)) < len(ri):
         warnings.append(f"`matching.method: time`: {len(ri) - len(np.unique(ri))} robot poses were paired with more "
                         "than one camera pose (the camera stream is faster than the robot's); fine for a moving "
