@@ -205,6 +205,23 @@ def test_ros_urdf_xacro_parse_back(exact_cell):
             assert relative_error(T, truth[name]) < 1e-8
 
 
+def test_names_that_one_frame_id_would_merge_are_published_apart(exact_cell):
+    """Cameras "cam 0", "cam-0" and "cam_0" all become the ROS frame id ``cam_0``: published as
+    three frames and URDF links (``cam_0``, ``cam_0_2``, ``cam_0_3``), with a warning naming them."""
+    table = exact_cell / "observations.csv"
+    text = table.read_text()
+    for old, new in ((",cam1,", ",cam-0,"), (",cam2,", ",cam 0,"), (",cam0,", ",cam_0,")):
+        text = text.replace(old, new)
+    table.write_text(text)
+    result = handeye.calibrate(Cell.from_file(exact_cell / "cell.yaml"))
+    children = [line.split("--child-frame-id ")[1].split()[0] for line in result.ros2_static_transform().splitlines()]
+    assert len(children) == len(set(children)) == 7
+    links = [j.find("child").get("link") for j in ET.fromstring(f"<robot>{result.urdf_joint()}</robot>").iter("joint")]
+    assert sorted(c for c in links if c.startswith("cam")) == ["cam_0", "cam_0_2", "cam_0_3"]
+    warned = [w for w in result.warnings if "share one frame" in w]
+    assert len(warned) == 1 and "'cam-0'" in warned[0] and "'cam 0'" in warned[0], warned
+
+
 # ----------------------------------------------------------------------------- bad input
 
 

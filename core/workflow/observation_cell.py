@@ -51,7 +51,7 @@ from handeye.workflow.observation_images import (
     with_intrinsics,
 )
 from handeye.workflow.reading import in_cell_words, read_stream
-from handeye.workflow.result import CalibrationResult
+from handeye.workflow.result import CalibrationResult, frame_ids
 from handeye.workflow.solving import default_solver, measured_data, time_limit
 from handeye.workflow.stations import Log, Stations
 
@@ -167,10 +167,12 @@ def calibrate_observations(cell: Cell, log: Log | None = None, *, workers: int |
                                                                     robot_file.names[k] for k in used), stamps=None),
                         used, np.arange(len(observations)), matching, () if imaged is None else imaged.dropped,
                         () if imaged is None else imaged.warnings)
+    _, clash = frame_ids([name for names in made.names.values() for name in names])
     return CalibrationResult(cell=cell, solution=solution, solver=solver, unit=unit, stations=stations, camera=camera,
                              camera_read=camera, residuals=residuals, checks=None, pairing=None, facts=facts,
                              warnings=(*stations.warnings, *(named_observations(w, data, observations)
-                                                             for w in solution.warnings)), names=dict(made.names),
+                                                             for w in solution.warnings), *([clash] if clash else [])),
+                             names=dict(made.names),
                              pair_table=pair_table, observation_labels=tuple(zip(observations.station,
                                                                                  observations.camera,
                                                                                  observations.target)),

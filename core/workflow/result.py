@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -65,6 +65,29 @@ def _frame_id(name: str) -> str:
     leading non-letter prefixed by 'f'."""
     text = re.sub(r"[^A-Za-z0-9_/]", "_", name.strip()) or "frame"
     return text if text[0].isalpha() else f"f{text}"
+
+
+def frame_ids(names: Sequence[str]) -> tuple[list[str], str | None]:
+    """ROS frame ids of several poses' `names` (`_frame_id`), kept apart where different names
+    become one id ("cam 0", "cam-0" and "cam_0" are ``cam_0``, ``cam_0_2``, ``cam_0_3``: one
+    frame and one URDF link each), and the warning naming them, or None."""
+    ids, owner, groups = [], {}, {}
+    for name in names:
+        base = _frame_id(name)
+        frame, k = base, 1
+        while owner.get(frame, name) != name:
+            k += 1
+            frame = f"{base}_{k}"
+        owner.setdefault(frame, name)
+        ids.append(frame)
+        group = groups.setdefault(base, {})
+        group.setdefault(name, frame)
+    merged = [group for group in groups.values() if len(group) > 1]
+    if not merged:
+        return ids, None
+    said = "; ".join(", ".join(f"{name!r} as {frame}" for name, frame in group.items()) for group in merged)
+    return ids, (f"names that differ only in characters a ROS frame id cannot hold would share one frame; published "
+                 f"apart: {said} (rename them to tell the frames apart)")
 
 
 def _number(value: Any) -> float | None:
@@ -179,17 +202,17 @@ class CalibrationResult:
         if not self.names:
             return []
         frames = frames_of(self.cell.problem, self.cell.setup)
-        out = []
+        found = []
         for label, T in single_poses(self.solution.unknowns).items():
             unknown = unknown_of(label)
             names = self.names.get(unknown)
             if names is None:
                 continue
-            name = names[int(label[len(unknown) + 1:-1])]
             frame = frames.get(unknown)
-            parent = _frame_id(frame.parent if frame is not None else unknown)
-            out.append(NamedPose(label, name, parent, _frame_id(name), T))
-        return out
+            found.append((label, names[int(label[len(unknown) + 1:-1])],
+                          _frame_id(frame.parent if frame is not None else unknown), T))
+        children, _ = frame_ids([name for _, name, _, _ in found])
+        return [NamedPose(label, name, parent, child, T) for (label, name, parent, T), child in zip(found, children)]
 
     def _published_pose(self) -> np.ndarray:
         if self.published is None:
