@@ -469,3 +469,32 @@ def test_urdf_needs_its_extra(tmp_path, monkeypatch):
     with pytest.raises(InputError, match=r"needs the package yourdfpy \(pip install 'handeye\[urdf\]'\)") as caught:
         read_arm(arm)
     assert "\n" not in str(caught.value)
+
+
+@pytest.mark.parametrize("case, says", [
+    ("revolute", "is the child of joints 'j1', 'j4'"),
+    ("fixed", "is the child of joints 'j2', 'j4'"),
+    ("detached", "joints 'j1', 'j2' form a loop"),
+])
+def test_a_urdf_whose_joints_loop_is_refused_at_once(tmp_path, case, says):
+    """Joints that form a loop (through revolute or fixed joints, or a loop beside the arm with no
+    root) are refused in one line naming them, instead of followed for ever (it hung at 2.2 GB, or
+    ended in RecursionError)."""
+    pytest.importorskip("yourdfpy")
+    import time
+
+    def joint(name, kind, parent, child):
+        return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/><axis xyz="0 0 1"/>'
+                '<limit lower="-3" upper="3" effort="1" velocity="1"/></joint>')
+
+    body = {"revolute": [("j1", "revolute", "base", "a"), ("j2", "revolute", "a", "b"), ("j3", "revolute", "b", "c"),
+                         ("j4", "revolute", "c", "a")],
+            "fixed": [("j1", "revolute", "base", "a"), ("j2", "revolute", "a", "b"), ("j3", "fixed", "b", "c"),
+                      ("j4", "fixed", "c", "b")],
+            "detached": [("j1", "fixed", "b", "c"), ("j2", "fixed", "c", "b")]}[case]
+    links = "".join(f'<link name="{name}"/>' for name in ("base", "a", "b", "c"))
+    (tmp_path / "loop.urdf").write_text(f'<robot name="r">{links}{"".join(joint(*j) for j in body)}</robot>')
+    started = time.perf_counter()
+    with pytest.raises(InputError, match=says) as caught:
+        read_arm(tmp_path / "loop.urdf")
+    assert "\n" not in str(caught.value) and time.perf_counter() - started < 5

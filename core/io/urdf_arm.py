@@ -47,13 +47,8 @@ def read_urdf_arm(path: str | Path) -> dict:
     joints = list(urdf.robot.joints)
     if not joints:
         raise InputError(f"{where} holds no joints; an arm needs its chain of revolute joints")
-    children = {j.child for j in joints}
-    roots = sorted({j.parent for j in joints} - children)
-    if len(roots) != 1:
-        raise InputError(f"{where}: expected one root link (a tree of joints), found {roots or 'none'}")
-    by_parent: dict[str, list] = {}
-    for j in joints:
-        by_parent.setdefault(j.parent, []).append(j)
+    root, by_parent = _tree(joints, where)
+    roots = [root]
 
     def moving_below(link: str) -> bool:
         return any(j.type not in FIXED or moving_below(j.child) for j in by_parent.get(link, ()))
@@ -93,6 +88,37 @@ def read_urdf_arm(path: str | Path) -> dict:
     arm, base, tool = dh_from_axes(np.array(points), np.array(directions), T)
     return {"dh": arm, "unit": "m", "names": tuple(names), "angle_unit": "deg", "source": str(path), "base": base,
             "tool": tool, "frames": (roots[0], link)}
+
+
+def _tree(joints: list, where: str) -> tuple[str, dict[str, list]]:
+    """(the root link, the joints below each link) of a URDF's joints, checked to be a tree: one
+    root, every link the child of one joint at most, every joint reachable from the root (a loop
+    of joints, fixed or not, is refused instead of followed for ever)."""
+    parents: dict[str, list[str]] = {}
+    for j in joints:
+        parents.setdefault(j.child, []).append(j.name)
+    twice = {link: names for link, names in parents.items() if len(names) > 1}
+    if twice:
+        link, names = next(iter(twice.items()))
+        raise InputError(f"{where}: link {link!r} is the child of joints {', '.join(map(repr, names))}; a URDF's joints "
+                         "form a tree (one parent joint per link)")
+    roots = sorted({j.parent for j in joints} - set(parents))
+    by_parent: dict[str, list] = {}
+    for j in joints:
+        by_parent.setdefault(j.parent, []).append(j)
+    reached, stack = set(), list(roots)
+    while stack:
+        for j in by_parent.get(stack.pop(), ()):
+            if j.name not in reached:
+                reached.add(j.name)
+                stack.append(j.child)
+    loop = [j.name for j in joints if j.name not in reached]
+    if loop:
+        raise InputError(f"{where}: joints {', '.join(map(repr, loop[:6]))} form a loop (a link is its own ancestor); a "
+                         "URDF's joints form a tree")
+    if len(roots) != 1:
+        raise InputError(f"{where}: expected one root link (a tree of joints), found {roots or 'none'}")
+    return roots[0], by_parent
 
 
 def urdf_pose(path: str | Path, q: np.ndarray) -> np.ndarray:
