@@ -340,3 +340,30 @@ def test_journal_lines_are_whole_units_with_their_keys(tmp_path):
 def _sorted_records(records: list[dict]) -> list[dict]:
     """Records in unit-key order (pairs index = the order of m here)."""
     return sorted(records, key=lambda r: (r["pairs"], r["trial"]))
+
+
+@pytest.mark.parametrize("damage", ["no records", "records not a list", "a record short", "a record of no solver",
+                                    "a record without status"])
+def test_a_journal_line_with_damaged_records_is_refused_before_any_work(tmp_path, capsys, damage):
+    """A unit's line whose records are not one whole record per solver (none at all: the trial
+    would silently vanish from the CSV; damaged ones: an internal error after redoing every other
+    unit) is a damaged journal: exit 2 naming the line, nothing recomputed or touched."""
+    from handeye.cli import main
+
+    study_file = tiny_study_file(tmp_path / "study.toml")
+    outdir = tmp_path / "out"
+    journal = outdir / f"toml{JOURNAL_SUFFIX}"
+    run_study(load_study(study_file), jobs=1, progress=False, journal=journal)
+    header, first, *rest = journal.read_text().splitlines()
+    entry = json.loads(first)
+    record = entry["records"][0]
+    entry["records"] = {"no records": [], "records not a list": "x", "a record short": [record, record],
+                        "a record of no solver": [{**record, "label": "other"}],
+                        "a record without status": [{k: v for k, v in record.items() if k != "status"}]}[damage]
+    journal.write_text("\n".join([header, json.dumps(entry), *rest]) + "\n")
+    before = journal.read_bytes()
+    args = ["compare", "--study", str(study_file), "--jobs", "1", "--no-progress", "-o", str(outdir)]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "line 2 is damaged" in err and "--force" in err, err
+    assert journal.read_bytes() == before and not (outdir / "toml.csv").exists()

@@ -252,7 +252,7 @@ class StudyJournal:
             path.unlink(missing_ok=True)
         if not path.exists():
             return cls(path, fingerprint, header, {}, -1)
-        done, valid_bytes, found = _read_journal(path, fingerprint, hint)
+        done, valid_bytes, found = _read_journal(path, fingerprint, hint, tuple(spec.label for spec in specs))
         return cls(path, fingerprint, found or header, done, valid_bytes if found else -1)
 
     def append(self, key: UnitKey, records: list[dict[str, Any]], pid: int | None = None) -> None:
@@ -299,9 +299,12 @@ class StudyJournal:
         return fd
 
 
-def _read_journal(path: Path, fingerprint: str, hint: str) -> tuple[dict[UnitKey, list[dict[str, Any]]], int, dict[str, Any] | None]:
+def _read_journal(path: Path, fingerprint: str, hint: str, labels: tuple[str, ...]
+                  ) -> tuple[dict[UnitKey, list[dict[str, Any]]], int, dict[str, Any] | None]:
     """(records by unit key, bytes up to the last whole line, header) of the journal at `path`;
-    no header when the file is empty or holds only a torn header (treated as no journal)."""
+    no header when the file is empty or holds only a torn header (treated as no journal). A unit's
+    line must hold one record per spec, in the specs' order (`labels`), each with its status:
+    anything else is a damaged line (InputError naming it, before any work is redone)."""
     data = path.read_bytes()
     lines = data.split(b"\n")[:-1]  # a torn last line (no newline) is left out
     if not lines:
@@ -325,8 +328,14 @@ def _read_journal(path: Path, fingerprint: str, hint: str) -> tuple[dict[UnitKey
             entry = json.loads(line)
             key = tuple(entry["unit"])
             records = entry["records"]
-        except (ValueError, KeyError, TypeError):
-            raise InputError(f"{path}: line {number} is damaged; {hint}") from None
+            whole = (len(key) == 4 and isinstance(records, list)
+                     and [r.get("label") if isinstance(r, dict) else None for r in records] == list(labels)
+                     and all(isinstance(r.get("status"), str) for r in records))
+        except (ValueError, KeyError, TypeError, AttributeError):
+            whole = False
+        if not whole:
+            raise InputError(f"{path}: line {number} is damaged (a unit's line holds one record per solver of the "
+                             f"study, {len(labels)} here); {hint}")
         done.setdefault(key, records)  # type: ignore[arg-type]
     return done, len(data) - len(data.split(b"\n")[-1]), header
 
