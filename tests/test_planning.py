@@ -282,3 +282,31 @@ def test_x_and_y_in_another_unit_than_the_board_are_refused():
     X, Y = CELLS["eye-in-hand"]
     with pytest.raises(InputError, match="one length unit"):  # X, Y in mm, the board in m
         plan(setup="eye-in-hand", X=X, Y=Y, camera=CAMERA, board=BOARD.in_unit("m"), count=4)
+
+
+def test_cli_reads_recorded_camera_poses_as_calibrate_does_and_checks_them(tmp_path, capsys):
+    """--recorded-camera holds T_cam_target, as calibrate and watch read --camera (T_target_cam with
+    --camera-poses camera-in-board); recorded stations read the other way are refused as calibrate's
+    plausibility checks name them, instead of planned from."""
+    from handeye.io.pose_readers import PoseStack, write_poses
+
+    setup = "eye-in-hand"
+    X, Y = CELLS[setup]
+    first = plan("axyb", setup=setup, X=X, Y=Y, camera=CAMERA, board=BOARD, count=8, workspace=WORKSPACE, limits=LIMITS)
+    A, B = record(first.A, X, Y, setup, np.random.default_rng(3))
+    cam_target = inverse(B)  # eye in hand: B = T_target_cam
+    write_poses(tmp_path / "robot.csv", PoseStack(A, unit="mm", format="kuka-abc"), "kuka-abc")
+    write_camera(tmp_path / "cam.yaml")
+    base = ["plan", "--setup", setup, "--x", "60,-20,100,17.19,0,0", "--y", "600,0,0,0,0,180", "--board",
+            "chessboard:9x6:30mm", "--intrinsics", str(tmp_path / "cam.yaml"), "--count", "3",
+            "--workspace", "200,-500,50,1000,500,1000", "--max-tilt", "70", "--unit", "mm",
+            "--recorded-robot", str(tmp_path / "robot.csv"), "--recorded-camera", str(tmp_path / "camera.csv")]
+    for poses, flags in ((cam_target, []), (B, ["--camera-poses", "camera-in-board"])):
+        write_poses(tmp_path / "camera.csv", PoseStack(poses, unit="mm", format="kuka-abc"), "kuka-abc")
+        code = main([*base, *flags, "-o", str(tmp_path / "next.csv"), "--force"])
+        assert code == 0, capsys.readouterr().err
+        assert "after the 8 recorded" in capsys.readouterr().out
+    write_poses(tmp_path / "camera.csv", PoseStack(B, unit="mm", format="kuka-abc"), "kuka-abc")  # T_target_cam
+    assert main([*base, "-o", str(tmp_path / "next.csv"), "--force"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "inverted" in err and "camera-in-board" in err, err

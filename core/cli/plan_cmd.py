@@ -27,13 +27,13 @@ from handeye.framework.errors import InputError
 from handeye.geometry.se3 import make_pose
 from handeye.io.arm_files import read_arm
 from handeye.io.pose_formats import parse_format
-from handeye.io.pose_readers import read_poses
 from handeye.planning.plan import Noise, plan
 from handeye.planning.reach import Reach
 from handeye.planning.views import ViewLimits
 from handeye.vision.boards import parse_board
 from handeye.vision.intrinsics import load_camera
 from handeye.vision.observations import SETUPS
+from handeye.workflow.cell_parts import CAMERA_POSES
 
 NAME = "plan"
 
@@ -74,7 +74,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                              "-190:190,-125:125,-360:360 (with '=': the value starts with '-'; default: +-180 each)")
     parser.add_argument("--joints-out", metavar="FILE", help="with --arm: the stations' joints (deg) as a table")
     parser.add_argument("--recorded-robot", metavar="FILE", help="robot poses of stations already recorded")
-    parser.add_argument("--recorded-camera", metavar="FILE", help="their camera poses (as A X = Y B takes them: docs/conventions.md)")
+    parser.add_argument("--recorded-camera", metavar="FILE",
+                        help="their camera poses, read as calibrate reads --camera: the board's pose in the camera "
+                             "(T_cam_target), or with --camera-poses camera-in-board T_target_cam")
+    parser.add_argument("--camera-poses", choices=CAMERA_POSES, default="board-in-camera",
+                        help="what --recorded-camera holds (default board-in-camera: T_cam_target, as calibrate and "
+                             "watch read it)")
     parser.add_argument("--robot-format", help="format of --recorded-robot (default: --pose-format)")
     parser.add_argument("--camera-format", help="format of --recorded-camera (default: --pose-format)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the candidate stations (default 0)")
@@ -163,13 +168,25 @@ def _limits(text: str | None, joints: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _recorded(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray] | None:
+    """(A, B) of the stations already recorded: the files read as ``handeye calibrate`` reads a
+    cell's --robot and --camera (row by row, in --unit; the camera's poses T_cam_target unless
+    --camera-poses camera-in-board) and, from 3 stations on, checked as it checks them (the
+    plausibility checks: camera poses inverted, the other setup, a unit off, ...), so that the
+    plan does not rest on stations read the wrong way."""
+    from handeye.workflow.calibration import calibrate, read_stations
+    from handeye.workflow.cell import CameraStream, Cell, Matching, PoseStream
+
     if not args.recorded_robot and not args.recorded_camera:
         return None
     if not (args.recorded_robot and args.recorded_camera):
         raise InputError("stations already recorded need both --recorded-robot and --recorded-camera")
-    robot = read_poses(args.recorded_robot, args.robot_format or args.pose_format, unit=args.unit)
-    camera = read_poses(args.recorded_camera, args.camera_format or args.pose_format, unit=args.unit)
-    if len(robot) != len(camera):
-        raise InputError(f"--recorded-robot has {len(robot)} poses and --recorded-camera {len(camera)}; give one of each "
-                         "per recorded station, row by row")
-    return np.array(robot.in_unit(args.unit).poses), np.array(camera.in_unit(args.unit).poses)
+    cell = Cell(robot=PoseStream(args.recorded_robot, format=args.robot_format or args.pose_format, unit=args.unit),
+                camera=CameraStream(args.recorded_camera, format=args.camera_format or args.pose_format,
+                                    unit=args.unit, poses=args.camera_poses),
+                setup=args.setup, matching=Matching(method="row"))
+    data = read_stations(cell).pose_file.data
+    if len(data["A"]) >= 3:
+        checked = calibrate(cell)
+        if checked.checks is not None and not checked.checks.plausible:
+            raise InputError("--recorded-robot / --recorded-camera: " + " ".join(checked.checks.warnings[0].split()))
+    return np.asarray(data["A"], dtype=float), np.asarray(data["B"], dtype=float)
