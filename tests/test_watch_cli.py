@@ -169,3 +169,58 @@ def test_a_line_being_written_is_read_when_complete(tmp_path, stations):
         proc.kill()
     assert proc.returncode == 0, err
     assert [line.split(":")[0] for line in out.splitlines() if line.startswith("s")] == [f"s0{i}" for i in range(1, 7)]
+
+
+def test_a_rewritten_recording_is_noticed_and_followed_from_its_start(tmp_path, stations):
+    """The recorder restarts and rewrites the files (the board moved 60 mm): the stations read
+    before are not this recording's. The pair says so at the next poll (also for a file cut
+    short), and `restart` follows the new recording from its first station."""
+    from handeye.planning.watch_source import PoseFilePair, RecordingRewritten
+    from handeye.workflow.cell import CameraStream, PoseStream
+
+    A, B = stations
+    write_pair(tmp_path, A, B, rows=slice(0, 12))
+    source = PoseFilePair(PoseStream(str(tmp_path / "robot.csv"), "kuka-abc"),
+                          CameraStream(str(tmp_path / "camera.csv"), "opencv-rvec", "mm"), "eye-in-hand")
+    assert len(source.poll()) == 12 and source.poll() == []
+    moved = make_pose(np.eye(3), [60.0, 0.0, 0.0])
+    write_pair(tmp_path, A, B @ moved)  # B = T_target_cam eye in hand: the board 60 mm away, 14 stations
+    with pytest.raises(RecordingRewritten, match="station s01 .* is no longer the pose it was"):
+        source.poll()
+    source.restart()
+    assert [s.name for s in source.poll()] == [f"s{i + 1:02d}" for i in range(14)]
+    write_pair(tmp_path, A, B @ moved, rows=slice(0, 5))  # cut short
+    with pytest.raises(RecordingRewritten, match="station s06 .* is no longer in the files"):
+        source.poll()
+
+
+def test_watch_starts_over_when_the_recording_is_rewritten(tmp_path, stations):
+    """watch, following files a restarted recorder rewrites, says so and starts over: the final
+    answer is the new recording's, from its 14 stations, not the old ones'."""
+    A, B = stations
+    flags = write_pair(tmp_path, A, B, rows=slice(0, 10))
+    command = "import sys; from handeye.cli import main; sys.exit(main(sys.argv[1:]))"
+    proc = subprocess.Popen([sys.executable, "-c", command, "watch", *flags, "--interval", "0.2", "--idle", "2.5"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        time.sleep(2.0)
+        write_pair(tmp_path, A, B @ make_pose(np.eye(3), [60.0, 0.0, 0.0]))
+        out, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert "the recording was rewritten" in out and "starting over with the new recording (10 stations" in out
+    assert "final: 14 stations" in out
+
+
+def test_the_final_line_carries_the_answers_warnings(tmp_path, stations, capsys):
+    """The camera's translations 2% short: the final answer warns of the camera scale, as
+    calibrate does on the same files, instead of a bare `status optimal`."""
+    A, B = stations
+    short = B.copy()
+    short[:, :3, 3] *= 0.98
+    flags = write_pair(tmp_path, A, short)
+    assert main(["watch", *flags, "--once"]) in (0, 1)
+    out = capsys.readouterr().out
+    final = out[out.index("final:"):]
+    assert "warning:" in final and "scale" in final, final

@@ -45,7 +45,12 @@ from handeye.framework.solution import USABLE
 from handeye.io.pose_formats import format_names, parse_format
 from handeye.planning.plan import Noise, planners
 from handeye.planning.session import Session, Tolerance, Update
-from handeye.planning.watch_source import MATCHES, PoseFilePair, Station
+from handeye.planning.watch_source import (
+    MATCHES,
+    PoseFilePair,
+    RecordingRewritten,
+    Station,
+)
 from handeye.workflow.cell_parts import (
     CAMERA_POSES,
     SETUPS,
@@ -161,6 +166,12 @@ def run(args: argparse.Namespace) -> int:
             try:
                 stations = source.poll()
                 failed_at = None
+            except RecordingRewritten as exc:  # a recorder restarted: follow the new recording from its start
+                if session is not None:
+                    _say(args, f"{exc}: starting over with the new recording ({int(sum(session.kept))} stations "
+                               "of the old one dropped)")
+                source.restart()
+                session, stations = None, source.poll()
             except InputError as exc:
                 signature = source.signature()
                 waiting = "no poses" in str(exc) or (-1, -1) in signature  # not recording yet
@@ -235,6 +246,11 @@ def _pose_text(T: np.ndarray, robot_format: str) -> str:
     return " ".join(f"{k}={v:.6g}" for k, v in zip(fmt.fields, fmt.to_rows(T[None])[0]))
 
 
+def _say(args: argparse.Namespace, message: str) -> None:
+    """A line about the recording itself (not a station): text, or ``{"message": ...}`` with --json."""
+    print(json.dumps({"message": message}) if args.json else message, flush=True)
+
+
 def _show(args: argparse.Namespace, update: Update, station: Station, source: PoseFilePair, session: Session) -> None:
     unit = station.unit
     robot_format = source.robot_format
@@ -297,6 +313,7 @@ def _final(args: argparse.Namespace, session: Session | None, unit: str | None) 
     status = getattr(solution.status, "value", str(solution.status))
     if args.json:
         print(json.dumps({"final": {"status": status, "stations": int(sum(session.kept)), "unit": unit,
+                                    "warnings": list(solution.warnings),
                                     "unknowns": {k: np.asarray(v).tolist() for k, v in solution.unknowns.items()},
                                     "std": {k: {"rotation_deg": s["rotation_deg"], "translation": s["translation"]}
                                             for k, s in std.items()}}}), flush=True)
@@ -306,4 +323,6 @@ def _final(args: argparse.Namespace, session: Session | None, unit: str | None) 
               + (f"; {_std_text(shown, unit)}" if shown else ""), flush=True)
         for name, T in solution.unknowns.items():
             print(f"  {name} = " + "; ".join(" ".join(f"{v:.6g}" for v in row) for row in np.asarray(T)[:3]))
+        for warning in solution.warnings:  # what the answer's own checks say, as calibrate prints it
+            print(f"  warning: {warning}", flush=True)
     return 0 if status in USABLE else 1

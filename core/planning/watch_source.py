@@ -31,6 +31,11 @@ from handeye.workflow.reading import read_stream
 MATCHES = ("row", "name")
 
 
+class RecordingRewritten(InputError):
+    """The files no longer hold the stations read before (a recorder restarted, a file replaced or
+    cut short): the stations of a session are not those of these files."""
+
+
 @dataclasses.dataclass(frozen=True)
 class Station:
     """One station: its name (the files' name column, else ``row N``), robot pose A (4, 4)
@@ -47,7 +52,10 @@ class PoseFilePair:
     """A robot pose stream and a camera pose stream that may still grow (module docstring).
 
     `poll` reads both and returns the stations not returned before, in order; `signature` tells
-    whether the files changed (to tell a line being written from a bad file)."""
+    whether the files changed (to tell a line being written from a bad file). A file that no
+    longer holds a station returned before, as it was (cut short, replaced, rewritten by a
+    restarted recorder), raises `RecordingRewritten` at the next poll; `restart` forgets what was
+    read, to follow the new recording from its start."""
 
     def __init__(self, robot: PoseStream, camera: CameraStream, setup: str, match: str = "row",
                  orthonormalize: bool = False) -> None:
@@ -65,7 +73,11 @@ class PoseFilePair:
         self.orthonormalize = orthonormalize
         self.unit: str | None = None
         self.robot_format: str = robot.format or "xyz-quat-xyzw"  # the robot file's, once read
-        self._seen: set[tuple[int, int]] = set()
+        self._seen: dict[tuple[int, int], tuple[str, np.ndarray, np.ndarray]] = {}
+
+    def restart(self) -> None:
+        """Forget the stations returned so far: the next poll returns every station of the files."""
+        self._seen.clear()
 
     def signature(self) -> tuple[tuple[int, int], ...]:
         """(size, modification time) of both files (folders: of their entries), (-1, -1) for one
@@ -81,15 +93,30 @@ class PoseFilePair:
             camera = dataclasses.replace(camera, poses=inverse(camera.poses))
         camera = camera.in_unit(robot.unit)
         self.unit, self.robot_format = robot.unit, robot.format
+        pairs = self._pairs(robot, camera)
+        self._check_unchanged(robot, camera, pairs)
         out = []
-        for r, c in self._pairs(robot, camera):
+        for r, c in pairs:
             if (r, c) in self._seen:
                 continue
-            self._seen.add((r, c))
+            self._seen[(r, c)] = (_label(robot, r), np.array(robot.poses[r]), np.array(camera.poses[c]))
             T = np.array(camera.poses[c])
             B = inverse(T) if self.setup == "eye-in-hand" else T
             out.append(Station(_label(robot, r), np.array(robot.poses[r]), B, robot.unit))
         return out
+
+    def _check_unchanged(self, robot: PoseStack, camera: PoseStack, pairs: list[tuple[int, int]]) -> None:
+        """`RecordingRewritten` where a station returned before is gone from the files, or its
+        name or poses are no longer what they were (read the same way, they are equal to the bit)."""
+        now = set(pairs)
+        for (r, c), (name, A, T) in self._seen.items():
+            gone = (r, c) not in now
+            if gone or _label(robot, r) != name or not (np.array_equal(robot.poses[r], A)
+                                                         and np.array_equal(camera.poses[c], T)):
+                what = ("is no longer in the files" if gone else "is no longer the pose it was")
+                raise RecordingRewritten(f"the recording was rewritten: station {name} (robot row {r + 1}, camera row "
+                                         f"{c + 1}) {what}, so the stations read before are not this recording's "
+                                         f"(files {self.robot.file}, {self.camera.file})")
 
     def _pairs(self, robot: PoseStack, camera: PoseStack) -> list[tuple[int, int]]:
         if self.match == "row":
