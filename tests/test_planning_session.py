@@ -270,3 +270,33 @@ def test_bad_input_raises_session_errors():
 def test_chi_square_helpers():
     assert live_fit.chi2_threshold(1e-4) == pytest.approx(27.8563, abs=1e-3)
     assert live_fit.chi2_p_value(12.5916) == pytest.approx(0.05, rel=1e-4)
+
+
+def test_a_repeated_station_adds_nothing_and_never_makes_enough():
+    """One station recorded 30 times after 3 others: the robot's error at that pose is the same each
+    time, so the repeats are left out with a warning naming the station they repeat; the 1-sigma
+    never shrinks to ``enough`` (it said enough at 0.043 deg with X 0.24 deg off), and the answer
+    rests on the 4 distinct stations."""
+    data = simulated(4, 6)
+    session = Session("axyb", setup="eye-in-hand", target=Tolerance(1.0, 10.0))
+    updates = run(session, data)
+    for _ in range(30):
+        updates.append(session.add(data["A"][3], data["B"][3]))
+    assert int(sum(session.kept)) == 4 and not any(u.enough for u in updates)
+    assert "station 5 repeats station 4" in updates[4].warnings[0] and updates[-1].used == 4
+
+
+def test_a_station_beyond_any_robot_cell_is_refused():
+    """A translation of 1e300 (or 2 km) is no robot cell's: refused at once, naming the station,
+    before it spoils the fit and every later station's test."""
+    data = simulated(12, 7)
+    session = Session("axyb", setup="eye-in-hand")
+    run(session, {k: v[:6] for k, v in data.items()})
+    far = data["B"][6].copy()
+    far[:3, 3] = [1e300, 0.0, 0.0]
+    with pytest.raises(SessionError, match="camera pose B of station 7 is 1e\\+300 mm from its origin, beyond any"):
+        session.add(data["A"][6], far)
+    far[:3, 3] = [2e6, 0.0, 0.0]
+    with pytest.raises(SessionError, match="beyond any robot cell"):
+        session.add(data["A"][6], far)
+    assert session.add(data["A"][6], data["B"][6]).disagreement is None  # the session goes on

@@ -40,11 +40,12 @@ from typing import Any
 
 import numpy as np
 
+from handeye.checks.plausibility import DUPLICATE_DEG, DUPLICATE_FRACTION, cell_size
 from handeye.checks.validation import pose_stack
 from handeye.framework.errors import HandEyeError, InputError, SolverError
 from handeye.framework.registry import get_registry
 from handeye.framework.solution import Solution, Status
-from handeye.geometry.se3 import inverse
+from handeye.geometry.se3 import inverse, rotation_angle
 from handeye.planning import design, live_fit, views
 from handeye.planning.plan import Noise, default_limits, planners
 from handeye.planning.session_types import (  # noqa: F401 (re-exported)
@@ -69,6 +70,10 @@ MIN_NOISE_STATIONS = 8
 SOLVE_EVERY = 10
 #: a station whose whitened residual is this unlikely disagrees with the others
 P_VALUE = 1e-4
+#: a station farther than this (metres) from its frame's origin is no robot cell's: a unit or a
+#: number is off, refused before it spoils the fit (a translation of 1e300 made every later
+#: station untestable)
+MAX_CELL_M = 1000.0
 #: statuses whose answer a session does not take
 _UNUSABLE = (Status.NOT_CONVERGED, Status.FAILED, Status.UNRELIABLE)
 
@@ -182,14 +187,25 @@ class Session:
         (default ``station N``, N from 1). The `Update` after it."""
         start = time.perf_counter()
         A_i, B_i = (_pose(P, which) for P, which in ((A, "the robot pose A"), (B, "the camera pose B")))
+        for T, which in ((A_i, "robot pose A"), (B_i, "camera pose B")):
+            reach = float(np.max(np.abs(T[:3, 3])))  # the largest coordinate: no overflow where a norm would
+            if reach * UNITS[self.unit] > MAX_CELL_M:
+                raise SessionError(f"the {which} of {name or f'station {len(self._names) + 1}'} is {reach:.3g} "
+                                   f"{self.unit} from its origin, beyond any robot cell ({MAX_CELL_M:g} m): a unit or a "
+                                   "number is off")
         index = len(self._names)
         self._A.append(A_i)
         self._B.append(B_i)
         self._names.append(str(name) if name is not None else f"station {index + 1}")
-        self._kept.append(True)
+        repeated = self._repeated(index)
+        self._kept.append(repeated is None)
         warnings: list[str] = []
         disagreement, solved, self._readmitted = None, False, ()
-        if self._fit is None:
+        if repeated is not None:  # the same robot pose again: no information about X and Y, a 1-sigma too small
+            warnings.append(f"{self._names[index]} repeats {self._names[repeated]} (the robot pose within "
+                            f"{DUPLICATE_DEG:g} deg and {DUPLICATE_FRACTION:.0%} of the cell's size): left out, since the "
+                            "robot's error there is the same and would count twice; move the robot between stations")
+        elif self._fit is None:
             if sum(self._kept) >= MIN_STATIONS:
                 solved = self._solve(warnings)
         else:
@@ -208,6 +224,19 @@ class Session:
         return Update(index, self._names[index], len(self._names), int(sum(self._kept)), self.unknowns, std, noise,
                       enough, disagreement, suggestions, solved, self._readmitted, tuple(warnings),
                       time.perf_counter() - start)
+
+    def _repeated(self, index: int) -> int | None:
+        """The kept station whose robot pose the new one `index` repeats (`handeye.checks.plausibility`'s
+        duplicated stations: within DUPLICATE_DEG and DUPLICATE_FRACTION of the cell's size), or None."""
+        kept = [k for k in range(index) if self._kept[k]]
+        if not kept:
+            return None
+        A = np.stack([self._A[k] for k in kept] + [self._A[index]])
+        size = cell_size(A)
+        near = np.linalg.norm(A[:-1, :3, 3] - A[-1, :3, 3], axis=1) <= DUPLICATE_FRACTION * size
+        turn = rotation_angle(np.swapaxes(A[:-1, :3, :3], 1, 2) @ A[-1, :3, :3])
+        same = np.flatnonzero(near & (turn < math.radians(DUPLICATE_DEG)))
+        return kept[int(same[0])] if len(same) else None
 
     def final(self, **options: Any) -> Solution:
         """The full ``handeye.solve`` of the stations kept (`options` passed on: solver, ...): the
