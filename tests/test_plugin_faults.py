@@ -152,6 +152,18 @@ def stubborn(data, options, backend):
         except BaseException:
             pass
 
+def spawning(data, options, backend):
+    import subprocess, sys
+    child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(120)"])
+    with open(options_file(), "w") as fh:
+        fh.write(str(child.pid))
+    while True:
+        time.sleep(30)
+
+def options_file():
+    import os
+    return os.environ["HANDEYE_TEST_PID_FILE"]
+
 def threaded(data, options, backend):
     threading.Thread(target=time.sleep, args=(3600,)).start()
     return SolverOutput({"X": data.A[0] @ np.linalg.inv(data.A[0]), "Y": np.eye(4)})
@@ -167,6 +179,7 @@ def register_solvers(register):
         "f-complex": complex_answer,
         "f-lastrow": last_row,
         "f-hangs": stubborn,
+        "f-spawns": spawning,
         "f-thread": threaded,
     }.items():
         register(SolverSpec(name, ("axyb",), run))
@@ -206,6 +219,31 @@ def test_a_solver_that_swallows_every_interruption_is_stopped_by_the_time_limit(
     assert time.perf_counter() - start < 5.0
     assert main(["solve", "--example", "--solver", "f-hangs", "--time-limit", "0.5"]) == 1
     assert "gave no answer within 0.5 s" in one_line_error(capsys)
+
+
+def test_the_time_limit_ends_the_processes_the_solver_started(faulty, tmp_path, monkeypatch):
+    """A solver that starts a process of its own and hangs: at the time limit the solver's worker
+    and that process end together (one was left running 10 minutes, holding a pipe open)."""
+    import os
+
+    pid_file = tmp_path / "pid"
+    monkeypatch.setenv("HANDEYE_TEST_PID_FILE", str(pid_file))
+    with pytest.raises(handeye.SolverTimeoutError):
+        handeye.solve("axyb", solver="f-spawns", time_limit=2.0, **faulty)
+    pid = int(pid_file.read_text())
+    deadline = time.perf_counter() + 5.0
+    while time.perf_counter() < deadline:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            break
+        try:
+            os.waitpid(pid, os.WNOHANG)  # reap it, if it is this process's child after all
+        except ChildProcessError:
+            pass
+        time.sleep(0.05)
+    else:
+        raise AssertionError(f"process {pid} the solver started is still running")
 
 
 def test_a_third_party_solver_gets_a_time_limit_in_the_cli_by_default(faulty):

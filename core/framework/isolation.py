@@ -4,7 +4,9 @@ A signal-based limit (SIGALRM raising an exception in the solver) is defeated by
 catches the exception, by a C call that never returns, and by a thread the plugin leaves running.
 `call_with_time_limit` instead runs the call in a forked child process: the parent waits for the
 answer at most `seconds` and then kills the child (SIGKILL), whatever it is doing; threads the
-call started end with the child. Forking copies the parent, so run-time plugins, the registry and
+call started end with the child, and so do processes it started: the child leads a process group
+of its own, which is killed whole when the call ends, answered or not (a solver's helper process
+left running held a pipe open for 10 minutes after the time limit). Forking copies the parent, so run-time plugins, the registry and
 the data need no pickling on the way in; the answer (or the exception) comes back pickled.
 
 Used by `handeye.solve(..., time_limit=...)`: off by default for the library (a fork costs
@@ -58,12 +60,23 @@ def call_with_time_limit(call: Callable[[], Any], seconds: float, who: str) -> A
                               f"{type(exc).__name__}: {' '.join(str(exc).split())}") from None
     finally:
         receive.close()
-        if child.is_alive():
-            child.kill()
+        _end_group(child)
         child.join()
     if kind == "error":
         raise payload
     return payload
+
+
+def _end_group(child: Any) -> None:
+    """Kill the child and every process in its process group (those the call started). The group
+    is the child's own (`_child` makes it): its id is the child's pid, never this process's group;
+    where the child had not made it yet, there is no such group and the child alone is killed."""
+    try:
+        os.killpg(child.pid, signal.SIGKILL)
+    except OSError:  # no such group (the child ended, with no process left in it, or made none)
+        pass
+    if child.is_alive():
+        child.kill()
 
 
 @contextlib.contextmanager
@@ -89,6 +102,8 @@ def _child(send: Any, call: Callable[[], Any]) -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # the parent's stop handler is not the child's
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})  # held during the fork
     set_parent_death_signal(signal.SIGKILL)  # a parent killed outright (a study's worker) takes this along
+    with contextlib.suppress(OSError):
+        os.setpgid(0, 0)  # a process group of its own: what the call starts is killed with it (`_end_group`)
     try:
         try:
             message: tuple[str, Any] = ("ok", call())
