@@ -265,7 +265,7 @@ def test_loaders_refuse_bad_files_in_one_line(tmp_path, capfd):
     cases = {}
     deep = tmp_path / "deep.json"
     deep.write_text('{"A": ' + "[" * 100_000 + "]" * 100_000 + "}")
-    cases[deep] = "nested too deeply"
+    cases[deep] = "nested more than 64 levels deep"
     member = tmp_path / "member.npz"
     with zipfile.ZipFile(member, "w") as z:
         z.writestr("A.txt", "not an array")

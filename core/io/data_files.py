@@ -401,10 +401,7 @@ def _read_json(path: Path) -> RawFile:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
         raise InputError(f"{str(path)!r}: not UTF-8 text ({exc})") from None
-    try:
-        obj = load_json(text, repr(str(path)))
-    except RecursionError:
-        raise InputError(f"{str(path)!r}: JSON nested too deeply to read (a pose is a 4x4 list of lists)") from None
+    obj = load_json(text, repr(str(path)))
     if not isinstance(obj, dict):
         raise InputError(f"{str(path)!r}: expected a JSON object with keys such as 'A' and 'B', got {type(obj).__name__}")
     truth = obj.pop("truth", None)

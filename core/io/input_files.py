@@ -13,6 +13,9 @@ caller's `where`) and the line. Refused, beyond what the parsers refuse:
   add tens or hundreds of nodes.
 - **Duplicate keys** (YAML mappings, JSON objects). Both parsers keep the last value silently, so
   ``{x: 1, x: 2}`` would read as x = 2; which one the writer meant is unknowable.
+- **Deep nesting** (both). A document nested deeper than `MAX_DEPTH` levels (``[[[[...]]]]``
+  thousands deep) is no pose, board, intrinsics, cell or arm file; the parsers and whatever walks
+  the result recurse once per level and end in RecursionError. Refused, while parsing or after.
 - **YAML 1.1 numbers**. PyYAML resolves plain scalars by YAML 1.1, where ``1:30`` is the
   sexagesimal 90, ``1_000`` is 1000, ``017`` is octal 15 and ``0x1F`` hex, while ``1e5`` (no dot)
   is text. `load_yaml` resolves numbers by the YAML 1.2 core schema instead, decimal only:
@@ -41,6 +44,9 @@ from handeye.framework.errors import InputError, shown
 #: the expanded size of the anchored node). 10^5 is far above sparing use (a 4x4 matrix is 21
 #: nodes) and cheap to walk (milliseconds); the nine-level billion laughs would add 4.3e8.
 MAX_ALIAS_NODES = 100_000
+#: deepest nesting of a YAML or JSON document handeye reads (a cell file of tables of 4x4 poses
+#: is about 6 deep)
+MAX_DEPTH = 64
 
 _INT = "tag:yaml.org,2002:int"
 _FLOAT = "tag:yaml.org,2002:float"
@@ -61,7 +67,9 @@ def load_yaml(text: str, where: str) -> Any:
     Raises InputError for invalid YAML, alias bombs, recursive aliases and duplicate keys."""
     loader = _Loader(text, where)
     try:
-        return loader.get_single_data()
+        return checked_depth(loader.get_single_data(), where)
+    except RecursionError:
+        raise _too_deep(where) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         at = f" at line {mark.line + 1} column {mark.column + 1}" if mark else ""
@@ -195,10 +203,11 @@ def number(value: Any) -> float | None:
 def load_json(text: str, where: str) -> Any:
     """The JSON document `text` (as ``json.loads``), refusing duplicate keys in an object.
     Raises InputError for invalid JSON (line and column), a duplicate key (line of its object)
-    and integers beyond Python's digit limit. RecursionError (nesting deeper than the parser
-    goes) propagates: the caller says what nesting it expects."""
+    and integers beyond Python's digit limit, and nesting deeper than `MAX_DEPTH`."""
     try:
-        return json.loads(text, object_pairs_hook=_unique_keys)
+        return checked_depth(json.loads(text, object_pairs_hook=_unique_keys), where)
+    except RecursionError:
+        raise _too_deep(where) from None
     except _DuplicateKey as dup:
         line = _object_line(text, dup.key)
         at = f" in the object at line {line}" if line else ""
@@ -208,6 +217,26 @@ def load_json(text: str, where: str) -> Any:
         raise InputError(f"{where}: invalid JSON at line {exc.lineno}, column {exc.colno}: {exc.msg}") from None
     except ValueError as exc:  # e.g. an integer of more than 4300 digits
         raise InputError(f"{where}: invalid JSON: {' '.join(str(exc).split())[:120]}") from None
+
+
+def checked_depth(value: Any, where: str) -> Any:
+    """`value` (parsed YAML or JSON), or InputError where its lists and mappings nest deeper than
+    `MAX_DEPTH` (walked without recursion)."""
+    stack = [(value, 1)]
+    while stack:
+        item, depth = stack.pop()
+        children = item.values() if isinstance(item, dict) else item if isinstance(item, list) else ()
+        for child in children:
+            if isinstance(child, (dict, list)):
+                if depth + 1 > MAX_DEPTH:
+                    raise _too_deep(where)
+                stack.append((child, depth + 1))
+    return value
+
+
+def _too_deep(where: str) -> InputError:
+    return InputError(f"{where}: nested more than {MAX_DEPTH} levels deep; no handeye file is (a pose is a row of "
+                      "numbers or a 4x4 list of lists)")
 
 
 class _DuplicateKey(Exception):

@@ -160,11 +160,7 @@ def read_poses(path: str | Path, format: str | PoseFormat, *, unit: str | None =
     elif ext == ".npz":
         table = read_npz(path, src)
     else:
-        try:
-            table = structure(load_structured(path, src, ext), src)
-        except RecursionError:  # json and yaml recurse once per level of nesting
-            raise InputError(f"{src}: nested too deeply to read; a pose is a row of numbers or a 4x4 "
-                             "list of lists") from None
+        table = structure(load_structured(path, src, ext), src)
     if layout is not None:
         if columns is not None:
             raise InputError(f"{src}: give columns (the format's fields in order) or layout (the file's columns in "

@@ -41,7 +41,7 @@ import cv2
 import numpy as np
 
 from handeye.framework.errors import InputError
-from handeye.io.input_files import load_json, load_yaml, number
+from handeye.io.input_files import MAX_DEPTH, load_json, load_yaml, number
 from handeye.vision.observations import Camera
 
 #: fewest images with the board found that `calibrate_camera` accepts
@@ -136,12 +136,17 @@ def _read_file_storage(path: Path, src: str) -> dict[str, Any]:
             raise InputError(f"{src}: OpenCV cannot open it as a FileStorage file")
         root = fs.root()
         names = root.keys()
-        return {key: _node_value(root.getNode(key)) for key in names}
+        return {key: _node_value(root.getNode(key), src) for key in names}
     finally:
         fs.release()
 
 
-def _node_value(node: cv2.FileNode) -> Any:
+def _node_value(node: cv2.FileNode, src: str, depth: int = 1) -> Any:
+    """A FileStorage node as Python values; InputError where it nests deeper than any intrinsics
+    file does (`handeye.io.input_files.MAX_DEPTH`)."""
+    if depth > MAX_DEPTH:
+        raise InputError(f"{src}: nested more than {MAX_DEPTH} levels deep; an intrinsics file holds a 3x3 matrix, "
+                         "a list of distortion coefficients and the image size")
     if node.isNone():
         return None
     if node.isInt() or node.isReal():
@@ -149,14 +154,14 @@ def _node_value(node: cv2.FileNode) -> Any:
     if node.isString():
         return node.string()
     if node.isSeq():
-        return [_node_value(node.at(i)) for i in range(node.size())]
+        return [_node_value(node.at(i), src, depth + 1) for i in range(node.size())]
     if node.isMap():
         names = node.keys()
         if "data" in names and "rows" in names:
             mat = node.mat()
             if mat is not None:
                 return np.asarray(mat, dtype=float).tolist()
-        return {key: _node_value(node.getNode(key)) for key in names}
+        return {key: _node_value(node.getNode(key), src, depth + 1) for key in names}
     return None
 
 
