@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -62,6 +63,35 @@ def spread_note(diagnostics: dict[str, Any], name: str) -> str:
     return f", widened {' and '.join(parts)} to the answer's spread over groups of stations" if parts else ""
 
 
+#: largest whole number a flag takes (counts, stations, folds, workers; seeds are below 2^63)
+MAX_WHOLE = 10**9
+
+
+def finite_number(text: str) -> float:
+    """argparse type of a number flag: a finite float (nan, inf and 1e400 are refused by argparse
+    with the flag's name, exit 2)."""
+    value = float(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+    return value
+
+
+def whole_number(text: str) -> int:
+    """argparse type of a count flag: an integer of at most `MAX_WHOLE` in size."""
+    value = int(text)
+    if abs(value) > MAX_WHOLE:
+        raise argparse.ArgumentTypeError(f"{text} is out of range (at most {MAX_WHOLE:.0e} in size)")
+    return value
+
+
+def seed_number(text: str) -> int:
+    """argparse type of a --seed: a whole number 0 <= seed < 2^63."""
+    value = int(text)
+    if not 0 <= value < 2**63:
+        raise argparse.ArgumentTypeError(f"{text} is no seed: give a whole number from 0 to 2^63 - 1")
+    return value
+
+
 def parse_key_values(items: Sequence[str] | None, what: str = "--option") -> dict[str, Any]:
     """``["k=v", ...]`` -> dict; v is a bool when it is ``true``/``false`` in any case (``False``
     as Python prints it), else parsed as a JSON literal when it is one (``1e-6``, ``"x"``,
@@ -100,7 +130,7 @@ def add_force_flag(parser: argparse.ArgumentParser) -> None:
 
 def add_time_limit_flag(parser: argparse.ArgumentParser) -> None:
     """The ``--time-limit`` flag of the commands that run one solver."""
-    parser.add_argument("--time-limit", type=float, metavar="SECONDS",
+    parser.add_argument("--time-limit", type=finite_number, metavar="SECONDS",
                         help="stop the solver after SECONDS (it runs in a worker process that is killed then); "
                              f"default: none for handeye's own solvers, {PLUGIN_TIME_LIMIT:g} s for a third-party "
                              "plugin's; 0: no limit")
@@ -109,7 +139,7 @@ def add_time_limit_flag(parser: argparse.ArgumentParser) -> None:
 def add_detection_flags(parser: argparse.ArgumentParser) -> None:
     """``--workers N`` and ``--no-cache``: how the commands that detect boards in images do it
     (`detection_options`; the library's ``workers=`` and ``cache=``, docs/images.md "Speed")."""
-    parser.add_argument("--workers", type=int, metavar="N",
+    parser.add_argument("--workers", type=whole_number, metavar="N",
                         help="images: detect the boards on N threads (default: the cores, or HANDEYE_WORKERS); 1 "
                              "detects one image at a time")
     parser.add_argument("--no-cache", action="store_true", default=None,  # None when not given, as every flag

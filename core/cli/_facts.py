@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from handeye.cli._common import finite_number
 from handeye.framework.errors import InputError
 from handeye.workflow.solving import in_robot_unit  # noqa: F401 (the residuals' data, as before)
 
@@ -23,11 +24,11 @@ FACTS = {"--tz-X": "tz_X", "--tz-Y": "tz_Y", "--camera-scale": "camera_scale"}
 
 def add_flags(parser: argparse.ArgumentParser, unit: str) -> None:
     """Add --tz-X, --tz-Y (`unit`: the length unit their values are in) and --camera-scale."""
-    parser.add_argument("--tz-X", dest="tz_X", type=float, metavar="VALUE",
+    parser.add_argument("--tz-X", dest="tz_X", type=finite_number, metavar="VALUE",
                         help="planar robot (a SCARA: every rotation about one axis): the translation of X along that "
                              f"axis, which such data cannot determine, in {unit} (from CAD or a measurement; 0 solves "
                              "the other parameters); for a SCARA flange simply X's z; docs/planar.md")
-    parser.add_argument("--tz-Y", dest="tz_Y", type=float, metavar="VALUE",
+    parser.add_argument("--tz-Y", dest="tz_Y", type=finite_number, metavar="VALUE",
                         help="axyb, planar robot: Y's translation along the robot's rotation axis instead of --tz-X "
                              "(either fixes both)")
     parser.add_argument("--camera-scale", dest="camera_scale", type=camera_scale_value,

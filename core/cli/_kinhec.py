@@ -60,6 +60,7 @@ from typing import Any
 
 import numpy as np
 
+from handeye.cli._common import whole_number
 from handeye.cli._kinhec_report import (
     AUTO,
     HANDEYE_FILES,
@@ -440,9 +441,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="where KinHEC's results and handeye's head-to-head go (default DATA_DIR/benchmarks; "
                             "results there are kept unless --force)")
     group.add_argument("--tracks", metavar="LIST", help="comma-separated KinHEC tracks (default: all)")
-    group.add_argument("--max-sequences", type=int, metavar="N",
+    group.add_argument("--max-sequences", type=whole_number, metavar="N",
                        help="a random subset of N sequences (KinHEC's sampling, seed 0)")
-    group.add_argument("--workers", type=int, metavar="N", help="KinHEC's worker processes (default 1)")
+    group.add_argument("--workers", type=whole_number, metavar="N", help="KinHEC's worker processes (default 1)")
 
 
 def requested(args: argparse.Namespace) -> bool:

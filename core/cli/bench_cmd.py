@@ -29,7 +29,13 @@ import json
 from typing import Any
 
 from handeye.cli import _kinhec
-from handeye.cli._common import add_force_flag, check_outputs
+from handeye.cli._common import (
+    add_force_flag,
+    check_outputs,
+    finite_number,
+    seed_number,
+    whole_number,
+)
 from handeye.framework.errors import InputError
 from handeye.framework.registry import get_registry
 from handeye.harness import bench
@@ -62,19 +68,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--pairs", default=None, metavar="LIST",
                         help="comma-separated pair counts m (the problem's data items: pairs, motions, ...) "
                              "(default: the problem's own)")
-    parser.add_argument("--repeats", type=int, default=DEFAULT_REPEATS, metavar="N",
+    parser.add_argument("--repeats", type=whole_number, default=DEFAULT_REPEATS, metavar="N",
                         help=f"timed solves per cell after the warm-up; the median is shown (default {DEFAULT_REPEATS})")
     parser.add_argument("--solvers", metavar="LIST",
                         help="comma-separated solver or solver/backend names (default: all registered); "
                              "the problem's reference rows are always timed")
-    parser.add_argument("--budget", type=float, default=DEFAULT_BUDGET, metavar="SECONDS",
+    parser.add_argument("--budget", type=finite_number, default=DEFAULT_BUDGET, metavar="SECONDS",
                         help=f"per-solve time budget: slower rows are not repeated nor run at larger m "
                              f"(default {DEFAULT_BUDGET:g})")
-    parser.add_argument("--seed", type=int, default=0, help="simulation seed (default 0)")
-    parser.add_argument("--noise-rot", type=float, default=0.005, metavar="RAD",
+    parser.add_argument("--seed", type=seed_number, default=0, help="simulation seed (default 0)")
+    parser.add_argument("--noise-rot", type=finite_number, default=0.005, metavar="RAD",
                         help="rotation noise std on the simulated poses (every data stack, unless the problem "
                              "says otherwise in the printout), rad (default 0.005)")
-    parser.add_argument("--noise-trans", type=float, default=0.5, metavar="MM",
+    parser.add_argument("--noise-trans", type=finite_number, default=0.5, metavar="MM",
                         help="translation noise std on the simulated poses, mm (default 0.5)")
     parser.add_argument("--json", metavar="FILE",
                         help="also write every timing to FILE (JSON; an existing file is kept unless --force)")

@@ -97,10 +97,12 @@ from handeye.cli._common import (
     check_outputs_apart,
     detection_options,
     dump_json,
+    finite_number,
     format_pose,
     in_cli_words,
     parse_key_values,
     spread_note,
+    whole_number,
 )
 from handeye.cli.solve_cmd import _setup_note, noise_lines
 from handeye.framework.errors import HandEyeError, InputError
@@ -199,22 +201,22 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                              "each camera pose with the robot pose at the nearest time stamp within --max-dt (no "
                              "interpolation), others dropped; interpolate: the robot stream interpolated at each "
                              "camera stamp + the clock offset (--time-offset, estimated by default; docs/streams.md)")
-    parser.add_argument("--max-dt", type=float, metavar="SECONDS",
+    parser.add_argument("--max-dt", type=finite_number, metavar="SECONDS",
                         help="--match time: largest |camera stamp - robot stamp| paired (default: half the median "
                              "interval between robot stamps, or 0.02 s with fewer than two robot stamps)")
     parser.add_argument("--time-offset", metavar="auto|SECONDS",
                         help="--match interpolate: the clock offset, t_robot = t_camera + offset; 'auto' (default) "
                              "estimates it (cross-correlation of the angular speeds, refined on the residuals)")
-    parser.add_argument("--max-offset", type=float, metavar="SECONDS",
+    parser.add_argument("--max-offset", type=finite_number, metavar="SECONDS",
                         help=f"--match interpolate: search the offset within +-SECONDS (default "
                              f"{default.max_offset:g})")
-    parser.add_argument("--max-gap", type=float, metavar="SECONDS",
+    parser.add_argument("--max-gap", type=finite_number, metavar="SECONDS",
                         help="--match interpolate: largest spacing of robot samples interpolated across (default "
                              "3 x the robot's median interval); camera stamps in wider gaps are dropped")
-    parser.add_argument("--min-speed", type=float, metavar="DEG_PER_S",
+    parser.add_argument("--min-speed", type=finite_number, metavar="DEG_PER_S",
                         help=f"--match interpolate: drop stations where the robot turns slower (default "
                              f"{default.min_speed:g} deg/s)")
-    parser.add_argument("--max-pairs", type=int, metavar="N",
+    parser.add_argument("--max-pairs", type=whole_number, metavar="N",
                         help=f"--match interpolate: keep at most N well-spread stations (default {default.max_pairs})")
     parser.add_argument("--robot-topic", metavar="TOPIC",
                         help="--robot is a ROS bag: its pose topic (PoseStamped, TransformStamped, "

@@ -44,7 +44,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from handeye.cli._common import add_force_flag, check_new_results
+from handeye.cli._common import (
+    add_force_flag,
+    check_new_results,
+    finite_number,
+    seed_number,
+    whole_number,
+)
 from handeye.estimation.noise import NoiseModel
 from handeye.framework.errors import InputError
 from handeye.framework.registry import get_registry
@@ -76,7 +82,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                             "board corners, pose files by held-out residuals (needs -o OUTDIR; docs/harness.md)")
     which.add_argument("--real", action="store_true",
                        help="every real recording handeye bundles, each as --cell / --example (needs -o OUTDIR)")
-    parser.add_argument("--folds", type=int, default=None, metavar="K",
+    parser.add_argument("--folds", type=whole_number, default=None, metavar="K",
                         help="--data/--example: number of cross-validation folds (default 5)")
     parser.add_argument("--setup", choices=("eye-in-hand", "eye-to-hand"), default=None,
                         help="--data/--example: setup of a file of absolute poses (overrides the file's)")
@@ -98,23 +104,23 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--noise-levels", metavar="LEVELS",
                         help=f"multipliers of the base noise, '0,0.01' or start:stop:step (default "
                              f"{DEFAULT_LEVELS} with the paper's base noise, 1 with --noise-rot/--noise-trans)")
-    parser.add_argument("--noise-rot", type=float, metavar="RAD", help="base rotation noise std (rad)")
-    parser.add_argument("--noise-trans", type=float, metavar="MM", help="base translation noise std (mm)")
+    parser.add_argument("--noise-rot", type=finite_number, metavar="RAD", help="base rotation noise std (rad)")
+    parser.add_argument("--noise-trans", type=finite_number, metavar="MM", help="base translation noise std (mm)")
     parser.add_argument("--noise-on", default=None, metavar="B|A|both",
                         help="data stack(s) the base noise goes on (default both for the paper's reading, "
                              "B with --noise-rot/--noise-trans)")
     parser.add_argument("--pairs", metavar="LIST",
                         help="pair counts, '10,20' or start:stop:step (default: a noise sweep at 16 and a "
                              "pair-count sweep 8, 16, 32, 64; with other grid flags 16)")
-    parser.add_argument("--paper-pairs", type=int, default=None, metavar="M",
+    parser.add_argument("--paper-pairs", type=whole_number, default=None, metavar="M",
                         help="m of the paper's noise sweep (Fig. 3; default 16)")
-    parser.add_argument("--trials", type=int, help="trials per cell (default 5; --accuracy 20)")
-    parser.add_argument("--seed", type=int, help="master seed (default 0)")
+    parser.add_argument("--trials", type=whole_number, help="trials per cell (default 5; --accuracy 20)")
+    parser.add_argument("--seed", type=seed_number, help="master seed (default 0)")
     parser.add_argument("--units", choices=("mm", "m"), help="length unit the solvers get (default mm)")
     parser.add_argument("--truth", choices=("paper", "random"), help="X, Y: the paper's or random per trial")
     parser.add_argument("--name", help="study name (file prefix; default study)")
-    parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: all cores)")
-    parser.add_argument("--timeout", type=float, metavar="SECONDS",
+    parser.add_argument("--jobs", type=whole_number, default=None, help="worker processes (default: all cores)")
+    parser.add_argument("--timeout", type=finite_number, metavar="SECONDS",
                         help="stop a solve after this long and record it as failed (default 30, --paper 10; "
                              "0: no limit)")
     parser.add_argument("--executor", choices=("process", "dask"), default="process",

@@ -22,7 +22,14 @@ from typing import Any
 
 import numpy as np
 
-from handeye.cli._common import add_force_flag, check_outputs, workspace_of
+from handeye.cli._common import (
+    add_force_flag,
+    check_outputs,
+    finite_number,
+    seed_number,
+    whole_number,
+    workspace_of,
+)
 from handeye.framework.errors import InputError
 from handeye.geometry.se3 import make_pose
 from handeye.io.arm_files import read_arm
@@ -53,17 +60,17 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--board", required=True, metavar="SPEC", help="the board, e.g. chessboard:9x6:30mm (docs/boards.md)")
     parser.add_argument("--intrinsics", required=True, metavar="FILE",
                         help="camera intrinsics with the image size (OpenCV YAML/XML/JSON, ROS camera_info YAML)")
-    parser.add_argument("--count", type=int, default=12, help="stations to plan (default 12)")
+    parser.add_argument("--count", type=whole_number, default=12, help="stations to plan (default 12)")
     parser.add_argument("--workspace", metavar="X0,Y0,Z0,X1,Y1,Z1",
                         help="the box the flange's origin must stay in, base frame, --unit (default: no limit)")
-    parser.add_argument("--max-tilt", type=float, metavar="DEG",
+    parser.add_argument("--max-tilt", type=finite_number, metavar="DEG",
                         help="largest angle of the flange's z axis from straight down (base -z) (default: no limit)")
     parser.add_argument("--distance", metavar="NEAR,FAR",
                         help="camera-board distance range, --unit (default: 0.5-2x that at which the board fills half "
                              "the image's width)")
-    parser.add_argument("--max-angle", type=float, default=45.0, metavar="DEG",
+    parser.add_argument("--max-angle", type=finite_number, default=45.0, metavar="DEG",
                         help="largest angle between the optical axis and the board's normal (default 45)")
-    parser.add_argument("--pixel-noise", type=float, default=0.3, metavar="PX", help="expected corner noise (default 0.3)")
+    parser.add_argument("--pixel-noise", type=finite_number, default=0.3, metavar="PX", help="expected corner noise (default 0.3)")
     parser.add_argument("--robot-noise", metavar="RAD,LENGTH",
                         help="expected robot pose noise per axis: rad, --unit (default 0.0002 rad, 0.05 mm)")
     parser.add_argument("--arm", metavar="FILE",
@@ -82,7 +89,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                              "watch read it)")
     parser.add_argument("--robot-format", help="format of --recorded-robot (default: --pose-format)")
     parser.add_argument("--camera-format", help="format of --recorded-camera (default: --pose-format)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed of the candidate stations (default 0)")
+    parser.add_argument("--seed", type=seed_number, default=0, help="random seed of the candidate stations (default 0)")
     parser.add_argument("-o", "--output", required=True, help="the stations file (.csv, .json, ...)")
     parser.add_argument("--format", help="pose format of the written stations (default: --pose-format)")
     parser.add_argument("--figure", metavar="PNG", help="also draw the plan")

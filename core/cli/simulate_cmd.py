@@ -23,7 +23,13 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from handeye.cli._common import add_force_flag, check_outputs
+from handeye.cli._common import (
+    add_force_flag,
+    check_outputs,
+    finite_number,
+    seed_number,
+    whole_number,
+)
 from handeye.estimation.noise import NoiseModel
 from handeye.framework.api import plugin_faults
 from handeye.framework.errors import InputError
@@ -52,23 +58,23 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--problem", default=None,
                         help="registered problem to simulate (handeye list shows them; default: the default problem, "
                              "A_i X = Y B_i)")
-    parser.add_argument("--pairs", type=int, default=None,
+    parser.add_argument("--pairs", type=whole_number, default=None,
                         help="number of pose pairs (stations; a problem solved from motions makes them from the "
                              "stations) (default 16)")
-    parser.add_argument("--stations", type=int, default=None, metavar="N",
+    parser.add_argument("--stations", type=whole_number, default=None, metavar="N",
                         help="write the absolute poses of N stations (robot_poses, camera_poses) instead of the "
                              "problem's data; they serve every problem read from a cell's stations")
     parser.add_argument("--pairing", choices=PAIRINGS, default=None,
                         help=f"a problem solved from motions: motions between consecutive stations or all pairs i < j "
                              f"(default {DEFAULT_PAIRING}); with --stations it is recorded in the file")
-    parser.add_argument("--noise-rot", type=float, default=0.0, metavar="RAD",
+    parser.add_argument("--noise-rot", type=finite_number, default=0.0, metavar="RAD",
                         help="rotation noise std, rad (default 0)")
-    parser.add_argument("--noise-trans", type=float, default=0.0, metavar="MM",
+    parser.add_argument("--noise-trans", type=finite_number, default=0.0, metavar="MM",
                         help="translation noise std, mm (default 0)")
     parser.add_argument("--noise-on", default="B", metavar="B|A|both",
                         help="data stack(s) the noise is added to: a data field, or 'both' (default B; "
                              "axxb: A = the robot poses, B = the camera poses)")
-    parser.add_argument("--seed", type=int, default=None, help="random seed (default: fresh)")
+    parser.add_argument("--seed", type=seed_number, default=None, help="random seed (default: fresh)")
     parser.add_argument("-o", "--output", required=True,
                         help=f"output file ({', '.join(supported_extensions())}); an existing one is kept "
                              "unless --force")
@@ -142,6 +148,8 @@ def _check_size(args: argparse.Namespace, motions: bool) -> None:
         if motions and count > 1:
             every = (args.pairing or DEFAULT_PAIRING) == "all"
             count, what = (count * (count - 1) // 2 if every else count - 1), "motions"
+    if count < 1:
+        raise InputError(f"{flag} takes a number of {what} >= 1, got {count}")
     if count > MAX_POSES:
         value = args.stations if args.stations is not None else args.pairs
         made = f" makes {count} {what}" if what == "motions" else ""

@@ -37,7 +37,9 @@ import numpy as np
 from handeye.cli._common import (
     add_force_flag,
     check_outputs,
+    finite_number,
     in_cli_words,
+    whole_number,
     workspace_of,
 )
 from handeye.framework.errors import InputError
@@ -105,24 +107,24 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                              "poses to record")
     parser.add_argument("--board", metavar="SPEC", help="the calibration board, e.g. chessboard:9x6:25mm "
                                                         "(docs/boards.md)")
-    parser.add_argument("--pixel-noise", type=float, default=Noise().pixel, metavar="PX",
+    parser.add_argument("--pixel-noise", type=finite_number, default=Noise().pixel, metavar="PX",
                         help=f"expected noise of the board's corners, pixels (default {Noise().pixel:g})")
     parser.add_argument("--camera-noise", metavar="ROT,TRANS",
                         help="without --intrinsics and --board: the expected noise of a camera pose per axis, "
                              "e.g. 0.05deg,0.3mm (else the 1-sigma is printed from 8 stations on)")
-    parser.add_argument("--suggest", type=int, default=3, metavar="K",
+    parser.add_argument("--suggest", type=whole_number, default=3, metavar="K",
                         help="how many next poses to suggest (default 3; 0: none)")
     parser.add_argument("--workspace", metavar="X0,Y0,Z0,X1,Y1,Z1",
                         help="suggested flange positions inside this box (base frame, the robot's unit)")
-    parser.add_argument("--max-tilt", type=float, metavar="DEG",
+    parser.add_argument("--max-tilt", type=finite_number, metavar="DEG",
                         help="suggested tool axes (flange z) within DEG of straight down")
     parser.add_argument("--next-out", metavar="FILE",
                         help="write the suggested poses to this pose file (the robot's format and unit), rewritten "
                              "after every station (an existing file is kept unless --force)")
     parser.add_argument("--once", action="store_true", help="read the files once (finished), then exit")
-    parser.add_argument("--interval", type=float, default=1.0, metavar="SECONDS",
+    parser.add_argument("--interval", type=finite_number, default=1.0, metavar="SECONDS",
                         help="seconds between reads of the files (default 1)")
-    parser.add_argument("--idle", type=float, metavar="SECONDS",
+    parser.add_argument("--idle", type=finite_number, metavar="SECONDS",
                         help="stop after SECONDS without a new station (default: run until Ctrl-C)")
     parser.add_argument("--json", action="store_true", help="print one JSON object per line instead of text")
     add_force_flag(parser)

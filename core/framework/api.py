@@ -24,7 +24,13 @@ from handeye.framework.errors import (
 from handeye.framework.isolation import call_with_time_limit
 from handeye.framework.options import parse_options
 from handeye.framework.registry import get_registry
-from handeye.framework.solution import USABLE, Solution, SolverOutput, Status, with_spread
+from handeye.framework.solution import (
+    USABLE,
+    Solution,
+    SolverOutput,
+    Status,
+    with_spread,
+)
 from handeye.framework.threads import one_blas_thread
 from handeye.geometry.se3 import orthonormality_error
 
@@ -145,10 +151,16 @@ def _spec(registry: Any, problem: str, solver: str, backend: str | None) -> tupl
     return spec, backend
 
 
+#: the longest time limit a solve takes, seconds (a year; beyond, the clocks the limit is kept by
+#: overflow)
+MAX_TIME_LIMIT = 3.2e7
+
+
 def _check_time_limit(time_limit: Any) -> None:
     if time_limit is not None and (isinstance(time_limit, bool) or not isinstance(time_limit, (int, float))
-                                   or not 0 < time_limit < math.inf):
-        raise InputError(f"time_limit must be a number of seconds > 0 (or None), got {time_limit!r}")
+                                   or not 0 < time_limit <= MAX_TIME_LIMIT):
+        raise InputError(f"time_limit must be a number of seconds > 0 and at most {MAX_TIME_LIMIT:.2g} (a year), or "
+                         f"None for no limit; got {time_limit!r}")
 
 
 def _problem_faults(registry: Any, problem: str) -> contextlib.AbstractContextManager[None]:

@@ -14,6 +14,7 @@ plus planned stations at the stated noise.
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +40,10 @@ ROUGH_DEG = 1.0
 ROUGH_SHARE = 0.01
 
 
+#: the largest pixel noise a plan takes (a board's corners found to 100 px are no detection)
+MAX_PIXEL_NOISE = 100.0
+
+
 @dataclasses.dataclass(frozen=True)
 class Noise:
     """The noise a plan expects: pixel noise of the board's corners (px per coordinate) and the
@@ -49,8 +54,10 @@ class Noise:
     robot: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
-        if not self.pixel > 0 or (self.robot is not None and min(self.robot) < 0):
-            raise InputError(f"the expected pixel noise must be positive and the robot's not negative, got {self}")
+        if not 0 < self.pixel <= MAX_PIXEL_NOISE or (self.robot is not None and not (
+                min(self.robot) >= 0 and all(math.isfinite(v) for v in self.robot))):
+            raise InputError(f"the expected pixel noise must be above 0 and at most {MAX_PIXEL_NOISE:g} px, the robot's "
+                             f"finite and not negative, got {self}")
 
     def robot_sigma(self, unit: str) -> tuple[float, float]:
         """The robot's noise (rad, length in `unit`): as given, else ROBOT_NOISE (0.0002 rad,

@@ -21,7 +21,6 @@ board poses PnP gives for intrinsics 1-sigma off (`handeye.vision.intrinsics_eff
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -95,8 +94,11 @@ def time_limit(given: float | None, problem: str, solver: str) -> float | None:
     for a third party's solver and none for handeye's own. InputError for a negative or
     non-finite `given`."""
     if given is not None:
-        if not 0 <= given < math.inf:
-            raise InputError(f"`time_limit` must be a number of seconds >= 0 (0: no limit), got {given:g}")
+        from handeye.framework.api import MAX_TIME_LIMIT
+
+        if not 0 <= given <= MAX_TIME_LIMIT:
+            raise InputError(f"`time_limit` must be a number of seconds from 0 (no limit) to {MAX_TIME_LIMIT:.2g} (a "
+                             f"year), got {given:g}")
         return given or None
     registry = get_registry()
     if solver in registry.solver_names(problem) and not registry.is_builtin(solver, problem):
