@@ -70,7 +70,7 @@ MAX_WHOLE = 10**9
 def finite_number(text: str) -> float:
     """argparse type of a number flag: a finite float (nan, inf and 1e400 are refused by argparse
     with the flag's name, exit 2)."""
-    value = float(text)
+    value = _parsed(float, text)
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
     return value
@@ -78,7 +78,7 @@ def finite_number(text: str) -> float:
 
 def whole_number(text: str) -> int:
     """argparse type of a count flag: an integer of at most `MAX_WHOLE` in size."""
-    value = int(text)
+    value = _parsed(int, text)
     if abs(value) > MAX_WHOLE:
         raise argparse.ArgumentTypeError(f"{text} is out of range (at most {MAX_WHOLE:.0e} in size)")
     return value
@@ -86,10 +86,18 @@ def whole_number(text: str) -> int:
 
 def seed_number(text: str) -> int:
     """argparse type of a --seed: a whole number 0 <= seed < 2^63."""
-    value = int(text)
+    value = _parsed(int, text)
     if not 0 <= value < 2**63:
         raise argparse.ArgumentTypeError(f"{text} is no seed: give a whole number from 0 to 2^63 - 1")
     return value
+
+
+def _parsed(kind: type, text: str) -> Any:
+    """kind(text), or argparse's own message for a value that is no number of that kind."""
+    try:
+        return kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid {kind.__name__} value: {text!r}") from None
 
 
 def parse_key_values(items: Sequence[str] | None, what: str = "--option") -> dict[str, Any]:
