@@ -128,7 +128,7 @@ def arm_from_dict(data: Any, where: str = "arm", source: str = "") -> ArmModel:
         raise InputError(f"{where}: 'convention' must be standard-dh (joint j is Rz(q + offset) Tz(d) Tx(a) Rx(alpha)), "
                          f"got {shown(convention)}{hint}")
     for key, units in (("length_unit", LENGTH_UNITS), ("angle_unit", ANGLE_UNITS)):
-        if data.get(key) not in units:
+        if not isinstance(data.get(key), str) or data[key] not in units:
             raise InputError(f"{where}: '{key}' must be one of {', '.join(units)} (the unit of "
                              f"{'a and d' if key == 'length_unit' else 'alpha and offset'}), got {shown(data.get(key))}")
     joints = data.get("joints")

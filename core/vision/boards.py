@@ -93,7 +93,7 @@ class Board:
         if self.kind not in KINDS:
             raise InputError(f"unknown board kind {self.kind!r}; use one of: {SYNTAX_LINE}")
         syntax = SYNTAX[self.kind]
-        if self.unit not in UNITS:
+        if not isinstance(self.unit, str) or self.unit not in UNITS:
             raise InputError(f"board unit must be 'mm' or 'm', got {self.unit!r}; syntax: {syntax}")
         for name in ("cols", "rows"):
             value = getattr(self, name)
@@ -187,7 +187,7 @@ class Board:
     # -- units and text -------------------------------------------------------------------------
     def in_unit(self, unit: str) -> Board:
         """The same board with its lengths in `unit` ("mm" or "m")."""
-        if unit not in UNITS:
+        if not isinstance(unit, str) or unit not in UNITS:
             raise InputError(f"board unit must be 'mm' or 'm', got {unit!r}")
         f = UNITS[self.unit] / UNITS[unit]
         scale = {name: getattr(self, name) * f for name in ("spacing", "marker", "diameter")

@@ -1,6 +1,7 @@
 """Structured input nested thousands deep (a cell, arm, board, intrinsics or pose file; YAML, JSON,
 OpenCV's FileStorage YAML and XML) is refused in one line naming the file, in well under a
-second: the parsers and whatever walks their result would recurse once per level."""
+second: the parsers and whatever walks their result would recurse once per level. So is a value
+of the wrong type where a unit is named (a list or a mapping: "unhashable type" before)."""
 
 from __future__ import annotations
 
@@ -42,3 +43,16 @@ def test_deeply_nested_files_are_refused_in_one_line(tmp_path, name, text, read)
         read(str(path) if name.startswith("board") else path)
     assert "\n" not in str(caught.value) and name in str(caught.value)
     assert time.perf_counter() - started < 2.0
+
+
+@pytest.mark.parametrize("name, text, read", [
+    ("arm.yaml", "convention: standard-dh\nlength_unit: [mm]\nangle_unit: deg\njoints: []\n", read_arm),
+    ("arm.yaml", "convention: standard-dh\nlength_unit: mm\nangle_unit: {deg: 1}\njoints: []\n", read_arm),
+    ("board.yaml", "kind: chessboard\ncols: 9\nrows: 6\nspacing: 30\nunit: [mm]\n", parse_board),
+])
+def test_a_unit_of_the_wrong_type_is_refused_in_one_line(tmp_path, name, text, read):
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(InputError, match="unit") as caught:
+        read(str(path) if name.startswith("board") else path)
+    assert "\n" not in str(caught.value)
