@@ -371,3 +371,29 @@ def test_the_cache_key_holds_the_chessboard_detector_code():
     assert {"detect", "chessboard_region", "detection"} <= set(detection_cache.DETECTOR_MODULES)
     for name in detection_cache.DETECTOR_MODULES:
         assert (Path(detection_cache.__file__).parent / f"{name}.py").is_file()
+
+
+@pytest.mark.parametrize("damage", ["corners not finite", "corners far outside the image", "ids outside the board"])
+def test_an_entry_whose_contents_no_detection_gives_is_a_miss(tmp_path, damage):
+    """An entry that reads as an archive but holds what no detection gives (NaN corners, corners a
+    million pixels off, ids the board has not) is a miss: detected again, the same outcome as the
+    first run, no error (NaN corners ended in an internal IndexError)."""
+    folder = tmp_path / "images"
+    shutil.copytree(image_example_dir() / "images", folder)
+    files = list_images(folder)[:3]
+    board = parse_board(CIRCLES)
+    cache = tmp_path / "cache"
+    first = detection_plan.detect_set(files, board, cache=cache, workers=1)
+    entry = sorted((cache / "detections").rglob("*.npz"))[0]
+    with np.load(entry, allow_pickle=False) as stored:
+        arrays = {k: stored[k] for k in stored.files}
+    if damage == "corners not finite":
+        arrays["points"] = np.full(arrays["points"].shape, np.nan)
+    elif damage == "corners far outside the image":
+        arrays["points"] = arrays["points"] + 1e6
+    else:
+        arrays["ids"] = arrays["ids"] + 10**6
+    with entry.open("wb") as fh:
+        np.savez(fh, **arrays)
+    again = detection_plan.detect_set(files, board, cache=cache, workers=1)
+    assert all(same(a, b) for a, b in zip(first, again))

@@ -147,6 +147,12 @@ def _outcome(header: dict, ids: np.ndarray, points: np.ndarray, board: Board) ->
     ends = np.cumsum(header["counts"]).tolist()
     if (ends[-1] if ends else 0) != len(ids) or len(ids) != len(points):
         raise ValueError("counts do not match the arrays")
+    width, height = (int(header["size"][0]), int(header["size"][1]))
+    points = np.asarray(points, dtype=float).reshape(len(points), 2)
+    inside = np.isfinite(points).all() and (points >= -1).all() and (points[:, 0] <= width).all() \
+        and (points[:, 1] <= height).all()
+    if not inside or not (np.asarray(ids) >= 0).all() or not (np.asarray(ids) < len(board.object_points())).all():
+        raise ValueError("corners outside the image or ids outside the board")  # damaged: a miss
     found = [Detection.of(board, ids[a:b], points[a:b], m)
              for m, a, b in zip(header["methods"], [0, *ends[:-1]], ends)]
     detection = found[0].with_alternatives(tuple(found[1:])) if found else None
