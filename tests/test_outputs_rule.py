@@ -66,3 +66,14 @@ def test_an_existing_output_needs_force_and_an_input_never_becomes_one(tmp_path,
     code, _, err = run_cli(capsys, "simulate", "--pairs", "6", "--seed", "1", "-o", target,
                            *(["--force"] if force else []))
     assert (code == 0) == force and (force or "--force" in err)
+
+
+def test_outputs_are_checked_before_any_work(tmp_path, capsys):
+    """A figure in a format matplotlib cannot write, or an output in a folder that does not exist:
+    refused before the plan is computed, so no stations file is left behind for a run that failed."""
+    write_camera(tmp_path / "cam.yaml")
+    stations = tmp_path / "plan.csv"
+    common = [*PLAN, "--intrinsics", tmp_path / "cam.yaml", "-o", stations]
+    _refused(capsys, *common, "--figure", tmp_path / "plan.xyz", says="cannot draw a figure as 'xyz'")
+    _refused(capsys, *common, "--json", tmp_path / "missing" / "plan.json", says="does not exist")
+    assert not stations.exists()

@@ -16,6 +16,7 @@ import numpy as np
 
 from handeye.cli._cell_flags import cell_words
 from handeye.framework.errors import InputError
+from handeye.io.output_files import check_writable
 from handeye.workflow.exports import dump_json  # noqa: F401 (the commands' JSON text)
 from handeye.workflow.exports import plain as _plain  # noqa: F401
 from handeye.workflow.solving import PLUGIN_TIME_LIMIT
@@ -183,12 +184,15 @@ def check_outputs(outputs: Sequence[tuple[str, str | Path | None]], inputs: Iter
                   force: bool) -> None:
     """The one rule every command's output files follow, checked before any work: none is an input
     of the same run (a file it reads, a folder of images it reads) or another of its outputs,
-    whatever the flags (`check_outputs_apart`), and none exists already unless `force`
-    (`check_new_file`). `outputs`: (flag, path) pairs, None where not given; `inputs`: every
+    whatever the flags (`check_outputs_apart`), none exists already unless `force`
+    (`check_new_file`), and each can be written (`check_writable`: its folder exists and takes
+    a file). `outputs`: (flag, path) pairs, None where not given; `inputs`: every
     file or folder the run reads (a spec that names no file never matches one)."""
     check_outputs_apart(outputs, inputs)
     for flag, path in outputs:
         check_new_file(flag, path, force)
+        if path is not None:
+            check_writable(flag, path)
 
 
 def check_outputs_apart(outputs: Sequence[tuple[str, str | Path | None]], inputs: Iterable[str | Path | None]) -> None:

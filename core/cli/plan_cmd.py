@@ -33,6 +33,7 @@ from handeye.cli._common import (
 from handeye.framework.errors import InputError
 from handeye.geometry.se3 import make_pose
 from handeye.io.arm_files import read_arm
+from handeye.io.output_files import check_figure_format
 from handeye.io.pose_formats import parse_format
 from handeye.planning.plan import Noise, plan
 from handeye.planning.reach import Reach
@@ -104,6 +105,8 @@ def run(args: argparse.Namespace) -> int:
                    ("--joints-out", args.joints_out)],
                   [args.intrinsics, args.board, args.arm, args.recorded_robot, args.recorded_camera,
                    getattr(args, "joint_limits", None)], args.force)
+    if args.figure:
+        check_figure_format("--figure", args.figure)
     if (args.joint_limits or args.joints_out) and not args.arm:
         raise InputError("--joint-limits and --joints-out need the arm's model (--arm FILE)")
     fmt = parse_format(args.pose_format)

@@ -134,3 +134,16 @@ def check_writable(flag: str, path: str | Path) -> None:
                          f"({exc.strerror or exc}); name a file in a writable folder") from None
     os.close(fd)
     os.unlink(name)
+
+
+def check_figure_format(flag: str, path: str | Path) -> None:
+    """InputError unless matplotlib can write a figure in the format `path`'s extension names
+    (checked before any work, so that a plan is not computed, and its stations written, for a
+    figure that then fails)."""
+    from matplotlib.figure import Figure
+
+    kinds = sorted(Figure().canvas.get_supported_filetypes())
+    ext = Path(path).suffix.lower().lstrip(".")
+    if ext not in kinds:
+        raise InputError(f"{flag} {str(path)!r}: cannot draw a figure as {ext or '(no extension)'!r}; name a file "
+                         f"ending in one of .{', .'.join(kinds)}")
