@@ -310,3 +310,21 @@ def test_cli_reads_recorded_camera_poses_as_calibrate_does_and_checks_them(tmp_p
     assert main([*base, "-o", str(tmp_path / "next.csv"), "--force"]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "inverted" in err and "camera-in-board" in err, err
+
+
+def test_cli_names_what_limits_a_plan_without_an_arm(tmp_path, capsys):
+    """No arm given: more stations asked than usable views are named as such (it blamed the arm's
+    reach), and a NaN in a recorded pose names the --recorded-robot file and line."""
+    write_camera(tmp_path / "cam.yaml")
+    base = ["plan", "--setup", "eye-in-hand", "--x", "60,-20,100,17.19,0,0", "--y", "600,0,0,0,0,180", "--board",
+            "chessboard:9x6:30mm", "--intrinsics", str(tmp_path / "cam.yaml"), "--workspace",
+            "200,-500,50,1000,500,1000", "--max-tilt", "70", "-o", str(tmp_path / "next.csv")]
+    assert main([*base, "--count", "5000"]) == 2
+    err = capsys.readouterr().err
+    assert "usable stations were found for the 5000 asked" in err and "arm" not in err, err
+    (tmp_path / "robot.csv").write_text("x,y,z,A,B,C\n1,2,nan,0,0,0\n1,2,3,0,0,0\n4,5,6,0,0,10\n")
+    (tmp_path / "camera.csv").write_text((tmp_path / "robot.csv").read_text())
+    assert main([*base, "--count", "3", "--recorded-robot", str(tmp_path / "robot.csv"), "--recorded-camera",
+                 str(tmp_path / "camera.csv")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "--recorded-robot" in err and "line 2" in err and "arm" not in err

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 from typing import Any
 
 import numpy as np
@@ -194,9 +195,11 @@ def _recorded(args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray] | None:
                 camera=CameraStream(args.recorded_camera, format=args.camera_format or args.pose_format,
                                     unit=args.unit, poses=args.camera_poses),
                 setup=args.setup, matching=Matching(method="row"))
-    data = read_stations(cell).pose_file.data
-    if len(data["A"]) >= 3:
-        checked = calibrate(cell)
-        if checked.checks is not None and not checked.checks.plausible:
-            raise InputError("--recorded-robot / --recorded-camera: " + " ".join(checked.checks.warnings[0].split()))
+    try:
+        data = read_stations(cell).pose_file.data
+        checked = calibrate(cell) if len(data["A"]) >= 3 else None
+    except InputError as exc:  # calibrate's words for its --robot and --camera are plan's --recorded-* files
+        raise InputError(re.sub(r"`(robot|camera)`", r"--recorded-\1", str(exc))) from None
+    if checked is not None and checked.checks is not None and not checked.checks.plausible:
+        raise InputError("--recorded-robot / --recorded-camera: " + " ".join(checked.checks.warnings[0].split()))
     return np.asarray(data["A"], dtype=float), np.asarray(data["B"], dtype=float)

@@ -160,9 +160,14 @@ def plan(problem: str | None = None, *, setup: str, X: np.ndarray, Y: np.ndarray
         prior = _information(spec, problem, A0, B0, views.views_of(B0, setup), board, camera, setup, X, Y, noise)[0].sum(0)
     admissible = None if reach is None else (lambda i: reach.joints_for(A[i], key=i) is not None)
     chosen = design.greedy(info, count, prior=prior, interest=mask, admissible=admissible)
-    if len(chosen) < count:
+    if len(chosen) < count and reach is not None:
         raise stations.PlanningError(f"the arm reaches only {len(chosen)} of the usable stations within its joint "
                                      "limits; widen the limits or the workspace, or plan fewer stations")
+    if len(chosen) < count:
+        raise stations.PlanningError(f"only {len(chosen)} usable stations were found for the {count} asked (views of the "
+                                     "board within the viewing distance and angle, the flange in the workspace"
+                                     + (", not already recorded" if recorded is not None else "") + "); plan fewer "
+                                     "stations, or widen the workspace or the viewing limits")
     base = np.zeros(info.shape[1:]) if prior is None else prior
     totals = base + np.cumsum(info[chosen], axis=0)
     progression = tuple(_std(T, names, interest) for T in totals)
