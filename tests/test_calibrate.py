@@ -364,3 +364,34 @@ def test_eth_robot_arm_matched_by_time(tmp_path, capsys):
     # the data set's figures (|t_X| 0.017 m, |t_Y| 0.69 m), within what its 1-sigma allows (~3 mm)
     assert abs(np.linalg.norm(np.array(r["X"])[:3, 3]) - 0.017) < 0.004
     assert abs(np.linalg.norm(np.array(r["Y"])[:3, 3]) - 0.69) < 0.01
+
+
+@pytest.mark.skipif(not ETH.is_dir(), reason="ETH ASL hand-eye data set not present")
+@pytest.mark.parametrize("match", ["time", "interpolate"])
+def test_robot_stamps_in_ms_against_camera_seconds_are_named(tmp_path, capsys, match):
+    """The real ETH robot_arm streams with the robot's stamps in milliseconds (from the start of
+    the recording) and the camera's in seconds: named as such, for matching by time and by
+    interpolation (they were taken for a robot that hardly rotates, or stations that do not move)."""
+    robot_src = ETH / "robot_arm_complete_bag_color_and_ir_base_link_sr300_hinge.csv"
+    camera_src = ETH / "robot_arm_complete_bag_color_and_ir_target_ir.csv"
+
+    def restamped(lines, factor):
+        out, start = [], None
+        for line in lines:
+            parts = line.split(",")
+            try:
+                t = float(parts[0])
+            except ValueError:
+                out.append(line)
+                continue
+            start = t if start is None else start
+            out.append(",".join([repr((t - start) * factor), *parts[1:]]))
+        return "\n".join(out) + "\n"
+
+    robot, camera = tmp_path / "robot.csv", tmp_path / "camera.csv"
+    robot.write_text(restamped(robot_src.read_text().splitlines(), 1000.0))
+    camera.write_text(restamped(camera_src.read_text().splitlines(), 1.0))
+    _bad(capsys, ["calibrate", "--robot", robot, "--robot-format", "xyz-quat-xyzw", "--robot-unit", "m", "--camera",
+                  camera, "--camera-format", "xyz-quat-xyzw", "--camera-unit", "m", "--camera-poses",
+                  "camera-in-board", "--setup", "eye-in-hand", "--match", match],
+         "look like milliseconds", "give both in seconds")

@@ -30,6 +30,7 @@ from handeye.streams.selection import (
     spread,
 )
 from handeye.streams.timeline import (
+    check_same_time_unit,
     checked_stream,
     default_max_gap,
     median_interval,
@@ -151,6 +152,8 @@ def pair_streams(robot: PoseStack, camera: PoseStack, *, setup: str, camera_pose
     robot, _, warnings = checked_stream(robot, f"the robot stream {robot.source}".rstrip())
     camera_rows_in = len(camera)
     camera, camera_order, more = checked_stream(camera, f"the camera stream {camera.source}".rstrip())
+    check_same_time_unit(robot.stamps, camera.stamps, f"the robot stream {robot.source}".rstrip(),
+                         f"the camera stream {camera.source}".rstrip())
     warnings += more
     camera = camera.in_unit(robot.unit)
     rt, rT = np.asarray(robot.stamps), np.asarray(robot.poses)

@@ -12,6 +12,7 @@ since no rule says which of the two poses is right.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 from numpy.typing import NDArray
@@ -97,3 +98,26 @@ def overlap(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
 def span_text(stamps: np.ndarray) -> str:
     """'first..last s' for messages."""
     return f"{float(stamps[0]):.6f}..{float(stamps[-1]):.6f} s"
+
+
+#: two streams of one recording whose time spans differ by about a power of 1000 (within this
+#: factor of it, and at least 300x in all) have their stamps in different units
+UNIT_RATIO_TOL = 3.0
+
+
+def check_same_time_unit(robot: NDArray[np.float64], camera: NDArray[np.float64], robot_name: str,
+                         camera_name: str) -> None:
+    """InputError where the robot's and the camera's stamps (seconds, both streams of one
+    recording) span times about 1000, 10^6 or 10^9 times apart: one is in milli-, micro- or
+    nanoseconds (it was taken for a robot that hardly rotates, or stations that do not move)."""
+    spans = [float(np.ptp(t)) if len(t) > 1 else 0.0 for t in (robot, camera)]
+    if min(spans) <= 0:
+        return
+    ratio = spans[0] / spans[1]
+    power = round(math.log(ratio, 1000)) if ratio > 0 else 0
+    if power == 0 or not 1 / UNIT_RATIO_TOL <= ratio / 1000.0 ** power <= UNIT_RATIO_TOL:
+        return
+    unit = {1: "milliseconds", 2: "microseconds", 3: "nanoseconds"}.get(abs(power), f"1e{3 * abs(power)} s")
+    slower, faster = (robot_name, camera_name) if power > 0 else (camera_name, robot_name)
+    raise InputError(f"the time stamps of {slower} span {max(spans):.4g} against {min(spans):.4g} for {faster}: those "
+                     f"of {slower} look like {unit}, the others like seconds; give both in seconds")

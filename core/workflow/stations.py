@@ -174,10 +174,11 @@ def _match_time(matching: Matching, robot: PoseStack, camera: PoseStack, robot_p
                          "or name")
     # each stream checked as interpolation checks it (`handeye.streams.timeline.checked_stream`): a stamp
     # with two different poses is ambiguous (which one was the station?), stamps in ms are not seconds
-    from handeye.streams.timeline import checked_stream
+    from handeye.streams.timeline import check_same_time_unit, checked_stream
 
     robot_kept, robot_rows, robot_notes = checked_stream(robot, f"`robot` {robot_path!r}")
     camera_kept, camera_rows, camera_notes = checked_stream(camera, f"`camera` {camera_path!r}")
+    check_same_time_unit(robot_kept.stamps, camera_kept.stamps, f"`robot` {robot_path!r}", f"`camera` {camera_path!r}")
     max_dt = default_max_dt(robot_kept.stamps) if matching.max_dt is None else matching.max_dt
     ri, ci, dt = match_by_time(robot_kept.stamps, camera_kept.stamps, max_dt)
     ri, ci = robot_rows[ri], camera_rows[ci]
