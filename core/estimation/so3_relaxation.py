@@ -41,7 +41,7 @@ from handeye.estimation.rotation_cost import (
 )
 from handeye.framework.errors import SolverError
 from handeye.geometry import so3_fast
-from handeye.geometry.linalg import eigvalsh, einsum, lstsq, vector_norm
+from handeye.geometry.linalg import eigvalsh, lstsq, vector_norm
 from handeye.geometry.se3 import project_to_so3, skew
 
 #: Certificate thresholds (docs/solvers/so3-sdp.md: 1400 solves of ``axyb`` at m = 3, simulated
@@ -87,22 +87,22 @@ def _entry(offset: int, row: int, col: int) -> int:
 
 
 @functools.cache
-def constraint_matrices(rotations: int, redundant: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """A: (K, 9k+1, 9k+1) symmetric and b: (K,) with y^T A_j y = b_j for y = [vec R_1; ...;
-    vec R_k; 1], every R_i in SO(3). K = 20k + 1 with the redundant constraints, 6k + 1 without;
-    linearly independent (interior-point solvers need that). Read-only arrays."""
+def constraint_terms(rotations: int, redundant: bool = True) -> tuple[np.ndarray, ...]:
+    """The constraints y^T A_j y = b_j of the module docstring, sparse: (j, p, q, c, b), each A_j
+    holding c / 2 at (p, q) and at (q, p) for every term of it (j, p, q, c: (T,) arrays), b: (K,).
+    K = 20k + 1 with the redundant constraints, 6k + 1 without; linearly independent. A handful of
+    terms per constraint, where the dense matrices take K (9k + 1)^2 numbers: 1.1 GB at 44
+    rotations (a cell of 40 cameras), 4.4 GB at 104. Read-only arrays."""
     if isinstance(rotations, bool) or not isinstance(rotations, int) or rotations < 1:
         raise ValueError(f"rotations must be an integer >= 1, got {rotations!r}")
-    dim = dimension(rotations)
-    hom = dim - 1
-    mats: list[np.ndarray] = []
+    hom = dimension(rotations) - 1
+    terms: list[tuple[int, int, int, float]] = []
+    count = 0
 
     def quadratic(pairs: list[tuple[int, int, float]]) -> None:
-        A = np.zeros((dim, dim))
-        for p, q, c in pairs:
-            A[p, q] += 0.5 * c
-            A[q, p] += 0.5 * c
-        mats.append(A)
+        nonlocal count
+        terms.extend((count, p, q, c) for p, q, c in pairs)
+        count += 1
 
     for off in range(0, 9 * rotations, 9):
         for i in range(3):  # columns orthonormal: c_i . c_j = delta_ij h^2
@@ -119,15 +119,30 @@ def constraint_matrices(rotations: int, redundant: bool = True) -> tuple[np.ndar
                           + ([(hom, hom, -1.0)] if i == j else []))
         for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):  # handedness: c_i x c_j = h c_k
             for row in range(3):
-                terms = [(_entry(off, a, i), _entry(off, b, j), _LEVI_CIVITA[row, a, b])
+                pairs = [(_entry(off, a, i), _entry(off, b, j), _LEVI_CIVITA[row, a, b])
                          for a in range(3) for b in range(3) if _LEVI_CIVITA[row, a, b]]
-                quadratic(terms + [(_entry(off, row, k), hom, -1.0)])
+                quadratic(pairs + [(_entry(off, row, k), hom, -1.0)])
     quadratic([(hom, hom, 1.0)])  # h^2 = 1
-    A = np.stack(mats)
-    b = np.zeros(len(mats))
+    j, p, q, c = (np.array(column, dtype=dtype) for column, dtype in
+                  zip(zip(*terms), (np.intp, np.intp, np.intp, float)))
+    b = np.zeros(count)
     b[-1] = 1.0
+    for array in (j, p, q, c, b):
+        array.flags.writeable = False
+    return j, p, q, c, b
+
+
+@functools.cache
+def constraint_matrices(rotations: int, redundant: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """A: (K, 9k+1, 9k+1) symmetric and b: (K,) with y^T A_j y = b_j for y = [vec R_1; ...;
+    vec R_k; 1], every R_i in SO(3): `constraint_terms` as dense matrices, for the SDP solvers
+    (a few rotations). Read-only arrays."""
+    j, p, q, c, b = constraint_terms(rotations, redundant)
+    dim = dimension(rotations)
+    A = np.zeros((len(b), dim, dim))
+    np.add.at(A, (j, p, q), 0.5 * c)
+    np.add.at(A, (j, q, p), 0.5 * c)
     A.flags.writeable = False
-    b.flags.writeable = False
     return A, b
 
 
@@ -152,19 +167,17 @@ def polish(cost: RotationCost, rotations: list[np.ndarray]) -> tuple[list[np.nda
     is never worse than the start beyond rounding.
 
     The residual S r - s of an accepted step is the next step's (the cost is its squared norm
-    plus `rest`, as `RotationCost.value`), and the derivative of r along the steps
-    (`_tangent_map`) is a signed gather of r: the same numbers in fewer numpy calls (measured
-    ~90 -> ~60 us at k = 2, once every so3-sdp solve).
+    plus `rest`, as `RotationCost.value`), and the derivative of r along the steps (`_tangent`)
+    is formed block by block from the rotations, exactly.
     """
     Rs = list(rotations)
     S, s, rest = cost.S, cost.s, cost.rest
     r = rotations_vector(*Rs)
     e = S @ r - s
     current = float(e @ e + rest)
-    tangent = _tangent_map(len(Rs))
     steps = 0
     for _ in range(POLISH_MAX_ITER):
-        D = (tangent @ r).reshape(len(r), -1)  # vec(R_j [e_a]_x) in column 3j + a
+        D = _tangent(Rs)  # vec(R_j [e_a]_x) in column 3j + a
         delta = _gauss_newton_step(S @ D, e)
         new_Rs = [R @ so3_fast.exp(delta[3 * j:3 * j + 3]) for j, R in enumerate(Rs)]
         r_new = rotations_vector(*new_Rs)
@@ -180,24 +193,17 @@ def polish(cost: RotationCost, rotations: list[np.ndarray]) -> tuple[list[np.nda
     return Rs, steps
 
 
-@functools.cache
-def _tangent_map(rotations: int) -> np.ndarray:
-    """T: (9k * 3k, 9k) with (T r).reshape(9k, 3k) = D, D[9j:9j+9, 3j+a] = vec(R_j [e_a]_x)
-    (column-major vec, r = [vec R_1; ...]): each entry of R [e_a]_x is one entry of R, signed,
-    so D is exact whichever way it is formed (read-only)."""
-    n = 9 * rotations
-    T = np.zeros((n, 3 * rotations, n))
-    for j in range(rotations):
-        for a in range(3):
-            G = _GENERATORS[a]
-            for col in range(3):
-                for row in range(3):  # (R G)[row, col] = sum_q R[row, q] G[q, col]
-                    for q in range(3):
-                        if G[q, col]:
-                            T[9 * j + 3 * col + row, 3 * j + a, 9 * j + 3 * q + row] = G[q, col]
-    T = T.reshape(n * 3 * rotations, n)
-    T.setflags(write=False)
-    return T
+def _tangent(rotations: list[np.ndarray]) -> np.ndarray:
+    """D: (9k, 3k), block diagonal, D[9j:9j+9, 3j+a] = vec(R_j [e_a]_x) (column-major vec): the
+    derivative of r along R_j <- R_j exp([d]_x). Each entry of R [e_a]_x is one entry of R,
+    signed (a product with 0 or +-1, summed with zeros), so D is exact. Formed block by block:
+    the map from r to D as one matrix held (9k)^2 3k numbers, 2.2 GB at 104 rotations."""
+    k = len(rotations)
+    blocks = np.asarray(rotations, dtype=float)[:, None] @ _GENERATORS[None]  # (k, 3, 3, 3): R_j [e_a]_x
+    D = np.zeros((9 * k, 3 * k))
+    for j in range(k):
+        D[9 * j:9 * j + 9, 3 * j:3 * j + 3] = blocks[j].transpose(0, 2, 1).reshape(3, 9).T
+    return D
 
 
 def _gauss_newton_step(J: np.ndarray, e: np.ndarray) -> np.ndarray:
@@ -219,13 +225,17 @@ def certificate(M: np.ndarray, y: np.ndarray, nu: np.ndarray, redundant: bool) -
     feasible y' (indeed every feasible Z of the relaxation), while y^T M y = b^T nu + y^T S y.
     """
     rotations = (len(y) - 1) // 9
-    A, b = constraint_matrices(rotations, redundant)
-    # (9k+1, K): columns A_j y, by one BLAS product (each row of an A_j has one nonzero entry,
-    # so this is exact either way; einsum took 8 of the bound's ~80 us)
-    L = (A.reshape(-1, len(y)) @ y).reshape(len(A), len(y)).T
+    j, p, q, c, b = constraint_terms(rotations, redundant)
+    # (9k+1, K): the columns A_j y, summed from the constraints' terms (no dense A_j: K (9k+1)^2
+    # numbers, 1.1 GB for a cell of 40 cameras)
+    L = np.zeros((len(y), len(b)))
+    np.add.at(L, (p, j), 0.5 * c * y[q])
+    np.add.at(L, (q, j), 0.5 * c * y[p])
     correction = lstsq(L, M @ y - L @ nu)  # LAPACK directly (`handeye.linalg.lstsq`: numpy's numbers)
     nu = nu + correction
-    S = M - einsum("k,kij->ij", nu, A)
+    S = np.array(M, dtype=float)
+    np.subtract.at(S, (p, q), 0.5 * c * nu[j])
+    np.subtract.at(S, (q, p), 0.5 * c * nu[j])
     lam = eigvalsh(S)
     lam_min = float(lam[0])
     value = float(y @ M @ y)
@@ -256,7 +266,7 @@ def local_certificate(M: np.ndarray, y: np.ndarray) -> dict[str, float]:
     "certificate_margin": the second smallest eigenvalue of the dual slack S (its smallest is
     0, along y), the room the certificate has."""
     rotations = (len(y) - 1) // 9
-    K = len(constraint_matrices(rotations, redundant=False)[1])
+    K = len(constraint_terms(rotations, redundant=False)[4])
     return certificate(M, y, np.zeros(K), redundant=False)
 
 
