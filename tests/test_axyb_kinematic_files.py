@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -498,3 +499,62 @@ def test_a_urdf_whose_joints_loop_is_refused_at_once(tmp_path, case, says):
     with pytest.raises(InputError, match=says) as caught:
         read_arm(tmp_path / "loop.urdf")
     assert "\n" not in str(caught.value) and time.perf_counter() - started < 5
+
+
+def _rad_arm(folder):
+    import re
+
+    text = (folder / "arm.yaml").read_text()
+    for key in ("alpha", "offset"):
+        text = re.sub(rf"{key}: (-?\d+)", lambda m: f"{m.group(0).split(':')[0]}: {math.radians(float(m.group(1))):.6f}",
+                      text)
+    (folder / "arm.yaml").write_text(text)
+
+
+def _camera_m(folder):
+    (folder / "cell.yaml").write_text((folder / "cell.yaml").read_text().replace("  unit: mm", "  unit: m"))
+
+
+def _joints_swapped(folder):
+    lines = (folder / "joints.csv").read_text().splitlines()
+    rows = [lines[0]]
+    for line in lines[1:]:
+        parts = line.split(",")
+        parts[2], parts[3] = parts[3], parts[2]
+        rows.append(",".join(parts))
+    (folder / "joints.csv").write_text("\n".join(rows) + "\n")
+
+
+def _board_long(folder):
+    lines = (folder / "camera.csv").read_text().splitlines()
+    rows = [lines[0]]
+    for line in lines[1:]:
+        parts = line.split(",")
+        parts[1:4] = [repr(float(v) * 1.02) for v in parts[1:4]]
+        rows.append(",".join(parts))
+    (folder / "camera.csv").write_text("\n".join(rows) + "\n")
+
+
+@pytest.mark.parametrize("mistake, says", [
+    (_rad_arm, "beyond what a real arm is off its model"),
+    (_camera_m, "if the camera file is in mm, not m"),
+    (_joints_swapped, "check the joint readings' unit and order"),
+    (_board_long, "best when multiplied by 0.98"),
+])
+def test_the_users_mistakes_are_not_absorbed_into_dh_corrections(tmp_path, mistake, says):
+    """The bundled kinematic cell with a user's mistake: the arm file's angles in radians under
+    `angle_unit: deg` (X was 20 m off), the camera poses' unit m on a file in mm (30 m off, J2's
+    a corrected by +330 m), two joint columns swapped (Y 314 mm off), the board 2% long (Y 27 mm,
+    87 of its 1-sigma): each was `optimal`. Now `unreliable`, with a warning naming the mistake
+    (the pose cell's plausibility and scale checks on the nominal arm, and corrections beyond a
+    real arm's); the cell as bundled stays `optimal` and quiet."""
+    from handeye.io.examples import kinematic_example_dir
+
+    shutil.copytree(kinematic_example_dir(), tmp_path, dirs_exist_ok=True)
+    clean = handeye.calibrate(Cell.from_file(tmp_path / "cell.yaml"))
+    assert clean.solution.status.value == "optimal"
+    assert not any("beyond what a real arm" in w or "implausible" in w or "multiplied by" in w for w in clean.warnings)
+    mistake(tmp_path)
+    result = handeye.calibrate(Cell.from_file(tmp_path / "cell.yaml"))
+    assert result.solution.status.value == "unreliable" and not result.usable
+    assert any(says in w for w in result.warnings), [w[:120] for w in result.warnings]

@@ -16,22 +16,31 @@ solved by the problem made from joint readings (`Problem.from_joints`, ``axyb-ki
    parameters hand-eye data cannot determine in words, and the corrected table as an arm file
    (`CalibrationResult.arm_yaml`) for the controller.
 
-The plausibility checks of pose files (Euler order, inverted poses, ...) do not apply: the solve's
-self-check and the problem's own validation (readings against the table, enough motion) do.
+A kinematic fit absorbs what it is given: readings in the wrong unit or order, an arm file's
+angles in radians under ``angle_unit: deg``, camera poses in m given as mm or a board 2% off
+became DH "corrections" (J2's a by +330 m) beside an answer metres off, ``optimal``. So the cell
+gets the checks every pose cell gets (`pose_checks`), on the nominal arm's flange poses: the
+plausibility checks of the A X = Y B fit (`handeye.checks.plausibility`: the usual setup
+mistakes, residuals beyond any calibrated cell's) and its camera scale (self-check 5, with what
+a kinematic fit would make of it), and the corrections are bounded by what a real arm can be off
+its model (`MAX_LENGTH_CORRECTION_MM`, `MAX_ANGLE_CORRECTION_DEG`): beyond, named, and the
+status ``unreliable``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from typing import Any
 
 import numpy as np
 
 from handeye.framework.api import solve
-from handeye.framework.errors import InputError
+from handeye.framework.errors import HandEyeError, InputError
 from handeye.framework.problem import JointStations
 from handeye.framework.registry import get_registry
+from handeye.framework.solution import Status
 from handeye.geometry.kinematics import DHArm
 from handeye.geometry.se3 import inverse
 from handeye.io.arm_files import ANGLE_UNITS, ArmModel, arm_yaml, read_arm
@@ -40,11 +49,15 @@ from handeye.io.pose_readers import PoseStack
 from handeye.workflow.cell import Cell
 from handeye.workflow.image_stations import image_stations
 from handeye.workflow.result import CalibrationResult
-from handeye.workflow.solving import default_solver, time_limit
+from handeye.workflow.solving import UNUSABLE, default_solver, time_limit
 from handeye.workflow.stations import Log, pose_stations, take
 
 #: how the inputs name joint readings; the robot stream made from them holds matrices
 JOINTS_FORMAT = "joints"
+#: a DH correction beyond these is no real arm's deviation from its model (a manufacturer's
+#: calibration corrects tenths of a millimetre and of a degree): a unit or an order is wrong
+MAX_LENGTH_CORRECTION_MM = 10.0
+MAX_ANGLE_CORRECTION_DEG = 2.0
 
 
 def read_inputs(cell: Cell) -> tuple[ArmModel, JointStack]:
@@ -106,9 +119,72 @@ def calibrate_joints(cell: Cell, log: Log | None = None, *, workers: int | None 
     residuals = problem.residuals(problem.validate(**fields), solution.unknowns)
     solution = in_arm_frames(solution, arm)
     kinematics = kinematics_entry(cell, arm, joints, solution.diagnostics)
+    report, notes = (pose_checks(cell, stations, camera, camera_read, invert) if cell.checks else (None, []))
+    notes += beyond_a_real_arm(kinematics)
+    if (notes or (report is not None and not report.plausible)) and solution.status not in UNUSABLE:
+        solution = dataclasses.replace(solution, status=Status.UNRELIABLE)
+    found = [*(report.warnings if report is not None else ()), *notes]
     return CalibrationResult(cell=cell, solution=solution, solver=solver, unit=unit, stations=stations,
-                             camera=camera, camera_read=camera_read, residuals=residuals, checks=None, pairing=None,
-                             facts={}, warnings=(*stations.warnings, *solution.warnings), kinematics=kinematics)
+                             camera=camera, camera_read=camera_read, residuals=residuals, checks=report, pairing=None,
+                             facts={}, warnings=(*stations.warnings, *found, *solution.warnings), kinematics=kinematics)
+
+
+def pose_checks(cell: Cell, stations: Any, camera: PoseStack, camera_read: PoseStack,
+                invert: bool) -> tuple[Any, list[str]]:
+    """The checks of a pose cell on the A X = Y B fit of the nominal arm's flange poses (the robot
+    stream made from the readings) and the camera's: the plausibility report
+    (`handeye.checks.plausibility.check`: camera poses inverted or in another unit, the other
+    setup, pairs shifted, residuals beyond any calibrated cell's) and, where the camera's
+    translations fit the robot's at another scale (self-check 5), what a kinematic fit makes of
+    that: it scales the arm's links instead. Errors of the arm's kinematics, which the kinematic
+    fit is for, stay within what a calibrated cell shows."""
+    from handeye.checks.plausibility import Streams, check
+    from handeye.checks.scale_checks import SCALE_SIGMAS, SCALE_WARN, camera_scale_verdict
+    from handeye.io.data_files import from_poses
+    from handeye.workflow.reading import rereader
+
+    robot = stations.robot
+    pose_file = from_poses(robot.poses, camera.poses, "axyb", setup=cell.setup)
+    try:
+        pose = solve("axyb", **pose_file.data)
+    except HandEyeError:  # the kinematic fit's own checks speak for it
+        return None, []
+    problem = get_registry().problem("axyb")
+    data = problem.validate(**pose_file.data)
+    report = check(Streams(robot.poses, camera.poses, robot.unit, cell.setup, "axyb", None, robot_format="matrix",
+                           camera_format=camera_read.format, camera_unit=camera_read.unit,
+                           reread_camera=None if cell.images is not None else rereader(
+                               cell.camera, camera_read, robot.unit, cell.orthonormalize, stations.camera_rows, invert)),
+                   problem.residuals(data, pose.unknowns))
+    notes = []
+    scale = camera_scale_verdict(problem, data, pose.unknowns)
+    # a scale error, not what the kinematics' own errors mimic (tenths of a per mille: the arm's links)
+    if scale is not None and abs(scale["scale"] - 1.0) > SCALE_WARN and abs(scale["sigmas"]) > SCALE_SIGMAS:
+        notes.append(f"the camera's translations fit the arm's nominal flange poses best when multiplied by "
+                     f"{scale['scale']:.4g} (+-{scale['std']:.2g}, {abs(scale['sigmas']):.3g} standard deviations from 1): "
+                     "a kinematic fit makes the arm's links that much longer or shorter instead, and the answer is off "
+                     "by it; check the camera poses' unit, the board's size and the camera's focal length")
+    return report, notes
+
+
+def beyond_a_real_arm(kinematics: dict[str, Any]) -> list[str]:
+    """The warning naming the DH corrections beyond what a real arm is off its model
+    (`MAX_LENGTH_CORRECTION_MM`, `MAX_ANGLE_CORRECTION_DEG`), in the arm file's units; [] where
+    none is, or the answer keeps the nominal arm."""
+    if not kinematics.get("used"):
+        return []
+    unit, angle_unit = kinematics["length_unit"], kinematics["angle_unit"]
+    to_mm = {"mm": 1.0, "m": 1000.0}.get(unit, 1.0)
+    to_deg = 1.0 if angle_unit == "deg" else math.degrees(1.0)
+    far = [f"{p['name']} by {p['correction']:+.4g} {p['unit']}" for p in kinematics["parameters"]
+           if (abs(p["correction"]) * to_mm > MAX_LENGTH_CORRECTION_MM if p["unit"] == unit
+               else abs(p["correction"]) * to_deg > MAX_ANGLE_CORRECTION_DEG)]
+    if not far:
+        return []
+    return [f"the kinematic fit corrects {', '.join(far[:4])}{' and more' if len(far) > 4 else ''}: beyond what a real "
+            f"arm is off its model ({MAX_LENGTH_CORRECTION_MM:g} mm, {MAX_ANGLE_CORRECTION_DEG:g} deg), so the "
+            "corrections stand for a mistake in the inputs: check the joint readings' unit and order against the arm "
+            "file's joints, the arm file's units, and the camera poses' unit"]
 
 
 def in_arm_frames(solution: Any, arm: ArmModel) -> Any:
