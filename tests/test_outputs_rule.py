@@ -77,3 +77,19 @@ def test_outputs_are_checked_before_any_work(tmp_path, capsys):
     _refused(capsys, *common, "--figure", tmp_path / "plan.xyz", says="cannot draw a figure as 'xyz'")
     _refused(capsys, *common, "--json", tmp_path / "missing" / "plan.json", says="does not exist")
     assert not stations.exists()
+
+
+def test_an_output_over_a_file_of_an_input_folder_is_refused(tmp_path, capsys):
+    """calibrate reads every image of --images and every pose file of a pose folder: an output
+    naming one of them is refused even with --force (it would overwrite an image or a pose)."""
+    folder = tmp_path / "rct"
+    shutil.copytree(image_example_dir(), folder)
+    flags = ["calibrate", "--images", folder / "images", "--board", "circlegrid:10x10:25.4mm", "--robot",
+             folder / "poses", "--robot-format", "xyz-quat-xyzw", "--robot-unit", "m", "--match", "name",
+             "--setup", "eye-in-hand"]
+    image = sorted((folder / "images").iterdir())[0]
+    pose = sorted((folder / "poses").iterdir())[0]
+    before = image.read_bytes(), pose.read_bytes()
+    _refused(capsys, *flags, "-o", image, "--force", says="a file the run reads from the input folder")
+    _refused(capsys, *flags, "--yaml", pose, "--force", says="a file the run reads from the input folder")
+    assert (image.read_bytes(), pose.read_bytes()) == before

@@ -208,6 +208,25 @@ def check_outputs_apart(outputs: Sequence[tuple[str, str | Path | None]], inputs
             if _same_file(path, source):
                 raise InputError(f"{flag} {str(path)!r} is the input file {str(source)!r} (or a link to it); it would be "
                                  "overwritten: name another output file")
+            if _read_from(path, source):
+                raise InputError(f"{flag} {str(path)!r} is a file the run reads from the input folder {str(source)!r}; "
+                                 "it would be overwritten: name a file outside that folder")
+
+
+#: files an input folder's readers take (images; pose files, one per station): an output that is
+#: one of them, already there, would overwrite an input
+FOLDER_INPUTS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp", ".csv", ".tsv", ".txt",
+                 ".yaml", ".yml", ".json", ".npz")
+
+
+def _read_from(path: Path, folder: Path) -> bool:
+    """Whether `path` is an existing file directly in the input folder `folder` of a kind its
+    readers take (`FOLDER_INPUTS`)."""
+    try:
+        return (folder.is_dir() and path.is_file() and path.suffix.lower() in FOLDER_INPUTS
+                and path.resolve().parent == folder.resolve())
+    except (OSError, RuntimeError):
+        return False
 
 
 def _same_file(a: Path, b: Path) -> bool:
