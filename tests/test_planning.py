@@ -350,3 +350,22 @@ def test_no_planned_station_cuts_the_printed_board_under_the_true_x_and_y():
                      workspace=WORKSPACE, limits=LIMITS, rough=(2.0, 10.0), seed=trial)
             uv = views.project(outline, CAMERA, views.views_of(inverse(Y) @ p.A @ X, setup))
             assert np.all((uv[..., 0] >= 0) & (uv[..., 0] <= w) & (uv[..., 1] >= 0) & (uv[..., 1] <= h)), (setup, trial)
+
+
+def test_cli_plans_an_eye_to_hand_cell_whose_flange_points_up(tmp_path, capsys):
+    """A camera above the cell watching a board on an up-pointing flange: the tilt limit measured
+    from straight down refuses every station; with --tool-axis 0,0,1 the plan keeps every flange
+    z axis within --max-tilt of up. --rough widens the margin the board keeps in the image."""
+    write_camera(tmp_path / "cam.yaml")
+    _, Y = CELLS["eye-to-hand"]
+    X = make_pose(so3_exp([math.pi, 0.0, 0.0]), [0.0, 30.0, 120.0])  # the board faces along the flange's z axis
+    base = ["plan", "--setup", "eye-to-hand", "--pose-format", "matrix", "--x", ",".join(f"{v:.17g}" for v in X.ravel()),
+            "--y", ",".join(f"{v:.17g}" for v in Y.ravel()), "--board", "chessboard:9x6:30mm", "--intrinsics",
+            str(tmp_path / "cam.yaml"), "--count", "6", "--workspace", "200,-500,50,1000,500,1000", "--max-tilt", "60",
+            "--unit", "mm", "--format", "matrix"]
+    assert main([*base, "-o", str(tmp_path / "down.csv")]) == 2
+    assert "only 0 of" in capsys.readouterr().err
+    assert main([*base, "--tool-axis", "0,0,1", "--rough", "2,10", "-o", str(tmp_path / "up.csv")]) == 0
+    stack = read_poses(tmp_path / "up.csv", "matrix", unit="mm")
+    up = np.array(stack.poses)[:, :3, 2] @ np.array([0.0, 0.0, 1.0])
+    assert len(up) == 6 and np.all(up >= math.cos(math.radians(60)) - 1e-9), up

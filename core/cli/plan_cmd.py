@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
 from typing import Any
 
@@ -66,7 +67,13 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--workspace", metavar="X0,Y0,Z0,X1,Y1,Z1",
                         help="the box the flange's origin must stay in, base frame, --unit (default: no limit)")
     parser.add_argument("--max-tilt", type=finite_number, metavar="DEG",
-                        help="largest angle of the flange's z axis from straight down (base -z) (default: no limit)")
+                        help="largest angle of the flange's z axis from --tool-axis (default: no limit)")
+    parser.add_argument("--tool-axis", metavar="X,Y,Z",
+                        help="the base-frame direction --max-tilt is measured from (default 0,0,-1: the flange "
+                             "pointing down; 0,0,1 for an arm whose flange points up, e.g. toward fixed cameras above)")
+    parser.add_argument("--rough", metavar="DEG,LENGTH",
+                        help="how far the given X and Y may be off (deg, --unit): the planned views keep the board "
+                             "that far inside the image (default 1 deg and 1%% of the farthest viewing distance)")
     parser.add_argument("--distance", metavar="NEAR,FAR",
                         help="camera-board distance range, --unit (default: 0.5-2x that at which the board fills half "
                              "the image's width)")
@@ -120,13 +127,19 @@ def run(args: argparse.Namespace) -> int:
         from handeye.planning.plan import default_limits
 
         limits = ViewLimits(distance=default_limits(board, camera).distance, max_angle_deg=args.max_angle)
-    workspace = workspace_of(args.workspace, args.max_tilt)
+    workspace = workspace_of(args.workspace, args.max_tilt, args.tool_axis)
+    rough = None
+    if args.rough:
+        rough = tuple(_numbers(args.rough, 2, "--rough"))
+        if not all(0 <= v < math.inf for v in rough) or rough[0] >= 90:
+            raise InputError(f"--rough takes an angle (deg, below 90) and a length >= 0, got {args.rough!r}")
     noise = Noise(pixel=args.pixel_noise, robot=_numbers(args.robot_noise, 2, "--robot-noise") if args.robot_noise else None)
     recorded = _recorded(args)
     arm = read_arm(args.arm).in_unit(args.unit) if args.arm else None
     reach = Reach(arm, *_limits(args.joint_limits, arm.joints), seed=args.seed) if arm is not None else None
     result = plan(args.problem, setup=args.setup, X=X, Y=Y, camera=camera, board=board, count=args.count,
-                  workspace=workspace, limits=limits, noise=noise, recorded=recorded, reach=reach, seed=args.seed)
+                  workspace=workspace, limits=limits, noise=noise, recorded=recorded, rough=rough, reach=reach,
+                  seed=args.seed)
     result.write(args.output, args.format or args.pose_format, args.unit)
     print(f"{len(result.A)} stations ({args.setup}) written to {args.output}, in the order to record them"
           + (f", after the {result.recorded} recorded" if result.recorded else ""))

@@ -117,7 +117,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--workspace", metavar="X0,Y0,Z0,X1,Y1,Z1",
                         help="suggested flange positions inside this box (base frame, the robot's unit)")
     parser.add_argument("--max-tilt", type=finite_number, metavar="DEG",
-                        help="suggested tool axes (flange z) within DEG of straight down")
+                        help="suggested tool axes (flange z) within DEG of --tool-axis")
+    parser.add_argument("--tool-axis", metavar="X,Y,Z",
+                        help="the base-frame direction --max-tilt is measured from (default 0,0,-1: straight down)")
     parser.add_argument("--next-out", metavar="FILE",
                         help="write the suggested poses to this pose file (the robot's format and unit), rewritten "
                              "after every station (an existing file is kept unless --force)")
@@ -231,7 +233,7 @@ def _session(args: argparse.Namespace, unit: str, camera: Any, board: Any, targe
     tolerance = None if target is None else Tolerance(target[0], _in_unit(target[1], target[2], unit))
     sigma = None if camera_noise is None else (math.radians(camera_noise[0]),
                                               _in_unit(camera_noise[1], camera_noise[2], unit))
-    workspace = workspace_of(args.workspace, args.max_tilt)
+    workspace = workspace_of(args.workspace, args.max_tilt, args.tool_axis)
     return Session(args.problem, setup=args.setup, target=tolerance, camera=camera,
                    board=None if board is None else board.in_unit(unit), unit=unit, workspace=workspace,
                    noise=Noise(args.pixel_noise), camera_sigma=sigma, suggest=args.suggest)
