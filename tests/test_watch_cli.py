@@ -224,3 +224,19 @@ def test_the_final_line_carries_the_answers_warnings(tmp_path, stations, capsys)
     out = capsys.readouterr().out
     final = out[out.index("final:"):]
     assert "warning:" in final and "scale" in final, final
+
+
+def test_the_first_stations_say_why_there_is_no_answer_yet(tmp_path, capsys):
+    """Stations that only translate the flange: each line says why there is no answer yet (the
+    rotations about fewer than two axes, and what to record), not a bare "not determined yet"."""
+    data, truth = PROBLEM.simulate(pairs=10, seed=2)
+    A = data["A"].copy()
+    for i in range(1, 5):
+        A[i] = A[0].copy()
+        A[i][:3, 3] += [50.0 * i, 0.0, 0.0]
+    B = np.array([inverse(truth["Y"]) @ a @ truth["X"] for a in A])
+    flags = write_pair(tmp_path, A, B)
+    assert main(["watch", *flags, "--once"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "(an answer needs 3 stations)" in lines[0]
+    assert "no answer from the 3 stations yet" in lines[2] and "rotate about at least two different axes" in lines[2]

@@ -43,10 +43,10 @@ from handeye.cli._common import (
     workspace_of,
 )
 from handeye.framework.errors import InputError
-from handeye.framework.solution import USABLE
+from handeye.framework.solution import USABLE, standard_deviations
 from handeye.io.pose_formats import format_names, parse_format
 from handeye.planning.plan import Noise, planners
-from handeye.planning.session import Session, Tolerance, Update
+from handeye.planning.session import MIN_STATIONS, Session, Tolerance, Update
 from handeye.planning.watch_source import (
     MATCHES,
     PoseFilePair,
@@ -269,7 +269,8 @@ def _show(args: argparse.Namespace, update: Update, station: Station, source: Po
         return
     parts = [f"{update.name}: {update.used}/{update.stations} stations"]
     if update.unknowns is None:
-        parts.append("not determined yet")
+        parts.append("not determined yet" + ("" if update.used >= MIN_STATIONS else
+                                             f" (an answer needs {MIN_STATIONS} stations)"))
     elif update.std is None:
         parts.append("1-sigma from 8 stations on (--camera-noise gives it sooner)")
     else:
@@ -313,7 +314,9 @@ def _final(args: argparse.Namespace, session: Session | None, unit: str | None) 
         print(json.dumps({"final": None, "message": message}) if args.json else message, flush=True)
         return 0
     solution = session.final()
-    std = (solution.diagnostics.get("self_check") or {}).get("std") or {}
+    # the answer's stated 1-sigma, as calibrate prints it (the root of the three axes' variances)
+    std = {name: {"rotation_deg": math.degrees(s["rotation"]), "translation": s["translation"]}
+           for name, s in standard_deviations(solution.diagnostics).items()}
     status = getattr(solution.status, "value", str(solution.status))
     if args.json:
         print(json.dumps({"final": {"status": status, "stations": int(sum(session.kept)), "unit": unit,

@@ -292,10 +292,15 @@ class Session:
             if self._fit is not None:
                 warnings.append(f"the full solve failed ({exc}); the quick fit stands")
                 self._refit(warnings)
+            else:  # why there is no answer yet, and what the next station should do about it
+                warnings.append(f"no answer from the {len(A)} stations yet: {exc}")
             return False
         if solution.status in _UNUSABLE:
             if self._fit is not None:
                 self._refit(warnings)
+            else:
+                reason = (solution.warnings or [f"the answer is {solution.status.value}"])[0]
+                warnings.append(f"no answer from the {len(A)} stations yet: {reason}")
             return False
         self._last_solved = int(sum(self._kept))
         for outlier in solution.diagnostics.get("outliers", []) or []:
