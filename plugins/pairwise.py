@@ -10,7 +10,8 @@ returns an answer its solver does not stand behind (not_converged, failed); the 
 ``diagnostics["pairs"]``. Then each X_j is the average of the X_j of the pairs that gave one: the
 chordal L2 mean of the rotations (the SVD projection of their sum: Hartley et al., "Rotation
 Averaging", IJCV 2013, Sec. 5.3) and the mean of the translations, each pair counting once; each
-Y_k likewise. An unknown that no pair determined raises DegenerateDataError naming it.
+Y_k likewise. An unknown that no pair determines alone is the cell's joint fit's (`JOINT_SOLVER`),
+with a warning naming it and why its pairs did not; DegenerateDataError only where that fails too.
 
 Only a baseline: a pair alone ignores what the other pairs say about its X and Y (an X seen by
 three cameras is fitted three times from a third of the data each, and an X or Y whose pairs are
@@ -50,6 +51,8 @@ if TYPE_CHECKING:
 #: the problem it solves and the problem each pair is solved as
 PROBLEM = "axyb-multi"
 PAIR_PROBLEM = "axyb"
+#: the solver of the whole cell, for the unknowns no pair determines alone
+JOINT_SOLVER = "auto"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -130,24 +133,28 @@ def average(poses: list[np.ndarray]) -> tuple[np.ndarray, dict[str, float]]:
 
 def run(data: AXYBMultiData, options: Options, backend: str) -> SolverOutput:
     records, answers = solve_pairs(data, options)
-    unknowns, spreads, undetermined = {}, {}, []
+    unknowns, spreads, undetermined, joint = {}, {}, [], None
     for kind, names, index in (("X", data.x_names, 0), ("Y", data.y_names, 1)):
         stack, spreads[kind] = [], {}
         for u, name in enumerate(names):
             poses = [sol.unknowns[kind] for key, sol in answers.items() if key[index] == u]
-            if not poses:
-                why = "; ".join(f"with {'Y' if kind == 'X' else 'X'} {r['Y' if kind == 'X' else 'X']!r}: {r['reason']}"
-                                for r in records if r[kind] == name)
-                undetermined.append(f"{kind} {name!r} is undetermined by every pair alone ({why})")
+            if poses:
+                pose, spread = average(poses)
+                stack.append(pose)
+                spreads[kind][name] = {"pairs": len(poses), **spread}
                 continue
-            pose, spread = average(poses)
-            stack.append(pose)
-            spreads[kind][name] = {"pairs": len(poses), **spread}
-        unknowns[kind] = np.stack(stack) if len(stack) == len(names) else None
-    if undetermined:
-        raise DegenerateDataError(f"pairwise: {'; '.join(undetermined)}; solve the cell jointly: solver auto")
+            # no pair alone determines it: the cell's joint fit does, from every observation
+            why = "; ".join(f"with {'Y' if kind == 'X' else 'X'} {r['Y' if kind == 'X' else 'X']!r}: {r['reason']}"
+                            for r in records if r[kind] == name)
+            joint = joint or _joint_fit(data, f"{kind} {name!r} is undetermined by every pair alone ({why})")
+            stack.append(np.asarray(joint.unknowns[kind][u], dtype=float))
+            undetermined.append(f"{kind} {name!r} ({why})")
+        unknowns[kind] = np.stack(stack)
     skipped = [r for r in records if not r["used"]]
     warnings = []
+    if undetermined:
+        warnings.append(f"pairwise: no pair alone determines {', '.join(undetermined)}: taken from the cell's joint fit "
+                        f"(solver {JOINT_SOLVER}), which uses every observation")
     if skipped:
         warnings.append(f"pairwise: {len(skipped)} of {len(records)} (X, Y) pairs skipped (" + "; ".join(
             f"X {r['X']!r} with Y {r['Y']!r}: {r['reason']}" for r in skipped[:3])
@@ -158,6 +165,18 @@ def run(data: AXYBMultiData, options: Options, backend: str) -> SolverOutput:
         diagnostics={"pair_solver": options.pair_solver, "pairs": records, "pairs_used": len(answers),
                      "spread": spreads, "warnings": warnings},
     )
+
+
+def _joint_fit(data: AXYBMultiData, why: str) -> Any:
+    """The cell solved jointly (`JOINT_SOLVER`), for what no pair determines alone; the reason
+    `why` in the error where that fails too."""
+    try:
+        solution = run_registered(JOINT_SOLVER, data, problem=PROBLEM)
+    except HandEyeError as exc:
+        raise DegenerateDataError(f"pairwise: {why}, and the cell's joint fit failed too ({_short(exc)})") from None
+    if solution.status not in USABLE:
+        raise DegenerateDataError(f"pairwise: {why}, and the cell's joint fit is {solution.status.value}")
+    return solution
 
 
 def _unit_invariant(options: Options) -> bool:
