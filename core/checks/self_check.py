@@ -311,7 +311,10 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
     camera_scale_noise(model, res, factor, failures, warnings, figures)
     configurations = getattr(problem, "configurations", None)
     systematic.assess_configuration(configurations(data) if configurations else None, model, res, flagged,
-                                    warnings, figures, covered=diagnostics.get("sigma_from") == "stations", cov=cov,
+                                    warnings, figures, covered=diagnostics.get("sigma_from") == "stations",
+                                    # the spread of this pose-level fit speaks for answers fitted to the poses;
+                                    # one fitted to other measurements (corners) states its own
+                                    cov=cov if diagnostics.get("fitted_to", "poses") == "poses" else None,
                                     stated=bool(standard_deviations(diagnostics)))
     names = model.unknowns
     delta = _difference(poses, fit)
