@@ -205,7 +205,7 @@ def test_the_default_robot_noise_follows_the_boards_unit():
     in_mm = plan(setup="eye-in-hand", X=X, Y=Y, camera=CAMERA, board=BOARD, count=6, limits=LIMITS)
     in_m = plan(setup="eye-in-hand", X=metres[0], Y=metres[1], camera=CAMERA, board=BOARD.in_unit("m"), count=6,
                 limits=ViewLimits(distance=(0.3, 0.9), max_angle_deg=45.0))
-    assert in_m.robot_sigma == pytest.approx((0.0002, 5e-5)) and in_mm.robot_sigma == pytest.approx((0.0002, 0.05))
+    assert in_m.robot_sigma == pytest.approx((0.003, 1.5e-3)) and in_mm.robot_sigma == pytest.approx((0.003, 1.5))
     for name in ("X", "Y"):  # the same plan, its 1-sigma scaled
         assert in_m.std[name]["translation"] * 1000 == pytest.approx(in_mm.std[name]["translation"], rel=1e-6)
         assert in_m.std[name]["rotation_deg"] == pytest.approx(in_mm.std[name]["rotation_deg"], rel=1e-6)
@@ -369,3 +369,30 @@ def test_cli_plans_an_eye_to_hand_cell_whose_flange_points_up(tmp_path, capsys):
     stack = read_poses(tmp_path / "up.csv", "matrix", unit="mm")
     up = np.array(stack.poses)[:, :3, 2] @ np.array([0.0, 0.0, 1.0])
     assert len(up) == 6 and np.all(up >= math.cos(math.radians(60)) - 1e-9), up
+
+
+def test_the_default_robot_noise_predicts_a_real_recording():
+    """The plan's prediction for the stations of industrial_calibration's real ChArUco recording,
+    at the default noise, against the 1-sigma the recording's own calibration states (which its
+    split halves confirm): X's translation 0.86 mm predicted, 0.48 stated (rotation 0.090 against
+    0.115 deg); at the former default robot noise, an ideal arm's 0.0002 rad / 0.05 mm, 0.067 mm
+    (7x too sure). On two real KUKA recordings (not bundled): 0.98 / 0.96 mm against 0.97 / 0.92."""
+    from tests.test_intrinsics_uncertainty import CHARUCO, _charuco
+
+    if not CHARUCO.is_dir():
+        pytest.skip("shared industrial_calibration set not present")
+    from handeye.framework.solution import standard_deviations
+    from handeye.vision.boards import parse_board
+
+    result = handeye.calibrate(_charuco(None))
+    data, unknowns = result.solution.data, result.solution.unknowns
+    stated = standard_deviations(result.solution.diagnostics)["X"]["translation"]
+    board = parse_board("charuco:5x7:36.195mm:18.256mm:DICT_6X6_250").in_unit(result.unit)
+    pixel = float(np.median(result.stations.images.errors))
+    predicted = {}
+    for name, robot in (("default", None), ("ideal arm", (0.0002, 0.05e-3))):
+        p = plan("axyb", setup="eye-to-hand", X=unknowns["X"], Y=unknowns["Y"], camera=result.stations.images.camera,
+                 board=board, count=1, recorded=(data.A, data.B), noise=Noise(pixel=pixel, robot=robot))
+        predicted[name] = p.progression[0]["X"]["translation"]
+    assert 0.67 < predicted["default"] / stated < 2.5, (predicted, stated)
+    assert predicted["ideal arm"] < stated / 5
