@@ -396,3 +396,38 @@ def test_the_default_robot_noise_predicts_a_real_recording():
         predicted[name] = p.progression[0]["X"]["translation"]
     assert 0.67 < predicted["default"] / stated < 2.5, (predicted, stated)
     assert predicted["ideal arm"] < stated / 5
+
+
+def test_the_stations_are_driven_in_a_short_order():
+    """The plan's stations in driving order (`route.driving_order`): within 10% of the shortest
+    open path (every order tried, 7 stations), and far shorter than the order the design picked
+    them in; what they tell together, the final 1-sigma, does not depend on the order."""
+    import itertools
+
+    from handeye.planning import route
+
+    X, Y = CELLS["eye-in-hand"]
+    p = plan("axyb", setup="eye-in-hand", X=X, Y=Y, camera=CAMERA, board=BOARD, count=7, workspace=WORKSPACE,
+             limits=LIMITS)
+    cost = route.move_costs(p.A, route.LEVER_MM)
+    length = lambda order: sum(cost[a, b] for a, b in zip(order, order[1:]))  # noqa: E731
+    best = min(length(order) for order in itertools.permutations(range(7)))
+    assert length(range(7)) <= 1.1 * best  # p.A is already in driving order
+    rng = np.random.default_rng(1)
+    shuffled = [length(rng.permutation(7)) for _ in range(50)]
+    assert length(range(7)) < 0.8 * float(np.median(shuffled))
+    again = plan("axyb", setup="eye-in-hand", X=X, Y=Y, camera=CAMERA, board=BOARD, count=7, workspace=WORKSPACE,
+                 limits=LIMITS)
+    assert again.std == p.std
+
+
+def test_cli_says_the_driving_time_and_that_reach_was_not_checked(tmp_path, capsys):
+    write_camera(tmp_path / "cam.yaml")
+    args = ["plan", "--setup", "eye-in-hand", "--x", "60,-20,100,17.19,0,0", "--y", "600,0,0,0,0,180",
+            "--board", "chessboard:9x6:30mm", "--intrinsics", str(tmp_path / "cam.yaml"), "--count", "6",
+            "--workspace", "200,-500,50,1000,500,1000", "--max-tilt", "70", "-o", str(tmp_path / "st.csv"),
+            "--speed", "100,30"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "driving order: the flange travels" in out and "at 100 mm/s and 30 deg/s" in out
+    assert "reachability not checked" in out

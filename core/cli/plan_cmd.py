@@ -37,6 +37,7 @@ from handeye.geometry.se3 import make_pose
 from handeye.io.arm_files import read_arm
 from handeye.io.output_files import check_figure_format
 from handeye.io.pose_formats import parse_format
+from handeye.planning import route
 from handeye.planning.plan import Noise, plan
 from handeye.planning.reach import Reach
 from handeye.planning.views import ViewLimits
@@ -103,6 +104,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("-o", "--output", required=True, help="the stations file (.csv, .json, ...)")
     parser.add_argument("--format", help="pose format of the written stations (default: --pose-format)")
     parser.add_argument("--figure", metavar="PNG", help="also draw the plan")
+    parser.add_argument("--speed", default="250,45", metavar="LENGTH_PER_S,DEG_PER_S",
+                        help="the robot's flange speed and turning speed, for the time the driving order takes "
+                             "(default 250 mm/s in --unit, 45 deg/s)")
     parser.add_argument("--json", metavar="FILE", help="also write the plan with its predicted 1-sigma as JSON")
     add_force_flag(parser)
     parser.set_defaults(run=run)
@@ -144,6 +148,16 @@ def run(args: argparse.Namespace) -> int:
     result.write(args.output, args.format or args.pose_format, args.unit)
     print(f"{len(result.A)} stations ({args.setup}) written to {args.output}, in the order to record them"
           + (f", after the {result.recorded} recorded" if result.recorded else ""))
+    travel, turn = route.path_length(result.A)
+    speed, turn_speed = _numbers(args.speed, 2, "--speed")
+    if not (speed > 0 and turn_speed > 0):
+        raise InputError(f"--speed takes two speeds > 0 (--unit per s, deg per s), got {args.speed!r}")
+    seconds = route.path_seconds(result.A, speed, math.radians(turn_speed))
+    print(f"driving order: the flange travels {travel:.4g} {args.unit} and turns {math.degrees(turn):.0f} deg through "
+          f"them, about {seconds:.0f} s at {speed:g} {args.unit}/s and {turn_speed:g} deg/s (--speed), stops not counted")
+    if reach is None:
+        print("reachability not checked: the stations keep the flange in --workspace and the tool axis within "
+              "--max-tilt only; give the arm's model (--arm, --joint-limits) to plan stations the arm reaches")
     rot, trans = result.robot_sigma
     print(f"predicted 1-sigma ({args.pixel_noise:g} px per corner, robot {rot:g} rad and {trans:g} {args.unit} per axis"
           + ("" if args.robot_noise else ": the default, what real arms show in hand-eye recordings; --robot-noise "

@@ -23,11 +23,11 @@ import numpy as np
 from handeye.checks.validation import pose_stack
 from handeye.framework.errors import InputError
 from handeye.framework.registry import get_registry
-from handeye.planning import design, stations, views
+from handeye.planning import design, route, stations, views
 from handeye.planning.reach import Reach
 from handeye.planning.stations import Workspace
 from handeye.planning.views import ViewLimits
-from handeye.vision.boards import Board
+from handeye.vision.boards import UNITS, Board
 from handeye.vision.observations import SETUPS, Camera
 
 #: candidate stations drawn per plan
@@ -174,6 +174,8 @@ def plan(problem: str | None = None, *, setup: str, X: np.ndarray, Y: np.ndarray
                                      "board within the viewing distance and angle, the flange in the workspace"
                                      + (", not already recorded" if recorded is not None else "") + "); plan fewer "
                                      "stations, or widen the workspace or the viewing limits")
+    # driven in the order that keeps the flange's motion short (what they tell together is the same)
+    chosen = np.asarray(chosen)[route.driving_order(A[chosen], route.LEVER_MM * UNITS["mm"] / UNITS[board.unit])]
     base = np.zeros(info.shape[1:]) if prior is None else prior
     totals = base + np.cumsum(info[chosen], axis=0)
     progression = tuple(_std(T, names, interest) for T in totals)
