@@ -61,7 +61,7 @@ from handeye.geometry.se3 import inverse, rotation_angle
 
 #: residual rotation RMS (deg) no calibrated cell reaches
 ROT_LIMIT_DEG = 6.0
-#: residual translation RMS, as a fraction of the cell size (RMS spread of the flange positions)
+#: residual translation RMS, as a fraction of the cell size (`cell_size`: the cell's lever arm)
 TRANS_LIMIT_FRACTION = 0.12
 #: a hypothesis explains the data when it lowers the score by this factor to below 1
 EXPLAIN_FACTOR = 4.0

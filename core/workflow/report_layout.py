@@ -370,7 +370,8 @@ def diag_rows(r: Mapping[str, Any]) -> list[tuple[str, str]]:
         rows.append(("residual RMS vs limits", (f"{res['rotation_deg']:.3g} deg / {res['translation']:.3g} {unit} "
                                                f"(limits {lim['rotation_deg']:.3g} deg / {lim['translation']:.3g} "
                                                f"{unit})")))
-        rows.append(("cell size (RMS spread of the flange positions)", f"{checks['cell_size']:.4g} {unit}"))
+        rows.append(("cell size (lever arm: the largest RMS distance of the flange from its stations' centre or "
+                     "from the base, or of the board from the camera)", f"{checks['cell_size']:.4g} {unit}"))
         if checks.get("explanation"):
             e = checks["explanation"]
             rows.append(("best explanation", f"{e['description']} ({e['suggestion']})"))

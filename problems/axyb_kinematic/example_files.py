@@ -17,8 +17,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from handeye.estimation.noise import NoiseModel
-from handeye.geometry.kinematics import LR_MATE_200ID
-from handeye.geometry.se3 import inverse
+from handeye.geometry.kinematics import LR_MATE_200ID, LR_MATE_SIM_JOINTS
+from handeye.geometry.se3 import inverse, make_pose
 from handeye.io.arm_files import ArmModel, arm_yaml
 from handeye.problems.axyb_kinematic.problem import PROBLEM, random_errors
 
@@ -28,15 +28,51 @@ EXAMPLE = {"stations": 40, "seed": 26, "joint_noise": math.radians(0.005), "came
 NAMES = ("J1", "J2", "J3", "J4", "J5", "J6")
 
 
+#: the example's camera on the flange (T_flange_cam: 60 mm off its axis, 90 mm out, looking along
+#: it) and board (T_base_target: on a panel 850 mm in front of the base and 1.2 m up, tilted
+#: 45 deg toward the arm, its printed face (the board's -z) to the camera), mm
+CAMERA_ON_FLANGE = make_pose(np.eye(3), [0.0, -60.0, 90.0])
+_S = math.sqrt(0.5)
+BOARD_IN_BASE = make_pose(np.array([[0.0, -_S, _S], [1.0, 0.0, 0.0], [0.0, _S, _S]]), [850.0, 0.0, 1200.0])
+#: a station's view of the board: its distance (mm) and the largest angle (deg) between the
+#: optical axis and the direction to the board, and between the board's normal and the camera
+VIEW_DISTANCE = (300.0, 900.0)
+VIEW_ANGLE_DEG = 25.0
+FACING_DEG = 50.0
+
+
+def viewing_joints(stations: int, rng: np.random.Generator) -> np.ndarray:
+    """(stations, 6) joints (rad) in the simulator's box at which the camera (`CAMERA_ON_FLANGE`)
+    of the nominal arm sees the board (`BOARD_IN_BASE`) in front of it, near the image's centre
+    and facing it: a station a person would record (a joint draw alone put the board behind the
+    camera at 37 of 40 stations)."""
+    box = LR_MATE_SIM_JOINTS
+    found: list[np.ndarray] = []
+    while sum(len(f) for f in found) < stations:
+        q = rng.uniform(box[:, 0], box[:, 1], size=(20_000, 6))
+        T = inverse(LR_MATE_200ID.forward(q) @ CAMERA_ON_FLANGE) @ BOARD_IN_BASE  # board in the camera
+        t = T[:, :3, 3]
+        distance = np.linalg.norm(t, axis=1)
+        ahead = t[:, 2] / np.maximum(distance, 1e-9)  # cos of the board's direction off the optical axis
+        facing = np.einsum("mi,mi->m", T[:, :3, 2], t) / np.maximum(distance, 1e-9)  # printed face (-z) to camera
+        ok = ((distance >= VIEW_DISTANCE[0]) & (distance <= VIEW_DISTANCE[1])
+              & (ahead >= math.cos(math.radians(VIEW_ANGLE_DEG))) & (facing >= math.cos(math.radians(FACING_DEG))))
+        found.append(q[ok])
+    return np.concatenate(found)[:stations]
+
+
 def example_cell(*, stations: int = EXAMPLE["stations"], seed: int = EXAMPLE["seed"],
                  noise: bool = True) -> dict[str, Any]:
     """The simulated cell: ``q`` (m, 6) joint readings (rad), ``camera`` (m, 4, 4) T_cam_target
     (mm), ``names`` of the stations, ``errors`` (6, 4) the arm's DH errors (a, alpha, d, offset;
-    mm, rad; on the identifiable parameters), ``truth`` X = T_flange_cam, Y = T_base_target."""
+    mm, rad; on the identifiable parameters), ``truth`` X = T_flange_cam, Y = T_base_target. The
+    stations view the board as a person would record them (`viewing_joints`)."""
     rng = np.random.default_rng(seed)
     errors = random_errors(LR_MATE_200ID.table, rng)
+    q = viewing_joints(stations, rng)
     model = NoiseModel({"A": (EXAMPLE["joint_noise"], 0.0), "B": EXAMPLE["camera_noise"]}) if noise else None
-    data, truth = PROBLEM.simulate(pairs=stations, seed=seed, noise=model, errors=errors)
+    data, truth = PROBLEM.simulate(pairs=stations, seed=seed, noise=model, errors=errors, q=q,
+                                   X=CAMERA_ON_FLANGE, Y=BOARD_IN_BASE)
     return {"q": np.asarray(data["q"]), "camera": inverse(np.asarray(data["B"])),
             "names": [f"s{k:02d}" for k in range(stations)], "errors": errors, "truth": truth}
 

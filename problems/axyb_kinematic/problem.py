@@ -206,12 +206,14 @@ class AXYBKinematic(Problem):
         Options: dh (the nominal arm, default `LR_MATE_200ID`), errors ((n, 4) DH errors, columns
         a, alpha, d, offset; default `random_errors`; errors the data cannot see are moved into
         X and Y, `canonical`), joints ((n, 2) box, rad; default the LR Mate's, or +-90 deg).
+        q: (pairs, n) the true joints themselves instead of a draw in the box (rad).
         X, Y default to axyb's `PAPER_X`, `PAPER_Y`. The random stream: joints, errors, noise.
         """
         dh, errors, box = options.pop("dh", None), options.pop("errors", None), options.pop("joints", None)
+        given_q = options.pop("q", None)
         if options:
             raise InputError(f"unknown simulate option(s) {sorted(options)}; known: pairs, seed, noise, X, Y, links, "
-                             "dh, errors, joints")
+                             "dh, errors, joints, q")
         if pairs < 1:
             raise InputError(f"pairs must be >= 1, got {pairs}")
         nominal = LR_MATE_200ID.table if dh is None else dh_table(dh)
@@ -224,6 +226,8 @@ class AXYBKinematic(Problem):
         X = PAPER_X if X is None else pose_stack(np.asarray(X)[None], "X")[0]
         Y = PAPER_Y if Y is None else pose_stack(np.asarray(Y)[None], "Y")[0]
         q = rng.uniform(box[:, 0], box[:, 1], size=(pairs, n))
+        if given_q is not None:  # the stations' joints themselves (the draw above keeps the stream's order)
+            q = np.array(given_q, dtype=float).reshape(pairs, n)
         if links is None:
             errors = random_errors(nominal, rng) if errors is None else np.asarray(errors, dtype=float)
             links, X, Y = canonical(nominal, nominal + errors, X, Y)
