@@ -558,3 +558,21 @@ def test_the_users_mistakes_are_not_absorbed_into_dh_corrections(tmp_path, mista
     result = handeye.calibrate(Cell.from_file(tmp_path / "cell.yaml"))
     assert result.solution.status.value == "unreliable" and not result.usable
     assert any(says in w for w in result.warnings), [w[:120] for w in result.warnings]
+
+
+def test_an_arm_in_metres_shows_its_corrections_in_millimetres():
+    """A URDF's lengths are in m, so were its corrections (J2 a +0.00073): shown in mm, as an arm's
+    errors are read, with the unit said."""
+    from handeye.workflow.joint_cell import kinematics_lines
+
+    k = {"length_unit": "m", "angle_unit": "deg", "arm": "robot.urdf", "frames": ("base_link", "tool0"), "used": True,
+         "not_identifiable": [], "not_identifiable_why": "",
+         "parameters": [{"name": "joint_2 a", "unit": "m", "nominal": 0.33, "estimate": 0.33073, "correction": 0.00073,
+                         "std": 0.0001},
+                        {"name": "joint_2 alpha", "unit": "deg", "nominal": 0.0, "estimate": 0.3, "correction": 0.3,
+                         "std": 0.014}]}
+    lines = kinematics_lines(k)
+    row = next(line for line in lines if line.strip().startswith("joint_2 a "))
+    assert "+0.73" in row and row.split()[-1] == "0.1"
+    assert next(line for line in lines if line.strip().startswith("joint_2 alpha")).split()[-2] == "+0.3"
+    assert "corrections of lengths and their 1-sigma in mm" in lines[-1]

@@ -247,11 +247,17 @@ def kinematics_lines(k: dict[str, Any]) -> list[str]:
             + (f"{len(k['parameters'])} DH parameters identified and used in the answer" if k["used"] else
                f"{len(k['parameters'])} DH parameters fitted, not used: the answer keeps the nominal arm"))
     width = max([14, *(len(p["name"]) + 2 for p in k["parameters"])])
-    lines = ["", head, f"  {'parameter':<{width}}{'nominal':>12}{'estimate':>16}{'correction':>13}{'1-sigma':>10}"]
+    # corrections of lengths in m are tenths of a millimetre: shown in mm, as an arm's are read
+    small = 1000.0 if lu == "m" else 1.0
+    fix = "correction" + (" (mm)" if small != 1.0 else "")
+    lines = ["", head, f"  {'parameter':<{width}}{'nominal':>12}{'estimate':>16}{fix:>18}{'1-sigma':>10}"]
     for p in k["parameters"]:
         nominal = 0.0 if abs(p["nominal"]) < 1e-12 else p["nominal"]  # a converted URDF's dust
-        lines.append(f"  {p['name']:<{width}}{nominal:>12.6g}{p['estimate']:>16.8g}{p['correction']:>+13.4g}"
-                     f"{p['std']:>10.2g}")
+        scale = small if p["unit"] == lu else 1.0
+        lines.append(f"  {p['name']:<{width}}{nominal:>12.6g}{p['estimate']:>16.8g}{p['correction'] * scale:>+18.4g}"
+                     f"{p['std'] * scale:>10.2g}")
+    if small != 1.0:
+        lines.append("  (the corrections of lengths and their 1-sigma in mm; nominal and estimate in m, the arm file's unit)")
     if k["not_identifiable"]:
         why = k["not_identifiable_why"] or ", ".join(k["not_identifiable"])
         lines.append(f"  not identifiable from hand-eye data, kept nominal: {why}")
