@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import shutil
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -79,16 +80,22 @@ def test_workers_must_be_a_whole_number(monkeypatch):
     assert detection_pool.default_workers() == 3
 
 
+def cached_circle_grid(tmp_path: Path, count: int) -> tuple[list[Path], Any, Path, list[Outcome]]:
+    """The bundled circle grid's first `count` images copied, detected once into a cache of their
+    own: (files, board, cache folder, the outcomes)."""
+    folder = tmp_path / "images"
+    shutil.copytree(image_example_dir() / "images", folder)
+    files = list_images(folder)[:count]
+    board = parse_board(CIRCLES)
+    cache = tmp_path / "cache"
+    return files, board, cache, detection_plan.detect_set(files, board, cache=cache, workers=1)
+
+
 def test_a_cache_hit_is_identical_and_a_changed_image_or_board_misses(tmp_path, monkeypatch):
     """Second run: every image from the cache (detection never called), the same outcomes; one
     image changed by one pixel, another board and changed detector code each miss; a damaged
     entry is a miss, not an error; HANDEYE_NO_CACHE writes nothing."""
-    folder = tmp_path / "images"
-    shutil.copytree(image_example_dir() / "images", folder)
-    files = list_images(folder)[:5]
-    board = parse_board(CIRCLES)
-    cache = tmp_path / "cache"
-    first = detection_plan.detect_set(files, board, cache=cache, workers=1)
+    files, board, cache, first = cached_circle_grid(tmp_path, 5)
     entries = sorted((cache / "detections").rglob("*.npz"))
     assert len(entries) == 5
 
@@ -378,12 +385,7 @@ def test_an_entry_whose_contents_no_detection_gives_is_a_miss(tmp_path, damage):
     """An entry that reads as an archive but holds what no detection gives (NaN corners, corners a
     million pixels off, ids the board has not) is a miss: detected again, the same outcome as the
     first run, no error (NaN corners ended in an internal IndexError)."""
-    folder = tmp_path / "images"
-    shutil.copytree(image_example_dir() / "images", folder)
-    files = list_images(folder)[:3]
-    board = parse_board(CIRCLES)
-    cache = tmp_path / "cache"
-    first = detection_plan.detect_set(files, board, cache=cache, workers=1)
+    files, board, cache, first = cached_circle_grid(tmp_path, 3)
     entry = sorted((cache / "detections").rglob("*.npz"))[0]
     with np.load(entry, allow_pickle=False) as stored:
         arrays = {k: stored[k] for k in stored.files}

@@ -103,21 +103,38 @@ def test_suggestions_in_the_robot_format(tmp_path, capsys):
     assert np.all((t >= [200, -500, 100]) & (t <= [1000, 500, 1200]))
 
 
+def watch_while(flags: list[str], idle: float, *changes) -> tuple[int, str, str]:
+    """(exit code, stdout, stderr) of ``handeye watch`` in its own process, polling every 0.2 s
+    and ending after `idle` s without a new station, while `changes` ((station, function) pairs)
+    rewrite its files, each once watch has printed that station's line (not after a fixed time:
+    a loaded machine starts the process slowly)."""
+    import threading
+
+    command = "import sys; from handeye.cli import main; sys.exit(main(sys.argv[1:]))"
+    proc = subprocess.Popen([sys.executable, "-c", command, "watch", *flags, "--interval", "0.2", "--idle", str(idle)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True)
+    reader.start()
+    try:
+        for station, change in changes:
+            deadline = time.monotonic() + 60
+            while not any(line.startswith(f"{station}:") for line in list(lines)) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            change()
+        err = proc.communicate(timeout=60)[1]
+    finally:
+        proc.kill()
+    reader.join(5)
+    return proc.returncode, "".join(lines), err
+
+
 def test_follows_a_growing_file_pair(tmp_path, stations):
     A, B = stations
     flags = write_pair(tmp_path, A, B, rows=slice(0, 5))
-    command = "import sys; from handeye.cli import main; sys.exit(main(sys.argv[1:]))"
-    proc = subprocess.Popen([sys.executable, "-c", command, "watch", *flags, "--interval", "0.2", "--idle", "3"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        time.sleep(2.0)
-        write_pair(tmp_path, A, B, rows=slice(0, 9))
-        time.sleep(1.0)
-        write_pair(tmp_path, A, B)
-        out, err = proc.communicate(timeout=60)
-    finally:
-        proc.kill()
-    assert proc.returncode == 0, err
+    code, out, err = watch_while(flags, 3, ("s05", lambda: write_pair(tmp_path, A, B, rows=slice(0, 9))),
+                                 ("s09", lambda: write_pair(tmp_path, A, B)))
+    assert code == 0, err
     lines = [line for line in out.splitlines() if line.startswith("s")]
     assert [line.split(":")[0] for line in lines] == [f"s{i + 1:02d}" for i in range(14)]
     assert out.splitlines()[14].startswith("final: 14 stations")
@@ -199,16 +216,9 @@ def test_watch_starts_over_when_the_recording_is_rewritten(tmp_path, stations):
     answer is the new recording's, from its 14 stations, not the old ones'."""
     A, B = stations
     flags = write_pair(tmp_path, A, B, rows=slice(0, 10))
-    command = "import sys; from handeye.cli import main; sys.exit(main(sys.argv[1:]))"
-    proc = subprocess.Popen([sys.executable, "-c", command, "watch", *flags, "--interval", "0.2", "--idle", "2.5"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        time.sleep(2.0)
-        write_pair(tmp_path, A, B @ make_pose(np.eye(3), [60.0, 0.0, 0.0]))
-        out, err = proc.communicate(timeout=60)
-    finally:
-        proc.kill()
-    assert proc.returncode == 0, err
+    code, out, err = watch_while(flags, 2.5, ("s10", lambda: write_pair(tmp_path, A, B @ make_pose(np.eye(3),
+                                                                                                  [60.0, 0.0, 0.0]))))
+    assert code == 0, err
     assert "the recording was rewritten" in out and "starting over with the new recording (10 stations" in out
     assert "final: 14 stations" in out
 

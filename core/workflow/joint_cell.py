@@ -144,14 +144,15 @@ def pose_checks(cell: Cell, stations: Any, camera: PoseStack, camera_read: PoseS
     from handeye.workflow.reading import rereader
 
     robot = stations.robot
-    pose_file = from_poses(robot.poses, camera.poses, "axyb", setup=cell.setup)
+    cell_problem = get_registry().cell_problem()  # A X = Y B on the stations' poses
+    pose_file = from_poses(robot.poses, camera.poses, cell_problem, setup=cell.setup)
     try:
-        pose = solve("axyb", **pose_file.data)
+        pose = solve(cell_problem, **pose_file.data)
     except HandEyeError:  # the kinematic fit's own checks speak for it
         return None, []
-    problem = get_registry().problem("axyb")
+    problem = get_registry().problem(cell_problem)
     data = problem.validate(**pose_file.data)
-    report = check(Streams(robot.poses, camera.poses, robot.unit, cell.setup, "axyb", None, robot_format="matrix",
+    report = check(Streams(robot.poses, camera.poses, robot.unit, cell.setup, cell_problem, None, robot_format="matrix",
                            camera_format=camera_read.format, camera_unit=camera_read.unit,
                            reread_camera=None if cell.images is not None else rereader(
                                cell.camera, camera_read, robot.unit, cell.orthonormalize, stations.camera_rows, invert)),
