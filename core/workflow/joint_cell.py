@@ -139,7 +139,11 @@ def pose_checks(cell: Cell, stations: Any, camera: PoseStack, camera_read: PoseS
     that: it scales the arm's links instead. Errors of the arm's kinematics, which the kinematic
     fit is for, stay within what a calibrated cell shows."""
     from handeye.checks.plausibility import Streams, check
-    from handeye.checks.scale_checks import SCALE_SIGMAS, SCALE_WARN, camera_scale_verdict
+    from handeye.checks.scale_checks import (
+        SCALE_SIGMAS,
+        SCALE_WARN,
+        camera_scale_verdict,
+    )
     from handeye.io.data_files import from_poses
     from handeye.workflow.reading import rereader
 
