@@ -326,3 +326,25 @@ def test_cli_flags_and_write_config(exact_cell, capsys):
     code, out, err = run_cli(capsys, "calibrate", *flags[:6], "--observations", f"cam0={exact_cell / 'x.csv'}",
                              "--setup", "eye-to-hand")
     assert code == 2 and "not found" in err
+
+
+def test_a_large_cell_is_drawn_as_a_table_of_its_pairs():
+    """73 observed pairs (a real rig's 8 cameras and 16 markers) as a graph of crossing edges were
+    unreadable: beyond GRAPH_MAX_EDGES the report draws a table of markers and cameras instead,
+    each cell a pair's RMS rotation residual and observations."""
+    import io
+
+    import matplotlib.image
+
+    from handeye.workflow.report_plots import GRAPH_MAX_EDGES, graph_plot, pair_matrix
+
+    rng = np.random.default_rng(0)
+    pairs = sorted(set(zip(rng.integers(0, 16, 200).tolist(), rng.integers(0, 8, 200).tolist())))[:73]
+    rows = [{"X": f"tag{x}", "Y": f"cam{y}", "observations": int(rng.integers(2, 120)),
+             "rotation_rms_deg": float(rng.uniform(0.2, 3.0)), "translation_rms": float(rng.uniform(5, 40))}
+            for x, y in pairs]
+    assert len(rows) > GRAPH_MAX_EDGES
+    cell = {"pair_table": rows, "unit": "mm", "frames": {}}
+    png = graph_plot(cell)
+    image = matplotlib.image.imread(io.BytesIO(png))
+    assert png == pair_matrix(cell) and image.shape[0] > 500 and image.shape[1] > 500

@@ -120,13 +120,21 @@ def residual_plot(r: Mapping[str, Any]) -> bytes:
     return _png(fig)
 
 
+#: a cell with more observed pairs than this is drawn as a table of cameras and targets
+#: (`pair_matrix`): a real rig's 73 edges were unreadable as a graph
+GRAPH_MAX_EDGES = 24
+
+
 def graph_plot(r: Mapping[str, Any]) -> bytes:
     """The observation graph of a cell of several cameras and targets (`r["pair_table"]`): the
     poses of one unknown in a column on the left, the other's on the right, an edge per pair
     observed, its width growing with its observations and its colour with its RMS rotation
-    residual, labelled with its RMS residuals (deg, data unit)."""
-    plt = _pyplot()
+    residual, labelled with its RMS residuals (deg, data unit). More than `GRAPH_MAX_EDGES`
+    pairs: `pair_matrix` instead."""
     rows = r["pair_table"]
+    if len(rows) > GRAPH_MAX_EDGES:
+        return pair_matrix(r)
+    plt = _pyplot()
     keys = [k for k in rows[0] if k in ("X", "Y")][:2]
     left = list(dict.fromkeys(row[keys[0]] for row in rows))
     right = list(dict.fromkeys(row[keys[1]] for row in rows))
@@ -164,6 +172,35 @@ def graph_plot(r: Mapping[str, Any]) -> bytes:
     ax.axis("off")
     ax.set_title("which camera saw which target: edges labelled with their RMS residuals\n"
                  "(rotation, translation; width: observations, colour: RMS rotation)", fontsize=10)
+    return _png(fig)
+
+
+def pair_matrix(r: Mapping[str, Any]) -> bytes:
+    """The pairs of a large cell as a table: one unknown's poses in rows, the other's in columns,
+    each observed pair a cell coloured by its RMS rotation residual and labelled with it and its
+    observations; pairs never observed left blank."""
+    plt = _pyplot()
+    rows = r["pair_table"]
+    keys = [k for k in rows[0] if k in ("X", "Y")][:2]
+    down = list(dict.fromkeys(row[keys[0]] for row in rows))
+    across = list(dict.fromkeys(row[keys[1]] for row in rows))
+    rot = np.full((len(down), len(across)), np.nan)
+    for row in rows:
+        rot[down.index(row[keys[0]]), across.index(row[keys[1]])] = row["rotation_rms_deg"]
+    fig, ax = plt.subplots(figsize=(1.0 + 0.9 * len(across), 1.2 + 0.45 * len(down)))
+    image = ax.imshow(rot, cmap="viridis", aspect="auto")
+    for row in rows:
+        i, j = down.index(row[keys[0]]), across.index(row[keys[1]])
+        ax.text(j, i, f"{row['rotation_rms_deg']:.2g}°\n{row['observations']}", ha="center", va="center", fontsize=6,
+                color="white" if row["rotation_rms_deg"] < 0.6 * np.nanmax(rot) else "black")
+    ax.set_xticks(range(len(across)), across, rotation=60, ha="right", fontsize=7)
+    ax.set_yticks(range(len(down)), down, fontsize=7)
+    ax.set_xlabel(keys[1])
+    ax.set_ylabel(keys[0])
+    fig.colorbar(image, ax=ax, label="RMS rotation residual (deg)")
+    ax.set_title(f"which {keys[0]} was seen with which {keys[1]}: {len(rows)} pairs\n(cell: RMS rotation residual, "
+                 "observations; blank: never seen together)", fontsize=9)
+    fig.tight_layout()
     return _png(fig)
 
 
