@@ -249,20 +249,23 @@ def check_new_results(flag: str, outdir: str | Path, files: Iterable[str], force
                          "to overwrite its results, or name another folder (or --name)")
 
 
-def workspace_of(box: str | None, max_tilt: float | None, tool_axis: str | None = None) -> Any:
+def workspace_of(box: str | None, max_tilt: float | None, tool_axis: str | None = None,
+                 max_roll: float | None = None) -> Any:
     """The `handeye.planning.stations.Workspace` of ``--workspace X0,Y0,Z0,X1,Y1,Z1`` (the box's
-    corners; absent: no box), ``--max-tilt DEG`` (absent: no limit) and ``--tool-axis X,Y,Z`` (the
+    corners; absent: no box), ``--max-tilt DEG`` (absent: no limit), ``--tool-axis X,Y,Z`` (the
     base-frame direction the flange's z axis tilts from; default straight down, 0,0,-1: up for an
-    arm whose flange points up, sideways for a wall), or None without any of them."""
+    arm whose flange points up, sideways for a wall) and ``--max-roll DEG`` (the flange's roll
+    about its tool axis from "x forward"; 180: any), or None without any of them."""
     from handeye.planning.stations import Workspace
 
-    if box is None and max_tilt is None and tool_axis is None:
+    if box is None and max_tilt is None and tool_axis is None and max_roll is None:
         return None
     axis = (0.0, 0.0, -1.0) if tool_axis is None else tuple(_finite_numbers(tool_axis, 3, "--tool-axis", "X,Y,Z"))
+    limits = {"axis": axis, "max_tilt_deg": max_tilt, "max_roll_deg": max_roll}
     if box is None:
-        return Workspace(low=(-np.inf,) * 3, high=(np.inf,) * 3, axis=axis, max_tilt_deg=max_tilt)
+        return Workspace(low=(-np.inf,) * 3, high=(np.inf,) * 3, **limits)
     values = _finite_numbers(box, 6, "--workspace", "X0,Y0,Z0,X1,Y1,Z1 (the box's corners)")
-    return Workspace(low=tuple(values[:3]), high=tuple(values[3:]), axis=axis, max_tilt_deg=max_tilt)
+    return Workspace(low=tuple(values[:3]), high=tuple(values[3:]), **limits)
 
 
 def _finite_numbers(text: str, count: int, flag: str, form: str) -> list[float]:

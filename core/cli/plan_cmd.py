@@ -72,6 +72,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--tool-axis", metavar="X,Y,Z",
                         help="the base-frame direction --max-tilt is measured from (default 0,0,-1: the flange "
                              "pointing down; 0,0,1 for an arm whose flange points up, e.g. toward fixed cameras above)")
+    parser.add_argument("--max-roll", type=finite_number, default=90.0, metavar="DEG",
+                        help="largest roll of the flange about its tool axis from x forward (default 90: the wrist "
+                             "within a half turn, as a person drives it; 180: any)")
     parser.add_argument("--rough", metavar="DEG,LENGTH",
                         help="how far the given X and Y may be off (deg, --unit): the planned views keep the board "
                              "that far inside the image (default 1 deg and 1%% of the farthest viewing distance)")
@@ -132,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         from handeye.planning.plan import default_limits
 
         limits = ViewLimits(distance=default_limits(board, camera).distance, max_angle_deg=args.max_angle)
-    workspace = workspace_of(args.workspace, args.max_tilt, args.tool_axis)
+    workspace = workspace_of(args.workspace, args.max_tilt, args.tool_axis, args.max_roll)
     rough = None
     if args.rough:
         rough = tuple(_numbers(args.rough, 2, "--rough"))

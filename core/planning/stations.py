@@ -44,6 +44,9 @@ class Workspace:
     high: tuple[float, float, float]
     axis: tuple[float, float, float] = (0.0, 0.0, -1.0)
     max_tilt_deg: float | None = None
+    #: the flange's roll about its tool axis within this angle of "x forward" (`roll`): a person
+    #: drives the wrist within a half turn, not from -178 to +178 deg between stations; None: any
+    max_roll_deg: float | None = None
 
     def __post_init__(self) -> None:
         low, high = np.asarray(self.low, dtype=float), np.asarray(self.high, dtype=float)
@@ -53,15 +56,31 @@ class Workspace:
             raise InputError("the workspace's tool axis must not be zero")
         if self.max_tilt_deg is not None and not 0 < self.max_tilt_deg <= 180:
             raise InputError(f"the tool axis' largest tilt must lie in (0, 180] deg, got {self.max_tilt_deg}")
+        if self.max_roll_deg is not None and not 0 < self.max_roll_deg <= 180:
+            raise InputError(f"the flange's largest roll must lie in (0, 180] deg, got {self.max_roll_deg}")
 
     def holds(self, A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(inside the box, tool axis within its limit) for flange poses A (m, 4, 4)."""
+        """(inside the box, tool axis within its tilt and roll limits) for flange poses A (m, 4, 4)."""
         t = A[:, :3, 3]
         box = np.all((t >= self.low) & (t <= self.high), axis=1)
-        if self.max_tilt_deg is None:
-            return box, np.ones(len(A), dtype=bool)
-        axis = np.asarray(self.axis, dtype=float) / np.linalg.norm(self.axis)
-        return box, A[:, :3, 2] @ axis >= math.cos(math.radians(self.max_tilt_deg))
+        ok = np.ones(len(A), dtype=bool)
+        if self.max_tilt_deg is not None:
+            axis = np.asarray(self.axis, dtype=float) / np.linalg.norm(self.axis)
+            ok &= A[:, :3, 2] @ axis >= math.cos(math.radians(self.max_tilt_deg))
+        if self.max_roll_deg is not None:
+            ok &= np.abs(roll(A)) <= math.radians(self.max_roll_deg)
+        return box, ok
+
+
+def roll(A: np.ndarray) -> np.ndarray:
+    """(m,) the flange's roll about its own z axis (rad, -pi..pi): the angle from "x forward" (the
+    base's x axis, or its y where the tool axis lies along x, projected on the plane across the
+    tool axis) to the flange's x axis, about the tool axis."""
+    z, x = A[:, :3, 2], A[:, :3, 0]
+    forward = np.where((np.abs(z[:, 0]) > 0.95)[:, None], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0])
+    forward = forward - np.einsum("mi,mi->m", forward, z)[:, None] * z
+    forward /= np.linalg.norm(forward, axis=1)[:, None]
+    return np.arctan2(np.einsum("mi,mi->m", np.cross(forward, x), z), np.einsum("mi,mi->m", forward, x))
 
 
 def random_views(board: Board, limits: ViewLimits, count: int, rng: np.random.Generator) -> np.ndarray:
@@ -111,7 +130,7 @@ def candidates(board: Board, camera: Camera, X: np.ndarray, Y: np.ndarray, setup
         if workspace is not None:
             box, tilt = workspace.holds(A)
             rejected["the flange outside the workspace box"] += int(np.sum(ok & ~box))
-            rejected["the tool axis beyond its tilt limit"] += int(np.sum(ok & box & ~tilt))
+            rejected["the tool axis beyond its tilt or roll limit"] += int(np.sum(ok & box & ~tilt))
             ok &= box & tilt
         found_A.append(A[ok])
         found_views.append(views[ok])
