@@ -122,11 +122,11 @@ def watch_while(flags: list[str], idle: float, *changes) -> tuple[int, str, str]
             while not any(line.startswith(f"{station}:") for line in list(lines)) and time.monotonic() < deadline:
                 time.sleep(0.05)
             change()
-        err = proc.communicate(timeout=60)[1]
+        proc.wait(timeout=60)  # not communicate(): it would take the lines the reader is reading
     finally:
         proc.kill()
     reader.join(5)
-    return proc.returncode, "".join(lines), err
+    return proc.returncode, "".join(lines), proc.stderr.read()
 
 
 def test_follows_a_growing_file_pair(tmp_path, stations):
@@ -250,3 +250,16 @@ def test_the_first_stations_say_why_there_is_no_answer_yet(tmp_path, capsys):
     lines = capsys.readouterr().out.splitlines()
     assert "(an answer needs 3 stations)" in lines[0]
     assert "no answer from the 3 stations yet" in lines[2] and "rotate about at least two different axes" in lines[2]
+
+
+def test_watch_draws_the_recording_at_the_end(tmp_path, stations, capsys):
+    """--figure: the recording in 3D at the answer (the stations, the one left out grey, the
+    camera and board), written once watch ends; a format matplotlib cannot write is refused first."""
+    A, B = stations
+    flags = write_pair(tmp_path, A, B, gross=10)
+    assert main(["watch", *flags, "--once", "--figure", str(tmp_path / "cell.png")]) == 0
+    out = capsys.readouterr().out
+    assert f"figure: {tmp_path / 'cell.png'}" in out
+    assert (tmp_path / "cell.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["watch", *flags, "--once", "--figure", str(tmp_path / "cell.xyz")]) == 2
+    assert "cannot draw a figure as 'xyz'" in capsys.readouterr().err

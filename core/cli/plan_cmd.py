@@ -173,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
     if args.figure:
         from handeye.planning.figure import draw
 
-        print(f"figure: {draw(result, board, X, Y, args.figure, args.unit)}")
+        print(f"figure: {draw(result, board, X, Y, args.figure, args.unit, camera)}")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as f:
             json.dump(result.to_dict(), f, indent=1)

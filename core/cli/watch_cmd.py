@@ -120,6 +120,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                         help="suggested tool axes (flange z) within DEG of --tool-axis")
     parser.add_argument("--tool-axis", metavar="X,Y,Z",
                         help="the base-frame direction --max-tilt is measured from (default 0,0,-1: straight down)")
+    parser.add_argument("--figure", metavar="PNG",
+                        help="at the end, draw the cell in 3D: the robot base, the stations (those left out grey), "
+                             "the camera and its view (with --intrinsics), the board and the next poses suggested")
     parser.add_argument("--next-out", metavar="FILE",
                         help="write the suggested poses to this pose file (the robot's format and unit), rewritten "
                              "after every station (an existing file is kept unless --force)")
@@ -146,8 +149,12 @@ def run(args: argparse.Namespace) -> int:
                          "the next poses need both)")
     target = None if args.target is None else parse_pair(args.target, "--target")
     camera_noise = None if args.camera_noise is None else parse_pair(args.camera_noise, "--camera-noise")
-    check_outputs([("--next-out", args.next_out)], [args.robot, args.camera, args.camera_intrinsics, args.board],
-                  args.force)
+    check_outputs([("--next-out", args.next_out), ("--figure", args.figure)],
+                  [args.robot, args.camera, args.camera_intrinsics, args.board], args.force)
+    if args.figure:
+        from handeye.io.output_files import check_figure_format
+
+        check_figure_format("--figure", args.figure)
     camera = board = None
     if args.camera_intrinsics is not None:
         from handeye.vision.boards import parse_board
@@ -170,12 +177,17 @@ def run(args: argparse.Namespace) -> int:
             try:
                 stations = source.poll()
                 failed_at = None
-            except RecordingRewritten as exc:  # a recorder restarted: follow the new recording from its start
-                if session is not None:
-                    _say(args, f"{exc}: starting over with the new recording ({int(sum(session.kept))} stations "
-                               "of the old one dropped)")
-                source.restart()
-                session, stations = None, source.poll()
+            except RecordingRewritten:  # a recorder restarted: follow the new recording from its start
+                time.sleep(args.interval)  # unless it was a file rewritten in place, cut short for a moment
+                try:
+                    stations = source.poll()
+                    failed_at = None
+                except RecordingRewritten as exc:
+                    if session is not None:
+                        _say(args, f"{exc}: starting over with the new recording ({int(sum(session.kept))} "
+                                   "stations of the old one dropped)")
+                    source.restart()
+                    session, stations = None, source.poll()
             except InputError as exc:
                 signature = source.signature()
                 waiting = "no poses" in str(exc) or (-1, -1) in signature  # not recording yet
@@ -197,7 +209,10 @@ def run(args: argparse.Namespace) -> int:
             time.sleep(args.interval)
     except KeyboardInterrupt:  # Ctrl-C: the usual end of a recording
         pass
-    return _final(args, session, source.unit)
+    code = _final(args, session, source.unit)
+    if args.figure and session is not None:
+        _figure(args, session, board, camera, source.unit)
+    return code
 
 
 def parse_pair(text: str, flag: str) -> tuple[float, float, str]:
@@ -248,6 +263,25 @@ def _pose_text(T: np.ndarray, robot_format: str) -> str:
     if fmt.kind == "matrix":
         fmt = parse_format("xyz-quat-xyzw")
     return " ".join(f"{k}={v:.6g}" for k, v in zip(fmt.fields, fmt.to_rows(T[None])[0]))
+
+
+def _figure(args: argparse.Namespace, session: Session, board: Any, camera: Any, unit: str | None) -> None:
+    """The recording drawn in 3D (`handeye.planning.figure.draw_cell`) at the answer so far, with
+    the last poses suggested; a line saying why not where there is no answer."""
+    from handeye.planning.figure import draw_cell
+
+    answer = session.unknowns
+    if answer is None or {"X", "Y"} - set(answer):
+        _say(args, "figure: no answer to draw the cell with yet")
+        return
+    A, _ = session.stations
+    last = session.last_suggestions
+    drawn = None if board is None else board.in_unit(unit or board.unit)
+    path = draw_cell(A, answer["X"], answer["Y"], args.setup, drawn, args.figure, unit or "",
+                     f"{len(A)} stations recorded ({int(sum(session.kept))} in the answer)"
+                     + ("; the next suggested" if last is not None else ""),
+                     camera=camera, left_out=~session.kept, following=None if last is None else last.A)
+    _say(args, f"figure: {path}")
 
 
 def _say(args: argparse.Namespace, message: str) -> None:

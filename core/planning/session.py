@@ -48,7 +48,7 @@ from handeye.framework.solution import Solution, Status
 from handeye.geometry.se3 import inverse, rotation_angle
 from handeye.planning import design, live_fit, views
 from handeye.planning.plan import Noise, default_limits, planners
-from handeye.planning.session_types import (  # noqa: F401 (re-exported)
+from handeye.planning.session_types import (
     Disagreement,
     SessionError,
     Suggestions,
@@ -151,6 +151,7 @@ class Session:
         self._pool: Pool | None = None
         self._last_solved = 0
         self._readmitted: tuple[str, ...] = ()
+        self._last_suggestions: Suggestions | None = None
 
     # ------------------------------------------------------------------ public
 
@@ -172,6 +173,11 @@ class Session:
     def left_out(self) -> tuple[Disagreement, ...]:
         """The stations left out, with why."""
         return tuple(self._left_out)
+
+    @property
+    def last_suggestions(self) -> Suggestions | None:
+        """The poses suggested after the last station (`Update.suggestions`), or None."""
+        return self._last_suggestions
 
     @property
     def unknowns(self) -> dict[str, np.ndarray] | None:
@@ -221,6 +227,7 @@ class Session:
         std = self._std(information)
         enough = bool(self.target is not None and std is not None and self.target.met(std))
         suggestions = self._suggest(information, warnings) if self._fit is not None and self.count else None
+        self._last_suggestions = suggestions
         return Update(index, self._names[index], len(self._names), int(sum(self._kept)), self.unknowns, std, noise,
                       enough, disagreement, suggestions, solved, self._readmitted, tuple(warnings),
                       time.perf_counter() - start)
