@@ -17,7 +17,6 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.cli import main
 from handeye.framework.errors import InputError
 from handeye.geometry.kinematics import LR_MATE_200ID
 from handeye.io.arm_files import ArmModel, arm_yaml, read_arm
@@ -30,14 +29,9 @@ from handeye.problems.axyb_kinematic.example_files import (
     write_example,
 )
 from handeye.workflow.cell import Cell, JointStream
+from tests.conftest import run_cli
 
 IDENTIFIABLE = [model.parameter_name(k) for k in model.structural(LR_MATE_200ID.table).identifiable]
-
-
-def run_cli(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture(scope="module")

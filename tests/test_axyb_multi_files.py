@@ -16,7 +16,6 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.cli import main
 from handeye.framework.errors import InputError
 from handeye.geometry.se3 import make_pose
 from handeye.io.examples import multi_camera_example_dir
@@ -26,12 +25,7 @@ from handeye.problems.axyb_multi.example_files import (
     write_example,
 )
 from handeye.workflow.cell import Cell, ObservationStream, PoseStream
-
-
-def run_cli(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
+from tests.conftest import run_cli
 
 
 def relative_error(T: np.ndarray, truth: np.ndarray) -> float:

@@ -12,11 +12,11 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
-from handeye.cli import main
 from handeye.estimation.noise import NoiseModel
 from handeye.geometry.se3 import inverse, rotation_angle
 from handeye.io.pose_readers import write_poses
 from handeye.problems.axxb import simulate_stations
+from tests.conftest import run_cli
 
 KEYS = {"X", "frames", "units", "setup", "problem", "solver", "status", "std", "residuals", "warnings",
         "inputs", "ros", "poses", "stations"}
@@ -26,12 +26,6 @@ KEYS = {"X", "frames", "units", "setup", "problem", "solver", "status", "std", "
 #: X = T_flange_target, Y = T_base_cam).
 TRUTH = {("axyb", "eye-in-hand"): {"X": "X", "Y": "Y"}, ("axyb", "eye-to-hand"): {"X": "X", "Y": "Y"},
          ("axxb", "eye-in-hand"): {"X": "X"}, ("axxb", "eye-to-hand"): {"X": "Y"}}
-
-
-def run_cli(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def cell(tmp_path, *, setup="eye-in-hand", robot_format="fanuc-wpr", robot_unit="mm", camera_format="opencv-rvec",

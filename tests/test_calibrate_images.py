@@ -18,7 +18,6 @@ import yaml
 from scipy.spatial.transform import Rotation
 from test_vision_pipeline import pose_error, simulated_cell
 
-from handeye.cli import main
 from handeye.geometry.se3 import inverse
 from handeye.io.examples import image_example_dir
 from handeye.io.pose_readers import read_pose_dir, write_poses
@@ -26,6 +25,7 @@ from handeye.vision.boards import parse_board
 from handeye.vision.image_set import images_and_poses
 from handeye.vision.observations import Camera
 from handeye.vision.render import render
+from tests.conftest import run_cli
 
 SHARED = Path(__file__).parents[2] / "shared" / "data" / "industrial_calibration_rct"
 #: a ChArUco board the renderer draws and OpenCV detects quickly at 480 x 360
@@ -38,12 +38,6 @@ STATIONS = 12
 #: 0.5-0.65 m, a 200 x 280 mm board): measured errors of X and Y were 0.10-0.12 deg and 0.37-1.55 mm
 #: (single board poses: 0.01-0.14 deg); bounds ~3x that
 ROT_TOL_DEG, TRANS_TOL_MM = 0.4, 5.0
-
-
-def run_cli(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def render_cell(folder, setup, seed):

@@ -27,7 +27,6 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.cli import main
 from handeye.cli._cell_flags import cell_words
 from handeye.geometry.se3 import inverse
 from handeye.io.examples import image_example_dir, load_example
@@ -35,6 +34,7 @@ from handeye.io.pose_readers import PoseStack, read_pose_dir, write_poses
 from handeye.workflow.cell import CameraStream, Cell, Images, Matching, PoseStream
 from handeye.workflow.exports import plain
 from handeye.workflow.stations import Dropped
+from tests.conftest import run_cli
 
 SHARED = Path(__file__).parents[2] / "shared" / "data"
 CHARUCO = SHARED / "industrial_calibration_rct" / "test_set_charuco"
@@ -42,12 +42,6 @@ ETH = SHARED / "ethz_asl_handeye_2017" / "robot_arm"
 BUNDLED = image_example_dir()
 IMAGE_FLAGS = ["--images", BUNDLED / "images", "--board", "circlegrid:10x10:25.4mm", "--robot", BUNDLED / "poses",
                "--robot-format", "xyz-quat-xyzw", "--robot-unit", "m", "--setup", "eye-in-hand"]
-
-
-def run_cli(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 # ----------------------------------------------------------------------------- the bundled cells

@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 import handeye
-from handeye.cli import build_parser, main
+from handeye.cli import build_parser
 from handeye.cli._cell_flags import cell_words, flag_settings, merged
 from handeye.cli._common import in_cli_words
 from handeye.workflow.cell import (
@@ -25,6 +25,7 @@ from handeye.workflow.cell import (
     PoseStream,
 )
 from handeye.workflow.cell_file import MAX_CELL_FILE_BYTES
+from tests.conftest import run_cli
 
 ROBOT = PoseStream("robot.csv", format="fanuc-wpr")
 CAMERA = CameraStream("board.csv", format="opencv-rvec", unit="mm")
@@ -32,12 +33,6 @@ CAMERA = CameraStream("board.csv", format="opencv-rvec", unit="mm")
 
 def cell(**changes):
     return Cell(**{"robot": ROBOT, "camera": CAMERA, "setup": "eye-in-hand", **changes})
-
-
-def run_cli(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 # ----------------------------------------------------------------------------- construction

@@ -14,15 +14,10 @@ import numpy as np
 import pytest
 
 from handeye import SolverError
-from handeye.cli import COMMANDS, main
+from handeye.cli import COMMANDS
 from handeye.framework.registry import get_registry
 from handeye.io.data_files import load_data, save_data
-
-
-def run_cli(capsys, *argv):
-    code = main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
+from tests.conftest import run_cli
 
 
 def test_commands_registered_in_one_list():

@@ -15,16 +15,11 @@ from handeye.framework.registry import get_registry
 from handeye.harness import Spec
 from handeye.harness.crossval import TRUTH_LABEL, CrossValData, make_folds, run_crossval
 from handeye.io.data_files import load_file, save_data
+from tests.conftest import run_cli
 
 #: a solver's held-out median residual may exceed the truth's on the same held-out pairs by at
 #: most this factor (the answer's own error adds to the pairs' noise; ~1.0-1.1 seen at m = 40)
 TRUTH_FACTOR = 1.3
-
-
-def run_cli(capsys, *argv):
-    code = main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 @pytest.fixture(scope="module")

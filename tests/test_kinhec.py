@@ -21,16 +21,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from handeye.cli import _kinhec, main
+from handeye.cli import _kinhec
 from handeye.estimation.noise import NoiseModel
 from handeye.geometry.se3 import inverse
 from handeye.problems.axyb import PROBLEM
-
-
-def run_cli(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
+from tests.conftest import run_cli
 
 
 def read_csv(path: Path) -> list[dict[str, str]]:

@@ -18,6 +18,7 @@ import handeye
 from handeye.estimation.noise import NoiseModel
 from handeye.framework import registry
 from handeye.geometry.se3 import make_pose, so3_exp
+from tests.conftest import run_cli
 
 NAME, SOLVER = "registration", "registration-mean"
 #: the accuracy study's noise (robot 0.0002 rad / 0.05 mm, camera 0.002 rad / 0.5 mm)
@@ -74,14 +75,6 @@ def test_refine_starts_from_a_given_stack_and_checks_its_shape(installed_problem
     assert installed_problem.PROBLEM.errors(sol.unknowns, truth)["X"]["rotation"] < 1e-9
     with pytest.raises(handeye.InputError, match="init_X has shape .*a stack of 2 poses"):
         handeye.solve(NAME, solver="refine", init_X=near[0], **data)
-
-
-def run_cli(capsys, *argv):
-    from handeye.cli import main
-
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def _solver(run):
