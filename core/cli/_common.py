@@ -249,6 +249,21 @@ def check_new_results(flag: str, outdir: str | Path, files: Iterable[str], force
                          "to overwrite its results, or name another folder (or --name)")
 
 
+def add_workspace_flags(parser: argparse.ArgumentParser, unit: str) -> None:
+    """The flags of where the flange may go, shared by plan and watch (`workspace_of`): the box,
+    the tool axis' tilt and the wrist's roll; `unit` names the box's length unit in the help."""
+    parser.add_argument("--workspace", metavar="X0,Y0,Z0,X1,Y1,Z1",
+                        help=f"the box the flange's origin must stay in, base frame, {unit} (default: no limit)")
+    parser.add_argument("--max-tilt", type=finite_number, metavar="DEG",
+                        help="largest angle of the flange's z axis from --tool-axis (default: no limit)")
+    parser.add_argument("--tool-axis", metavar="X,Y,Z",
+                        help="the base-frame direction --max-tilt is measured from (default 0,0,-1: the flange "
+                             "pointing down; 0,0,1 for an arm whose flange points up, e.g. toward fixed cameras above)")
+    parser.add_argument("--max-roll", type=finite_number, default=90.0, metavar="DEG",
+                        help="largest roll of the flange about its tool axis from x forward (default 90: the wrist "
+                             "within a half turn, as a person drives it; 180: any)")
+
+
 def workspace_of(box: str | None, max_tilt: float | None, tool_axis: str | None = None,
                  max_roll: float | None = None) -> Any:
     """The `handeye.planning.stations.Workspace` of ``--workspace X0,Y0,Z0,X1,Y1,Z1`` (the box's

@@ -26,6 +26,7 @@ import numpy as np
 
 from handeye.cli._common import (
     add_force_flag,
+    add_workspace_flags,
     check_outputs,
     finite_number,
     seed_number,
@@ -65,16 +66,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--intrinsics", required=True, metavar="FILE",
                         help="camera intrinsics with the image size (OpenCV YAML/XML/JSON, ROS camera_info YAML)")
     parser.add_argument("--count", type=whole_number, default=12, help="stations to plan (default 12)")
-    parser.add_argument("--workspace", metavar="X0,Y0,Z0,X1,Y1,Z1",
-                        help="the box the flange's origin must stay in, base frame, --unit (default: no limit)")
-    parser.add_argument("--max-tilt", type=finite_number, metavar="DEG",
-                        help="largest angle of the flange's z axis from --tool-axis (default: no limit)")
-    parser.add_argument("--tool-axis", metavar="X,Y,Z",
-                        help="the base-frame direction --max-tilt is measured from (default 0,0,-1: the flange "
-                             "pointing down; 0,0,1 for an arm whose flange points up, e.g. toward fixed cameras above)")
-    parser.add_argument("--max-roll", type=finite_number, default=90.0, metavar="DEG",
-                        help="largest roll of the flange about its tool axis from x forward (default 90: the wrist "
-                             "within a half turn, as a person drives it; 180: any)")
+    add_workspace_flags(parser, "--unit")
     parser.add_argument("--rough", metavar="DEG,LENGTH",
                         help="how far the given X and Y may be off (deg, --unit): the planned views keep the board "
                              "that far inside the image (default 1 deg and 1%% of the farthest viewing distance)")

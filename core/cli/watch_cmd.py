@@ -36,6 +36,7 @@ import numpy as np
 
 from handeye.cli._common import (
     add_force_flag,
+    add_workspace_flags,
     check_outputs,
     finite_number,
     in_cli_words,
@@ -114,12 +115,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                              "e.g. 0.05deg,0.3mm (else the 1-sigma is printed from 8 stations on)")
     parser.add_argument("--suggest", type=whole_number, default=3, metavar="K",
                         help="how many next poses to suggest (default 3; 0: none)")
-    parser.add_argument("--workspace", metavar="X0,Y0,Z0,X1,Y1,Z1",
-                        help="suggested flange positions inside this box (base frame, the robot's unit)")
-    parser.add_argument("--max-tilt", type=finite_number, metavar="DEG",
-                        help="suggested tool axes (flange z) within DEG of --tool-axis")
-    parser.add_argument("--tool-axis", metavar="X,Y,Z",
-                        help="the base-frame direction --max-tilt is measured from (default 0,0,-1: straight down)")
+    add_workspace_flags(parser, "the robot's unit; the poses suggested")
     parser.add_argument("--figure", metavar="PNG",
                         help="at the end, draw the cell in 3D: the robot base, the stations (those left out grey), "
                              "the camera and its view (with --intrinsics), the board and the next poses suggested")
@@ -248,7 +244,7 @@ def _session(args: argparse.Namespace, unit: str, camera: Any, board: Any, targe
     tolerance = None if target is None else Tolerance(target[0], _in_unit(target[1], target[2], unit))
     sigma = None if camera_noise is None else (math.radians(camera_noise[0]),
                                               _in_unit(camera_noise[1], camera_noise[2], unit))
-    workspace = workspace_of(args.workspace, args.max_tilt, args.tool_axis)
+    workspace = workspace_of(args.workspace, args.max_tilt, args.tool_axis, args.max_roll)
     return Session(args.problem, setup=args.setup, target=tolerance, camera=camera,
                    board=None if board is None else board.in_unit(unit), unit=unit, workspace=workspace,
                    noise=Noise(args.pixel_noise), camera_sigma=sigma, suggest=args.suggest)
