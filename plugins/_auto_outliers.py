@@ -143,8 +143,8 @@ def reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, di
     whole = [f"{name} (all {len(rows)})" for name, rows in (getattr(data, "pair_groups", None) or {}).items()
              if len(rows) > 1 and flagged[rows].all()]  # a camera-marker pair off as a whole: named, not its camera
     note = ((f"every observation of {', '.join(whole)} {'is' if len(whole) == 1 else 'are'} far off the others: "
-             "that pair (a marker seen edge-on or misread by that camera), not its camera or marker; " if whole else "")
-            + f"{label} {item_listing(idx, data)} {'is' if k == 1 else 'are'} far off the others (residual "
+             "that pair (a marker seen edge-on or misread by that camera), not its camera or marker. In all, " if whole
+             else "") + f"{label} {item_listing(idx, data)} {'is' if k == 1 else 'are'} far off the others (residual "
             f"{'up to ' if k > 1 else ''}{rot[worst]:.3g} deg / {trans[worst]:.3g} against a typical "
             f"{np.median(rot[inliers]):.2g} deg / {np.median(trans[inliers]):.2g}, translations in the data's "
             f"length unit) and {'was' if k == 1 else 'were'} left out; outliers='keep' uses every pair")

@@ -69,6 +69,7 @@ from handeye.framework.options import check_choice
 from handeye.framework.problem import Problem, unflatten
 from handeye.framework.solution import jsonable
 from handeye.plugins import _auto_outliers as far_off
+from handeye.plugins import _auto_scales as cell_scales
 from handeye.plugins import _auto_steps as steps
 from handeye.plugins import refine as _refine
 from handeye.plugins._auto_steps import DRIFT_AUTOCORRELATION, DRIFT_MIN_PAIRS  # noqa: F401 (auto's constants)
@@ -178,13 +179,16 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
     """The pipeline of the module docstring; then, where the camera's translations fit the
     robot's only at another scale (the host's check 5, `handeye.self_check`: a factor beyond 1.5
     that explains the translation misfit), the pipeline again with that scale unknown
-    (`handeye.camera_scale`), with a warning; then, for A X = Y B whose camera poses drift, X
+    (`handeye.camera_scale`), with a warning; for a cell of several cameras and targets, a factor
+    for some of them where held-out stations are predicted better (`_auto_scales`); then, for A X = Y B whose camera poses drift, X
     from the consecutive motions (`handeye.plugins._auto_steps`)."""
     output = _run(data, options, backend)
     at = steps.residuals_at(data, output)  # (model, residuals) at the answer, shared by the two steps
     if steps.scale_may_be_estimated(data, options):
         data, scaled = steps.estimate_scale_if_needed(data, options, backend, output, at, _run)
         at, output = (at if scaled is output else None), scaled
+    elif cell_scales.applies(data, options):
+        data, output = cell_scales.scales_if_held_out_agrees(data, options, backend, output, _run)
     return steps.drift(data, options, backend, output, at, _run)
 
 

@@ -476,7 +476,6 @@ def test_a_urdf_whose_joints_loop_is_refused_at_once(tmp_path, case, says):
     root) are refused in one line naming them, instead of followed for ever (it hung at 2.2 GB, or
     ended in RecursionError)."""
     pytest.importorskip("yourdfpy")
-    import time
 
     def joint(name, kind, parent, child):
         return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/><axis xyz="0 0 1"/>'
@@ -489,10 +488,9 @@ def test_a_urdf_whose_joints_loop_is_refused_at_once(tmp_path, case, says):
             "detached": [("j1", "fixed", "b", "c"), ("j2", "fixed", "c", "b")]}[case]
     links = "".join(f'<link name="{name}"/>' for name in ("base", "a", "b", "c"))
     (tmp_path / "loop.urdf").write_text(f'<robot name="r">{links}{"".join(joint(*j) for j in body)}</robot>')
-    started = time.perf_counter()
     with pytest.raises(InputError, match=says) as caught:
         read_arm(tmp_path / "loop.urdf")
-    assert "\n" not in str(caught.value) and time.perf_counter() - started < 5
+    assert "\n" not in str(caught.value)
 
 
 def _rad_arm(folder):

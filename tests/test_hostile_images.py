@@ -100,11 +100,9 @@ def test_the_grid_search_never_gets_more_candidates_than_the_limit(monkeypatch):
 
     monkeypatch.setattr(cv2, "findCirclesGrid", counting)
     noise = np.random.default_rng(6).integers(0, 256, (480, 640), dtype=np.uint8)
-    start = time.perf_counter()
     with pytest.raises(BoardNotFound, match=r"too cluttered \(at least \d+ round dark blobs"):
         detect(noise, BOARD)
-    assert time.perf_counter() - start < 5.0  # measured 0.3 s; a search on its blobs took 80-100 s
-    assert searched == []
+    assert searched == []  # no search at all: one on its blobs took 80-100 s
     for image_file in sorted((BUNDLED / "images").glob("*.png")):
         assert len(detect(cv2.imread(str(image_file), cv2.IMREAD_GRAYSCALE), BOARD)) == 100
     assert len(searched) == 30 and max(searched[0::2]) <= 110 and max(searched) <= 170 < blob_limit(BOARD)

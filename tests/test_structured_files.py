@@ -5,7 +5,6 @@ of the wrong type where a unit is named (a list or a mapping: "unhashable type" 
 
 from __future__ import annotations
 
-import time
 
 import pytest
 
@@ -38,11 +37,9 @@ JSON_LIST = "[" * 100_000 + "]" * 100_000
 def test_deeply_nested_files_are_refused_in_one_line(tmp_path, name, text, read):
     path = tmp_path / name
     path.write_text(text)
-    started = time.perf_counter()
     with pytest.raises(InputError, match="nested more than 64 levels deep") as caught:
         read(str(path) if name.startswith("board") else path)
     assert "\n" not in str(caught.value) and name in str(caught.value)
-    assert time.perf_counter() - started < 2.0
 
 
 @pytest.mark.parametrize("name, text, read", [

@@ -89,6 +89,28 @@ def camera_scale_verdict(problem: Any, data: Any, unknowns: Mapping[str, np.ndar
     return {**figures["camera_scale"], "verdict": verdict}
 
 
+def camera_scales_named(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray]) -> tuple[str, ...]:
+    """Check 5 per camera of a cell alone (`camera_scales_check`), for a solver that wants to
+    know which cameras and targets may need a factor of their own (`auto`): the names of those
+    its warning names, or () when it names none, does not apply (the fit singular) or fails (a
+    camera in another length unit, beyond SCALE_FAIL: the data are to be fixed, not fitted)."""
+    spec = problem.check_model(data, unknowns)
+    if spec is None:
+        return ()
+    model, poses, _ = spec
+    try:
+        _, cov, _, res, _, _ = best_fit(model, poses)
+    except DegenerateDataError:
+        return ()
+    failures: list[str] = []
+    warnings: list[str] = []
+    figures: dict[str, Any] = {}
+    camera_scales_check(model, res, cov, failures, warnings, figures)
+    if failures or not warnings:
+        return ()
+    return tuple(name for name, f in figures.get("camera_scales", {}).items() if isinstance(f, Mapping))
+
+
 def camera_scale_screen(model: Any, poses: tuple[np.ndarray, ...], e: np.ndarray, W: Any,
                         cov: np.ndarray) -> tuple[float, float] | None:
     """Check 5's screen: (s, its standard deviation) for the scale of the camera's translations
@@ -213,25 +235,26 @@ def camera_scale_check(model: Any, res: Any, cov: np.ndarray, failures: list[str
 
 
 def camera_scales_check(model: Any, res: Any, cov: np.ndarray, failures: list[str], warnings: list[str],
-                   figures: dict[str, Any]) -> None:
+                        figures: dict[str, Any], held_out: Mapping[str, Any] | None = None) -> None:
     """Check 5 per camera of a cell (a model with ``scale_groups``: the observations of each X
     and each Y, whose cameras the data do not single out), before check 5 for all cameras at once:
     one monocular camera among metric ones misfits by a factor that a scale for all would average
     away. The fit with groups' scales free that explains the most
     (`handeye.camera_scales.groups_off_scale`), its scales judged as check 5 judges one camera;
     where it names none, the groups whose scale would move the answer beyond its 1-sigma
-    (`_groups_moving`)."""
+    (`_groups_moving`). `held_out`: the solver's held-out comparison of factors for some groups
+    (`handeye.plugins._auto_scales.held_out`), which the advice then follows."""
     groups = getattr(model, "scale_groups", None)
     if not groups or res.W.L is not None:
         return
     screens = camera_scales.screen_groups(model, res.poses, res.e, res.W, cov, groups)
     best = camera_scales.groups_off_scale(model, res, screens, groups, scale_suspect, MAX_ITER, FIT_TOL)
-    if best is None or not _groups_off(best, failures, warnings, figures):
-        _groups_moving(model, res, cov, screens, warnings, figures)
+    if best is None or not _groups_off(best, failures, warnings, figures, held_out):
+        _groups_moving(model, res, cov, screens, warnings, figures, held_out)
 
 
 def _groups_off(best: tuple[list[str], float, dict[str, Any]], failures: list[str], warnings: list[str],
-                figures: dict[str, Any]) -> bool:
+                figures: dict[str, Any], held_out: Mapping[str, Any] | None = None) -> bool:
     """`camera_scales_check` for the best fit with groups' scales free: a failure or a warning
     for the groups whose scale is off by SCALE_FAIL or SCALE_WARN where that fit explains the
     misfit (as check 5 for one camera); whether it named any."""
@@ -254,12 +277,12 @@ def _groups_off(best: tuple[list[str], float, dict[str, Any]], failures: list[st
     else:
         warnings.append(f"self-check: {text}: check the printed size of those boards or markers and the focal length "
                         f"of the cameras that see them (a PnP pose's distance scales with both); "
-                        f"camera_scale={named!r} fits their factors")
+                        f"{_scales_advice(named, held_out)}")
     return True
 
 
 def _groups_moving(model: Any, res: Any, cov: np.ndarray, screens: list[camera_scales.GroupScreen],
-                   warnings: list[str], figures: dict[str, Any]) -> None:
+                   warnings: list[str], figures: dict[str, Any], held_out: Mapping[str, Any] | None = None) -> None:
     """A warning for the groups (cameras or targets) whose screened scale is off beyond noise
     (`slightly_off`, at EFFECT_TAIL shared among the groups, its standard deviation the larger of
     the screen's and the one robust to cameras of unequal noise, `_robust_std`) and would move an
@@ -290,8 +313,21 @@ def _groups_moving(model: Any, res: Any, cov: np.ndarray, screens: list[camera_s
     warnings.append(f"self-check: the camera translations fit the robot's best at another scale: {parts} (lengths in "
                     f"the data's unit), so the answer is less certain than stated: check the printed size of those "
                     f"boards or markers and the focal length of the cameras that see them (a PnP pose's distance "
-                    f"scales with both), or the robot's own errors, which can mimic a scale; camera_scale={names!r} "
-                    f"fits their factors")
+                    f"scales with both), or the robot's own errors, which can mimic a scale; "
+                    f"{_scales_advice(names, held_out)}")
+
+
+def _scales_advice(names: list[str], held_out: Mapping[str, Any] | None) -> str:
+    """How to fit the factors of the groups `names`, or, where the solver compared factors on
+    held-out stations and kept none, what that comparison found (never advice it measured as worse)."""
+    if not held_out or held_out.get("chosen") != "none":
+        return f"camera_scale={names!r} fits their factors"
+    models = held_out["models"]
+    best = min((label for label in models if label != "none"), key=lambda label: models[label]["translation"])
+    return (f"auto fitted no factor: the left-out stations were predicted no better with them (median translation "
+            f"residual {models[best]['translation']:.3g} with factors for {', '.join(models[best]['names'])}, "
+            f"{models['none']['translation']:.3g} without, {held_out['blocks']} blocks of the stations held out in turn), "
+            "which points to the robot's errors more than to a scale")
 
 
 def _robust_std(model: Any, res: Any, x: camera_scales.GroupScreen, parts: dict[str, np.ndarray]) -> float:

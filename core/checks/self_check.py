@@ -305,7 +305,7 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
     # a cell's cameras one by one first (a monocular camera's observations may all be far off, so
     # whether or not some are); one scale for every camera where that names none
     before = len(failures) + len(warnings)
-    camera_scales_check(model, res, cov, failures, warnings, figures)
+    camera_scales_check(model, res, cov, failures, warnings, figures, diagnostics.get("camera_scales_held_out"))
     if not flagged.any() and len(failures) + len(warnings) == before:
         camera_scale_check(model, res, cov, failures, warnings, figures)
     camera_scale_noise(model, res, factor, failures, warnings, figures)

@@ -203,6 +203,8 @@ def _host(registry: Any, problem: str, solver: str, spec: Any, backend: str, dat
     check_data = data
     if "camera_scale" in diagnostics and getattr(data, "camera_scale_unknown", True) is False:
         check_data = dataclasses.replace(data, camera_scale_unknown=True)
+    elif "camera_scales" in diagnostics and getattr(data, "camera_scale_unknown", True) is False:
+        check_data = data.with_scales_unknown(list(diagnostics["camera_scales"]))  # a cell: some cameras' own
     with _problem_faults(registry, problem):
         check = assess(spec_problem, check_data, unknowns, diagnostics, solver)
     diagnostics["self_check"] = {"reliable": check.reliable, "failures": list(check.failures), **check.figures}

@@ -223,6 +223,15 @@ class AXYBMultiData:
                              tuple(self.x_names[k] for k in xs), tuple(self.y_names[k] for k in ys),
                              self.camera_scale_unknown and bool(scaled_x or scaled_y), scaled_x, scaled_y)
 
+    def with_scales_unknown(self, names: Sequence[str]) -> AXYBMultiData:
+        """The same data with the scales of the X's and Y's called `names` unknown, each its own
+        (as ``camera_scale=[names]`` gives them); no names: as they are."""
+        if not names:
+            return self
+        return dataclasses.replace(self, camera_scale_unknown=True,
+                                   scaled_x=tuple(j for j, n in enumerate(self.x_names) if n in names),
+                                   scaled_y=tuple(k for k, n in enumerate(self.y_names) if n in names))
+
     def scaled(self, s: float) -> AXYBMultiData:
         """The same data with every translation divided by s."""
         A, B = np.array(self.A), np.array(self.B)
