@@ -34,9 +34,9 @@ from typing import Any
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.framework.registry import get_registry, register_plugin
 from handeye.geometry.se3 import make_pose
 from handeye.harness import Spec, accuracy_study, run_study, write_report
+from handeye.host.registry import get_registry, register_plugin
 
 METRICS = ("err_rot_X", "err_trans_X", "err_rot_Y", "err_trans_Y")
 #: auto's median may exceed the oracle's by at most this fraction (accuracy target)

@@ -35,8 +35,8 @@ import time
 
 import numpy as np
 
-from handeye.framework.registry import get_registry
 from handeye.harness import Spec, accuracy_study, run_study, write_report
+from handeye.host.registry import get_registry
 
 PROBLEM = "axbycz"
 UNKNOWNS = ("X", "Y", "Z")

@@ -1,7 +1,7 @@
 """Speed of ``handeye calibrate`` on large pose files: the plausibility check's hypotheses.
 
 The calibrate workflow (`handeye.workflow.calibration`) ends with
-`handeye.checks.plausibility.check` on the robot and camera streams: it fits every usual setup
+`handeye.workflow.plausibility.check` on the robot and camera streams: it fits every usual setup
 mistake (inverted poses, the other setup, pairs shifted, the camera unit, 11 other Euler
 sequences of the robot file, 11 of the camera file's when it holds Euler angles). This script
 writes a simulated cell of N stations (robot file ``yaskawa``: x, y, z, rx, ry, rz in mm, extrinsic
@@ -88,8 +88,8 @@ def timed_check(seconds: list[float]) -> Iterator[None]:
 
 def calibrate_once(arguments: list[str], screen: bool) -> dict[str, Any]:
     """One ``handeye calibrate`` (screening on or off): seconds of the command and of the check, verdict."""
-    from handeye.checks import plausibility
     from handeye.cli import main
+    from handeye.workflow import plausibility
 
     saved = getattr(plausibility, "SCREEN_STATIONS", None)  # None: a version without the screening
     if saved is not None:

@@ -24,7 +24,7 @@ import numpy as np
 
 import handeye
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.registry import get_registry
+from handeye.host.registry import get_registry
 from handeye.problems import planar
 
 BEFORE = {"axyb": ("auto", "kron-lstsq", "dual-quaternion"), "axxb": ("auto", "kron-lstsq", "park", "daniilidis")}

@@ -33,16 +33,16 @@ from pathlib import Path
 import numpy as np
 
 import handeye
-from handeye.framework.api import run_registered
-from handeye.framework.registry import get_registry
 from handeye.framework.solution import standard_deviations
-from handeye.geometry.se3 import rotation_angle
 from handeye.geometry.motions import relative_motions
+from handeye.geometry.se3 import rotation_angle
+from handeye.host.api import run_registered
+from handeye.host.registry import get_registry
 from handeye.io.pose_readers import write_poses
 from handeye.plugins.reprojection import held_out
 from handeye.problems.axyb.geometry import fitted_Y
-from handeye.workflow.solving import HELD_OUT_FOLDS as FOLDS
 from handeye.workflow.cell import Cell, Images, Matching, PoseStream
+from handeye.workflow.solving import HELD_OUT_FOLDS as FOLDS
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "data" / "industrial_calibration_rct"

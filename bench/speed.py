@@ -30,8 +30,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from handeye.base.errors import HandEyeError
 from handeye.cli import bench_cmd
-from handeye.framework.errors import HandEyeError
 
 
 def main(argv: list[str] | None = None) -> int:

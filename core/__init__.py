@@ -22,12 +22,12 @@ import importlib.abc
 import importlib.machinery
 import importlib.util
 import sys
+import warnings
 from importlib.metadata import PackageNotFoundError, version
 from types import ModuleType
 from typing import Any
 
-from handeye.framework.api import run_registered, solve
-from handeye.framework.errors import (
+from handeye.base.errors import (
     BackendUnavailableError,
     DegenerateDataError,
     HandEyeError,
@@ -41,28 +41,38 @@ from handeye.framework.errors import (
 from handeye.framework.hookspecs import hookimpl
 from handeye.framework.options import NoOptions
 from handeye.framework.problem import Problem
-from handeye.framework.registry import get_registry, list_problems, list_solvers
 from handeye.framework.solution import Solution, SolverOutput, Status
 from handeye.framework.solver import SolverSpec
+from handeye.host.api import run_registered, solve
+from handeye.host.registry import get_registry, list_problems, list_solvers
 
 #: submodules that ``handeye.<name>`` imports on first use (PEP 562), so that ``import handeye``
 #: stays cheap: ``handeye.io.load_file(...)`` works without ``import handeye.io`` first.
 _LAZY_SUBMODULES = ("examples", "harness", "io", "problems")
 #: public names defined in a submodule that ``import handeye`` does not import (it reads files,
 #: OpenCV, the checks): name -> its module, imported on first use
+#: the day the old module paths of `_MOVED` stop importing (docs/changelog.md)
+REMOVAL_DATE = "2027-06-01"
 _LAZY_NAMES = {"calibrate": "workflow.calibration", "Cell": "workflow.cell", "CalibrationResult": "workflow.result"}
-#: the modules of the flat layout before the layers (framework, geometry, estimation, checks, io,
-#: streams, workflow) -> where they live now. ``import handeye.se3``, ``from handeye.options import
-#: check_choice`` and every other path of that layout keep working and give the same module
-#: object (`_MovedModules`), so that code written for it, a plugin's or a user's, runs unchanged.
+#: modules that moved -> where they live now: those of the flat layout before the layers
+#: (``handeye.se3``, ``handeye.options``, ...) and those the layer order moved down or up
+#: (``handeye.framework.errors`` -> ``handeye.base.errors``, ...). Their old paths keep working and
+#: give the same module object (`_MovedModules`), with a DeprecationWarning naming the new path:
+#: they are removed on REMOVAL_DATE (docs/changelog.md).
 _MOVED = {
-    **{m: f"framework.{m}" for m in ("api", "errors", "hookspecs", "isolation", "options", "problem", "processes",
-                                     "registry", "solution", "solver")},
+    "api": "host.api", "errors": "base.errors", "registry": "host.registry",
+    **{m: f"framework.{m}" for m in ("hookspecs", "isolation", "options", "problem", "processes", "solution",
+                                     "solver")},
     **{m: f"geometry.{m}" for m in ("se3", "so3_fast", "dualquat", "kinematics", "linalg")},
     **{m: f"estimation.{m}" for m in ("nlls", "whitening", "robust", "noise", "noise_sources", "kronecker",
                                       "so3_relaxation", "rotation_cost", "trust_region", "camera_scale",
                                       "camera_scales")},
-    **{m: f"checks.{m}" for m in ("validation", "self_check", "plausibility")},
+    "validation": "geometry.validation", "self_check": "checks.self_check", "plausibility": "workflow.plausibility",
+    # the layer order of pyproject.toml: errors at the bottom, the host above the checks
+    "framework.errors": "base.errors", "framework.api": "host.api", "framework.registry": "host.registry",
+    "checks.validation": "geometry.validation", "checks.plausibility": "workflow.plausibility",
+    "streams.resample": "geometry.resample", "planning.watch_source": "workflow.watch_source",
+    "cli._kinhec_report": "harness.kinhec_report", "cli._kinhec_fixtures": "harness.kinhec_fixtures",
     **{m: f"io.{m}" for m in ("npz", "pose_formats", "pose_readers", "bag_readers", "input_files", "output_files",
                               "examples")},
     "station_matching": "streams.station_matching",
@@ -89,7 +99,13 @@ class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         return importlib.util.spec_from_loader(fullname, self)
 
     def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType:
-        return importlib.import_module(f"{__name__}.{_MOVED[spec.name.partition('.')[2]]}")
+        old = spec.name.partition(".")[2]
+        new = f"{__name__}.{_MOVED[old]}"
+        if old in _LAZY_SUBMODULES:  # a public name of the package (handeye.examples), not an old path
+            return importlib.import_module(new)
+        warnings.warn(f"{spec.name} is now {new}: import it from there ({spec.name} goes on {REMOVAL_DATE})",
+                      DeprecationWarning, stacklevel=2)
+        return importlib.import_module(new)
 
     def exec_module(self, module: ModuleType) -> None:
         """Nothing: the module was executed at its new place."""

@@ -12,11 +12,11 @@ from typing import Any
 import numpy as np
 
 from handeye import Status
+from handeye.base.errors import DegenerateDataError, HandEyeError
 from handeye.checks.self_check import MAJORITY
 from handeye.estimation import lm_objective, nlls
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
 from handeye.estimation.whitening import Whitening, estimate_sigmas
-from handeye.framework.errors import DegenerateDataError, HandEyeError
 from handeye.framework.problem import item_listing
 from handeye.geometry.linalg import einsum
 from handeye.plugins import refine as _refine

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from handeye import SolverOutput
-from handeye.framework.errors import HandEyeError
+from handeye.base.errors import HandEyeError
 from handeye.plugins import refine as _refine
 
 #: contiguous blocks of the stations held out in turn
@@ -59,7 +59,7 @@ def scales_if_held_out_agrees(data: Any, options: Any, backend: str, output: Sol
     computed, or with the chosen groups' scales unknown and auto's pipeline run again (`solve`:
     (data, options, backend) -> SolverOutput), with a warning naming the factors and the gain."""
     from handeye.checks.scale_checks import camera_scales_named
-    from handeye.framework.registry import get_registry
+    from handeye.host.registry import get_registry
 
     problem = get_registry().problem(_refine.problem_of(data))
     named = camera_scales_named(problem, data, output.unknowns)
@@ -94,7 +94,7 @@ def held_out(data: Any, output: SolverOutput, candidates: Mapping[str, Sequence[
     "rotation_deg"}}, "chosen"}, the medians over every left-out observation a fit can predict
     (its marker and camera seen at other stations). None where the cell has too few stations or a
     block's fit fails (the screen's warning then stands alone)."""
-    from handeye.framework.api import run_registered
+    from handeye.host.api import run_registered
 
     if data.station_count < MIN_STATIONS:
         return None

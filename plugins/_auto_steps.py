@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from handeye import SolverOutput
+from handeye.base.errors import DegenerateDataError, InputError
 from handeye.estimation.whitening import Whitening
-from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.framework.solution import jsonable
 from handeye.plugins import refine as _refine
 
@@ -158,11 +158,11 @@ def drift_held_out(data: Any, output: SolverOutput, X_drift: np.ndarray) -> dict
     data's length unit), ``*_rotation_deg`` the rotation's; ``drift_agrees``: drift_translation
     <= DRIFT_TOLERANCE x axyb_translation. None
     when a fold cannot be fitted (the in-sample test then decides alone)."""
-    from handeye.framework.api import run_registered
-    from handeye.framework.errors import HandEyeError
-    from handeye.framework.registry import get_registry
+    from handeye.base.errors import HandEyeError
     from handeye.geometry.motions import relative_motions
     from handeye.geometry.se3 import inverse, rotation_angle
+    from handeye.host.api import run_registered
+    from handeye.host.registry import get_registry
     from handeye.problems.axyb.geometry import fitted_Y
 
     A, B, m = np.asarray(data.A), np.asarray(data.B), data.m

@@ -22,7 +22,7 @@ cvxpy, picos and clarabel are imported only when a function here needs them, nev
 
 Clarabel's dual-form SDP (`DualSDP`): max b^T nu s.t. C - sum_k nu_k A_k PSD, with C (n, n) given
 per solve and the A_k, b fixed. Used by `so3-sdp` (backend ``clarabel``) for the Lagrangian dual
-of its Shor relaxation (handeye.so3_relaxation) and by `lmi-sdp` for its AX = XB SDP. Clarabel
+of its Shor relaxation (handeye.estimation.so3_relaxation) and by `lmi-sdp` for its AX = XB SDP. Clarabel
 solves min 1/2 x^T P x + q^T x s.t. A x + s = b, s in K. Here (P = 0):
 
     x = nu (K),   q = -b,   A = [svec A_1 ... svec A_K],   b_clarabel = svec C,
@@ -56,7 +56,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from handeye.framework.errors import InputError, SolverError
+from handeye.base.errors import InputError, SolverError
 
 T = TypeVar("T")
 

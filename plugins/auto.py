@@ -9,7 +9,7 @@ Pipeline (the measurements behind it are in docs/solvers/auto.md):
    `kron-lstsq` (for axxb then `park`). If the start's solve itself fails, the next one is used,
    with a warning.
 2. `refine` from that start: geometric maximum likelihood on SE(3)^k (plugins/refine.py, engine
-   `handeye.nlls`); by default least squares with the noise variances estimated jointly
+   `handeye.estimation.nlls`); by default least squares with the noise variances estimated jointly
    (profile likelihood), or the weights and robust loss the user states (the options are
    refine's).
 3. safeguard: when the certifiable start (so3-sdp) is not certified, `refine` also runs from the
@@ -19,7 +19,7 @@ Pipeline (the measurements behind it are in docs/solvers/auto.md):
 5. noise sources (A_i X = Y B_i with the noise estimated and least squares, from
    SOURCES_MIN_PAIRS pairs on): where the noise lives -- each measured pose's rotation in its
    two frames, the translation along the camera pose's axes -- estimated by maximum likelihood at
-   the per-group answer, then X and Y refitted with it, on the pairs kept (`handeye.noise_sources`,
+   the per-group answer, then X and Y refitted with it, on the pairs kept (`handeye.estimation.noise_sources`,
    `_noise_step`).
 
 A_i X B_i = Y C_i Z (`MULTI_START`) has no certifiable method: the start is `wang` (grid of
@@ -56,15 +56,15 @@ from typing import Any
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.estimation import lm_objective, noise_sources
-from handeye.estimation.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
-from handeye.estimation.whitening import Whitening
-from handeye.framework.errors import (
+from handeye.base.errors import (
     BackendUnavailableError,
     DegenerateDataError,
     InputError,
     SolverError,
 )
+from handeye.estimation import lm_objective, noise_sources
+from handeye.estimation.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
+from handeye.estimation.whitening import Whitening
 from handeye.framework.options import check_choice
 from handeye.framework.problem import Problem, unflatten
 from handeye.framework.solution import jsonable
@@ -87,7 +87,7 @@ OUTLIER_CHOICES = ("reject", "keep")
 RESIDUALS_PER_VARIANCE = 15
 SOURCES_MIN_PAIRS = 20
 #: by default the noise sources replace the per-group model only where they explain the
-#: residuals better than chance would (`handeye.noise_sources.min_gain`: for axyb's 8 variances
+#: residuals better than chance would (`handeye.estimation.noise_sources.min_gain`: for axyb's 8 variances
 #: against 2 the 1% point of chi^2 with 6 degrees of freedom, halved: 8.4 nats). Where the
 #: per-group model is the true one (the simulator's noise) a fit on 8 variances costs 2-5% of
 #: accuracy (bench/accuracy.py, m = 50), and there the gain stayed below 8.4 in 200 of 200 data
@@ -106,7 +106,7 @@ class Options:
     ``noise``: None (default: "sources" on A_i X = Y B_i data of SOURCES_MIN_PAIRS pairs or more
     with the noise estimated and least squares, else "groups"), "groups" (refine's one noise level
     per residual group) or "sources" (the noise of each measured pose in its own frame,
-    estimated at the per-group answer, `handeye.noise_sources`; fitted last, on the pairs kept), and
+    estimated at the per-group answer, `handeye.estimation.noise_sources`; fitted last, on the pairs kept), and
     ``outliers``: "reject" (default; with least squares, pairs far off the others are left out
     and listed, see the module docstring) or "keep" (least squares on every pair). With a robust
     ``loss`` the loss handles outliers and nothing is left out."""
@@ -177,9 +177,9 @@ def _passed_on(cls: type) -> tuple[str, ...]:
 
 def run(data: Any, options: Options, backend: str) -> SolverOutput:
     """The pipeline of the module docstring; then, where the camera's translations fit the
-    robot's only at another scale (the host's check 5, `handeye.self_check`: a factor beyond 1.5
+    robot's only at another scale (the host's check 5, `handeye.checks.self_check`: a factor beyond 1.5
     that explains the translation misfit), the pipeline again with that scale unknown
-    (`handeye.camera_scale`), with a warning; for a cell of several cameras and targets, a factor
+    (`handeye.estimation.camera_scale`), with a warning; for a cell of several cameras and targets, a factor
     for some of them where held-out stations are predicted better (`_auto_scales`); then, for A X = Y B whose camera poses drift, X
     from the consecutive motions (`handeye.plugins._auto_steps`)."""
     output = _run(data, options, backend)
@@ -287,7 +287,7 @@ def _outlier_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag
 def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
                 ropts: _refine.Options, options: Options, report: dict[str, Any], stations: bool = False
                 ) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
-    """Pipeline step 5: the noise-source model (`handeye.noise_sources`) fitted from the answer
+    """Pipeline step 5: the noise-source model (`handeye.estimation.noise_sources`) fitted from the answer
     `poses` on the pairs kept (those not in the outlier step's `report`), where the option asks
     for it (None: from SOURCES_MIN_PAIRS pairs kept on and RESIDUALS_PER_VARIANCE residuals per
     variance, and kept only where it gains `noise_sources.min_gain` nats over the per-group model) and `_sources_skipped` finds no reason
@@ -356,7 +356,7 @@ def _diagnostics(pipeline: list[str], start: str, init_status: Status, init_diag
         "starts": starts,
         "refine": {k: v for k, v in diag.items() if k != "warnings"},
     }
-    # the camera's scale, or the cameras' scales, when unknown (handeye.camera_scale, handeye.camera_scales)
+    # the camera's scale, or the cameras' scales, when unknown (handeye.estimation.camera_scale, handeye.estimation.camera_scales)
     for key in ("camera_scale", "camera_scale_std", "camera_scales", "camera_scales_std"):
         if key in diag:
             diagnostics[key] = diag[key]

@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from handeye import Solution, SolverOutput, SolverSpec, Status, hookimpl
-from handeye.framework.errors import (
+from handeye.base.errors import (
     DegenerateDataError,
     HandEyeError,
     InputError,
@@ -86,7 +86,7 @@ class Options:
 
 
 def _check_solver_name(option: str, value: Any, problem: str) -> None:
-    from handeye.framework.registry import get_registry
+    from handeye.host.registry import get_registry
 
     names = get_registry().solver_names(problem)
     if not isinstance(value, str) or value not in names:

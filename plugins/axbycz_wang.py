@@ -61,7 +61,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.framework.errors import (
+from handeye.base.errors import (
     DegenerateDataError,
     HandEyeError,
     InputError,
@@ -102,7 +102,7 @@ class Options:
         check_positive("tol", self.tol)
         check_int("max_iter", self.max_iter, minimum=1)
         if not (isinstance(self.init, str) and self.init == GRID_INIT):
-            from handeye.framework.registry import get_registry
+            from handeye.host.registry import get_registry
 
             names = [n for n in get_registry().solver_names("axbycz") if n != "wang"]
             if not isinstance(self.init, str) or self.init not in names:
@@ -203,7 +203,7 @@ def normal_equations(RA: np.ndarray, RB: np.ndarray, RC: np.ndarray, RX: np.ndar
     G(L, N) = tr(Q) I - Q) and R_A^T G(L, N) are formed, and the sums over the triples are BLAS
     products (`_linearisation`). Measured (m = 1000, 8 starts, one thread): the linearisation
     and C in 3.5 ms instead of 12.5, `wang` in 16 ms instead of 43. The data's rotations are
-    orthonormal to `handeye.se3.ORTHONORMALITY_TOL`, which makes the constant blocks exact to
+    orthonormal to `handeye.geometry.se3.ORTHONORMALITY_TOL`, which makes the constant blocks exact to
     that order; F^T E, which decides where Gauss-Newton stops, is exact.
     """
     return _linearisation(*_contiguous(RA, RB, RC), RX, RY, RZ)[:2]

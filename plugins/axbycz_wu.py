@@ -49,7 +49,7 @@ import itertools
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.framework.errors import DegenerateDataError
+from handeye.base.errors import DegenerateDataError
 from handeye.framework.options import check_int
 from handeye.geometry.dualquat import (
     q_left,

@@ -37,8 +37,8 @@ from typing import Any
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye.base.errors import DegenerateDataError, InputError
 from handeye.checks.self_check import rotation_block_figures
-from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.framework.options import check_bool
 from handeye.geometry.dualquat import (
     pose_from_dual_quat,
@@ -117,7 +117,7 @@ def _lstsq(M: np.ndarray, rhs: np.ndarray | None, what: str, hint: str = _PARALL
     """Least squares min |M x - rhs| for the blocks M: (k, r, c), rhs: (k, r) stacked, and
     sigma_min / sigma_max of the stack; DegenerateDataError when it is singular. As OpenCV's
     DECOMP_SVD up to rounding: the stack [M | rhs] is first reduced to its triangular factor
-    (`handeye.linalg.triangular_factor`, a QR of small chunks), then solved by SVD. rhs None:
+    (`handeye.geometry.linalg.triangular_factor`, a QR of small chunks), then solved by SVD. rhs None:
     M is already [M | rhs] (k, r, c + 1)."""
     if rhs is not None:
         M = np.concatenate([M, rhs[..., None]], axis=-1)

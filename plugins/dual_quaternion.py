@@ -1,6 +1,6 @@
 """`dual-quaternion`: the paper's DQ-based method (Sec. III.C, eqs. 22-26).
 
-A_i X = Y B_i in unit dual quaternions (eq. 22, helpers in `handeye.dualquat`, scalar-first
+A_i X = Y B_i in unit dual quaternions (eq. 22, helpers in `handeye.geometry.dualquat`, scalar-first
 Hamilton quaternions) reads
 
     (a + eps a')(x + eps x') = (y + eps y')(b + eps b'),
@@ -73,7 +73,7 @@ import dataclasses
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.framework.errors import SolverError
+from handeye.base.errors import SolverError
 from handeye.geometry.dualquat import (
     conjugate,
     dual_quat_from_pose,

@@ -42,8 +42,8 @@ import numpy as np
 from scipy.linalg import solve_triangular
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye.base.errors import DegenerateDataError
 from handeye.checks.self_check import rotation_block_figures
-from handeye.framework.errors import DegenerateDataError
 from handeye.geometry.linalg import triangular_factor
 from handeye.geometry.se3 import make_pose
 from handeye.plugins.shah import normalize_rotation

@@ -22,7 +22,7 @@ does not normalise the translation rows, so data in mm or in m give different ro
 (measured: ~1e-3 rad apart on the shared suite's noisy case at s = 1e-3).
 
 Rotations: OpenCV computes in float64 and its results are orthonormal to ~1e-15 in practice. A
-result is re-projected onto SO(3) by SVD (`handeye.se3.project_to_so3`) only if its
+result is re-projected onto SO(3) by SVD (`handeye.geometry.se3.project_to_so3`) only if its
 |R^T R - I| exceeds `REPROJECT_ABOVE`; the names of re-projected unknowns are reported in
 ``diagnostics["reprojected"]`` (normally empty), so the answer is OpenCV's own whenever possible.
 
@@ -61,7 +61,7 @@ import dataclasses
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.framework.errors import DegenerateDataError, SolverError
+from handeye.base.errors import DegenerateDataError, SolverError
 from handeye.framework.options import check_choice
 from handeye.geometry.se3 import (
     inverse,

@@ -41,7 +41,7 @@ from handeye import (
     hookimpl,
     run_registered,
 )
-from handeye.framework.errors import shown
+from handeye.base.errors import shown
 from handeye.framework.solution import USABLE
 from handeye.geometry.se3 import make_pose, project_to_so3, rotation_angle
 
@@ -72,7 +72,7 @@ class Options:
 
 def _pair_spec(name: str) -> Any:
     """The pair solver's spec for ``axyb`` (UnknownPluginError listing the axyb solvers)."""
-    from handeye.framework.registry import get_registry
+    from handeye.host.registry import get_registry
 
     return get_registry().solver(name, PAIR_PROBLEM)
 
@@ -89,7 +89,7 @@ def _short(exc: BaseException) -> str:
 def solve_pairs(data: AXYBMultiData, options: Options) -> tuple[list[dict[str, Any]], dict[tuple[int, int], Any]]:
     """Each observed (j, k) solved alone: (a record per pair for the diagnostics, {(j, k): Solution}
     of the pairs used)."""
-    from handeye.framework.registry import get_registry
+    from handeye.host.registry import get_registry
 
     axyb = get_registry().problem(PAIR_PROBLEM)
     records, answers = [], {}

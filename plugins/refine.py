@@ -16,10 +16,10 @@ log-likelihood for rho(s) = s.
 
 This module is the plugin only: its options, the start (a registered solver per problem, or
 given poses) and the registration. The machinery is shared and lives below it:
-- `handeye.nlls`: Levenberg-Marquardt on SE(3)^k with its weight modes (stated weights, profile
+- `handeye.estimation.nlls`: Levenberg-Marquardt on SE(3)^k with its weight modes (stated weights, profile
   likelihood over the two variances, IRLS with median-based scales, "initial"), convergence
-  rules, covariance with its variance factor, diagnostics; `handeye.whitening` and
-  `handeye.robust`: weights and losses; `handeye.so3_fast`: the SO(3) helpers;
+  rules, covariance with its variance factor, diagnostics; `handeye.estimation.whitening` and
+  `handeye.estimation.robust`: weights and losses; `handeye.geometry.so3_fast`: the SO(3) helpers;
 - `handeye.problems.axyb.geometry`, `handeye.problems.axxb.geometry`,
   `handeye.problems.axbycz.geometry`: each problem's residuals and analytic Jacobians (and, for
   A X = Y B at large m, closed-form normal equations).
@@ -41,7 +41,7 @@ the length unit); with a robust loss by robust scales re-estimated to a fixed po
 docs/solvers/refine.md for the models, the Jacobians and measured figures.
 
 Planar mode (a robot whose rotations share one axis, `handeye.problems.planar`, docs/planar.md):
-the model keeps the translation component the user gave (`handeye.nlls.PoseModel.fixed`: the
+the model keeps the translation component the user gave (`handeye.estimation.nlls.PoseModel.fixed`: the
 steps stay in the 6k - 1 dimensional subspace that keeps it, and its variance is zero); the
 default start is the first start solver with a planar mode (kron-lstsq), and a start given as
 poses is moved onto the constraint first.
@@ -56,24 +56,24 @@ from typing import Any, ClassVar
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl, run_registered
-from handeye.checks.validation import float_array, pose_stack
-from handeye.estimation import camera_scale, nlls, noise_sources
-from handeye.estimation.robust import DEFAULT_LOSS_SCALE, LOSSES
-from handeye.estimation.whitening import covariance_factor, stated
-from handeye.framework.errors import (
+from handeye.base.errors import (
     BackendUnavailableError,
     InputError,
     SolverError,
     shown,
 )
+from handeye.estimation import camera_scale, nlls, noise_sources
+from handeye.estimation.robust import DEFAULT_LOSS_SCALE, LOSSES
+from handeye.estimation.whitening import covariance_factor, stated
 from handeye.framework.options import check_choice, check_int, check_positive
 from handeye.framework.problem import Problem, flatten, unflatten
-from handeye.framework.registry import get_registry
 from handeye.framework.solution import jsonable
+from handeye.geometry.validation import float_array, pose_stack
+from handeye.host.registry import get_registry
 
 #: values of option `noise`: "groups", one noise level per residual group (rotation,
 #: translation) for every pair; "sources" (A_i X = Y B_i, noise estimated, least squares), the
-#: noise of each measured pose in its own frame, pair by pair (`handeye.noise_sources`)
+#: noise of each measured pose in its own frame, pair by pair (`handeye.estimation.noise_sources`)
 NOISE_MODELS = ("groups", "sources")
 #: solvers that cannot serve as `init` because they call `refine` themselves.
 RECURSIVE = ("refine", "auto")
@@ -102,7 +102,7 @@ class Options:
         Gauss-Newton step is below tol * cost.
     noise: "groups" (default: one noise level per residual group, the same for every pair) or
         "sources" (the noise of each measured pose in its own frame, estimated at the per-group fit,
-        pair by pair: `handeye.noise_sources`; A_i X = Y B_i with the noise estimated).
+        pair by pair: `handeye.estimation.noise_sources`; A_i X = Y B_i with the noise estimated).
     """
 
     UNKNOWNS: ClassVar[tuple[str, ...]] = ()
@@ -226,7 +226,7 @@ def problem_of(data: Any) -> str:
 
 def model_of(data: Any) -> nlls.PoseModel:
     """The engine's model of the problem on these validated data (the camera's scale profiled out
-    when the data say it is unknown, `handeye.camera_scale`)."""
+    when the data say it is unknown, `handeye.estimation.camera_scale`)."""
     problem = problem_for(data)
     model = problem.pose_model(data)
     if model is None:
@@ -340,7 +340,7 @@ def settings_of(options: Options, m: int) -> nlls.Settings:
 def refine(data: Any, poses0: tuple[np.ndarray, ...], options: Options) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """Refine the poses poses0 (in the problem's order of unknowns) on validated `data` with
     `options` (the init options are not used here): (poses, status, diagnostics); with the
-    camera's scale unknown also that scale and its standard deviation (`handeye.camera_scale`)."""
+    camera's scale unknown also that scale and its standard deviation (`handeye.estimation.camera_scale`)."""
     model = model_of(data)
     settings = settings_of(options, data.m)
     if isinstance(model, camera_scale.ScaledCameraModel) and settings.W is not None and settings.W.L is not None:
@@ -354,9 +354,9 @@ def refine(data: Any, poses0: tuple[np.ndarray, ...], options: Options) -> tuple
 
 def fit(model: nlls.PoseModel, data: Any, poses0: tuple[np.ndarray, ...], settings: nlls.Settings,
         noise: str = "groups", per_group_fit: Any = None) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
-    """The engine's fit of `model` (of `data`) from `poses0` with `settings`: `handeye.nlls`, or
-    with noise="sources" `handeye.noise_sources` (`per_group_fit`: as there); with the camera's
-    scale profiled out (`handeye.camera_scale`) that scale and its standard deviation added to the
+    """The engine's fit of `model` (of `data`) from `poses0` with `settings`: `handeye.estimation.nlls`, or
+    with noise="sources" `handeye.estimation.noise_sources` (`per_group_fit`: as there); with the camera's
+    scale profiled out (`handeye.estimation.camera_scale`) that scale and its standard deviation added to the
     diagnostics. Shared by `refine` and `auto`'s refit without the pairs it leaves out."""
     if noise == "sources":
         return noise_sources.fit(model, data, poses0, settings, per_group_fit)
@@ -370,7 +370,7 @@ def fit(model: nlls.PoseModel, data: Any, poses0: tuple[np.ndarray, ...], settin
 
 
 def sources_apply(data: Any, options: Options) -> bool:
-    """Whether the noise-source model (`handeye.noise_sources`) applies: a model whose residuals
+    """Whether the noise-source model (`handeye.estimation.noise_sources`) applies: a model whose residuals
     it describes (`PoseModel.noise_sources`: A_i X = Y B_i), the camera's scale known, the noise
     estimated, least squares."""
     return (getattr(problem_for(data).pose_model(data), "noise_sources", False)

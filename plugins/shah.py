@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
-from handeye.framework.errors import DegenerateDataError
+from handeye.base.errors import DegenerateDataError
 from handeye.geometry.se3 import make_pose
 from handeye.problems.axyb import AXYBData, solve_translations
 

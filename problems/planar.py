@@ -15,7 +15,7 @@ Analysis 26, 2016):
 The user gives that one number: ``tz_X`` = t_X . b (for AX=YB ``tz_Y`` = t_Y . a instead), b
 the robot's common rotation axis in X's parent frame, signed so that its largest component is
 positive (for a SCARA whose flange z is along the joint axes, simply t_X's z). The solvers with a
-planar mode (`handeye.solver.SolverSpec.planar_mode`) solve the other parameters with that
+planar mode (`handeye.framework.solver.SolverSpec.planar_mode`) solve the other parameters with that
 component fixed. docs/planar.md is the user's page.
 
 Here, shared by both problems and by the planar solvers:
@@ -38,8 +38,8 @@ from typing import Any
 
 import numpy as np
 
+from handeye.base.errors import DegenerateDataError, InputError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.geometry import so3_fast
 from handeye.geometry.linalg import eigvalsh
 from handeye.geometry.se3 import inverse, make_pose, so3_exp
@@ -94,7 +94,7 @@ class Planar:
         return dataclasses.replace(self, value=self.value / s)
 
     def fixed(self, unknowns: Sequence[str]) -> tuple[tuple[int, np.ndarray], ...]:
-        """For `handeye.nlls.PoseModel.fixed`: ((index of the unknown, axis),), or () when the
+        """For `handeye.estimation.nlls.PoseModel.fixed`: ((index of the unknown, axis),), or () when the
         model has no such unknown."""
         return ((list(unknowns).index(self.unknown), self.axis),) if self.unknown in unknowns else ()
 
@@ -271,7 +271,7 @@ def _one_line(R: np.ndarray, t: np.ndarray, axis: np.ndarray, scale: float, abso
 
 def _solvers(problem: str) -> str:
     """The registered solvers with a planar mode, in words ("auto, kron-lstsq or refine")."""
-    from handeye.framework.registry import get_registry
+    from handeye.host.registry import get_registry
 
     registry = get_registry()
     names = [n for n in registry.solver_names(problem) if registry.solver(n, problem).planar_mode]

@@ -30,7 +30,7 @@ from hypothesis import settings
 
 import handeye
 from handeye import SolverOutput, hookimpl
-from handeye.framework import registry
+from handeye.host import registry
 
 # property tests: enough examples to find edge cases, few enough for the suite's time budget;
 # no deadline (the machine is shared, timings vary)
@@ -102,7 +102,7 @@ def solve_once() -> Callable[..., Any]:
 
 @pytest.fixture
 def runtime_plugins() -> Iterator[Callable[[Any, str], None]]:
-    """register(plugin, name): `handeye.registry.register_plugin`, undone after the test."""
+    """register(plugin, name): `handeye.host.registry.register_plugin`, undone after the test."""
     names: list[str] = []
 
     def register(plugin: Any, name: str) -> None:

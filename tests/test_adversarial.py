@@ -20,7 +20,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.checks.plausibility import duplicate_stations, station_warnings
+from handeye.checks.stations import duplicate_stations, station_warnings
 from handeye.estimation.noise import NoiseModel
 from handeye.geometry.se3 import (
     inverse,

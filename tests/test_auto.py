@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import handeye
+from handeye.base.errors import InputError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError
 from handeye.framework.solution import Status
 from handeye.plugins import refine
 from handeye.problems.axxb import PROBLEM as AXXB
@@ -123,7 +123,7 @@ def test_auto_rejects_bad_options(noisy, bad):
 
 @pytest.mark.parametrize("solver", ["auto", "refine"])
 def test_a_failing_default_start_falls_back_to_kron_lstsq(noisy, monkeypatch, solver):
-    from handeye.framework.errors import SolverError
+    from handeye.base.errors import SolverError
 
     data, _ = noisy
     real = refine.run_init

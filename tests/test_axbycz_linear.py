@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 
 import handeye
+from handeye.base.errors import DegenerateDataError, InputError
 from handeye.estimation.kronecker import reduce_normal_equations
 from handeye.estimation.noise import NoiseModel
 from handeye.estimation.trust_region import solve_trust_region
-from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.geometry.dualquat import quat_from_rotation, quat_multiply
 from handeye.problems.axbycz import PROBLEM
 from handeye.problems.axbycz import kronecker as lifted
@@ -234,7 +234,7 @@ def test_the_sphere_sdp_is_the_trust_region_least_squares(backend, triples):
     assert sol.diagnostics["cost"] == pytest.approx(trs.value + cost.c, rel=1e-9, abs=1e-9 * np.abs(cost.P).max())
     ref = solve("kron-lstsq", "numpy", raw)
     for name in "XYZ":  # kron-lstsq: SVD projection, lmi-sdp: Gram-Schmidt (its default)
-        assert handeye.se3.rotation_angle(sol.unknowns[name][:3, :3] @ ref.unknowns[name][:3, :3].T) < 0.01
+        assert handeye.geometry.se3.rotation_angle(sol.unknowns[name][:3, :3] @ ref.unknowns[name][:3, :3].T) < 0.01
     svd = solve("lmi-sdp", backend, raw, orthogonalize="svd")
     for name in "XYZ":
         np.testing.assert_allclose(svd.unknowns[name], ref.unknowns[name], atol=1e-8)

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import handeye
+from handeye.base.errors import DegenerateDataError, InputError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.geometry.se3 import random_rotations, so3_exp
 from handeye.plugins import axbycz_fu, axbycz_wang
 from handeye.problems.axbycz import PROBLEM

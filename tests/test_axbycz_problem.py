@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.estimation.nlls import retract_all
-from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import (
+from handeye.base.errors import (
     BackendUnavailableError,
     DegenerateDataError,
     InputError,
 )
+from handeye.estimation.nlls import retract_all
+from handeye.estimation.noise import NoiseModel
 from handeye.geometry.se3 import inverse, make_pose, so3_exp
 from handeye.problems.axbycz import PROBLEM
 from handeye.problems.axbycz import geometry as G
@@ -423,7 +423,7 @@ def test_the_two_cells_of_the_conventions(cell):
 
 
 def test_a_sweep_carries_its_own_simulator_options():
-    from handeye.harness.study import study_from_dict
+    from handeye.harness.study_files import study_from_dict
 
     doc = {"problem": "axbycz", "sweep": [{"name": "ph", "pairs": [10], "simulation": {"protocol": "phases"}},
                                           {"name": "fr", "pairs": [10]}]}

@@ -1,6 +1,6 @@
 """The Kronecker solvers for ``axxb`` (A_i X = X B_i): `kron-lstsq`, `lmi-sdp` (cvxpy, picos,
 casadi) and `so3-sdp` (cvxpy, picos), and the trust-region solver behind them
-(`handeye.trust_region`).
+(`handeye.estimation.trust_region`).
 
 What is special about AX = XB here (docs/solvers/kron-lstsq.md): the rotation rows of the linear
 system are homogeneous, so plain least squares is singular when every motion rotates about one
@@ -14,10 +14,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.optimize import minimize
+from tolerances import solved
 
 import handeye
-from tolerances import solved
 from handeye import Status
+from handeye.base.errors import DegenerateDataError
 from handeye.estimation.noise import NoiseModel
 from handeye.estimation.rotation_cost import (
     RotationCost,
@@ -26,7 +27,6 @@ from handeye.estimation.rotation_cost import (
     sphere_least_squares,
 )
 from handeye.estimation.trust_region import refine_trust_region, solve_trust_region
-from handeye.framework.errors import DegenerateDataError
 from handeye.geometry.se3 import (
     gram_schmidt,
     inverse,

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import handeye
+from handeye.base.errors import DegenerateDataError, InputError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.geometry.kinematics import LR_MATE_200ID, DHArm
 from handeye.geometry.se3 import inverse, so3_log
 from handeye.problems.axyb import PAPER_X, PAPER_Y

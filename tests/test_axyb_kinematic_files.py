@@ -17,7 +17,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.geometry.kinematics import LR_MATE_200ID
 from handeye.io.arm_files import ArmModel, arm_yaml, read_arm
 from handeye.io.examples import kinematic_example_dir

@@ -20,11 +20,11 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import handeye
+from handeye.base.errors import InputError
 from handeye.cli import main
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError
-from handeye.framework.registry import get_registry
 from handeye.geometry.se3 import inverse
+from handeye.host.registry import get_registry
 from handeye.problems.axyb_multi import AXYBMultiData, simulate_cell
 from handeye.problems.axyb_multi.example_files import _xyz_rotvec
 from handeye.workflow.cell import Cell

@@ -16,7 +16,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.geometry.se3 import make_pose
 from handeye.io.examples import multi_camera_example_dir
 from handeye.problems.axyb_multi.example_files import (

@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 import handeye
+from handeye.base.errors import InputError
 from handeye.cli import main
-from handeye.framework.errors import InputError
 from handeye.geometry.se3 import inverse
 from handeye.io.pose_readers import read_poses
 from handeye.vision.board_set import check_distinct

@@ -1,5 +1,5 @@
 """A cell of several cameras, some known only up to their own scale (``camera_scale=[names]``,
-`handeye.camera_scales`): every solver of ``axyb-multi`` that honours it, both setups and a mix,
+`handeye.estimation.camera_scales`): every solver of ``axyb-multi`` that honours it, both setups and a mix,
 noise-free and noisy, units, bad input, cameras whose scale the data do not determine."""
 
 from __future__ import annotations

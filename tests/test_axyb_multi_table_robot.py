@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import handeye
+from handeye.base.errors import InputError
 from handeye.cli import main
-from handeye.framework.errors import InputError
 from handeye.io.examples import multi_camera_example_dir
 from handeye.workflow.observation_cell import read_tables
 

@@ -1,4 +1,4 @@
-"""handeye.bag_readers: pose streams from ROS 1 / ROS 2 bags written here with rosbags' own writers."""
+"""handeye.io.bag_readers: pose streams from ROS 1 / ROS 2 bags written here with rosbags' own writers."""
 
 from __future__ import annotations
 

@@ -9,8 +9,13 @@ import numpy as np
 import pytest
 from test_vision_pipeline import simulated_cell
 
-from handeye.framework.errors import InputError
-from handeye.vision.board_survey import BoardSizeError, Survey, check_chessboard_size, chessboard_grid
+from handeye.base.errors import InputError
+from handeye.vision.board_survey import (
+    BoardSizeError,
+    Survey,
+    check_chessboard_size,
+    chessboard_grid,
+)
 from handeye.vision.boards import parse_board
 from handeye.vision.detection_plan import probe_indices
 from handeye.vision.intrinsics import CameraCalibration

@@ -225,7 +225,7 @@ def test_help(capsys):
 
 from pathlib import Path
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.streams.station_matching import (
     default_max_dt,
     match_by_name,

@@ -1,4 +1,4 @@
-"""Camera translations known only up to scale (``camera_scale="unknown"``, handeye.camera_scale):
+"""Camera translations known only up to scale (``camera_scale="unknown"``, handeye.estimation.camera_scale):
 every solver that honours it, on A X = Y B and A X = X B."""
 
 from __future__ import annotations
@@ -138,7 +138,7 @@ def test_command_line(tmp_path, capsys):
     (SCALE, Status.UNRELIABLE, "give camera_scale='unknown'"),  # a monocular camera taken as metric
 ])
 def test_the_self_check_notices_camera_translations_in_another_unit(factor, status, says):
-    """Check 5 of handeye.self_check: the camera's translations must fit the robot's at scale 1
+    """Check 5 of handeye.checks.self_check: the camera's translations must fit the robot's at scale 1
     (here judging refine's answer: auto estimates the scale where the data demand it, below)."""
     data, _ = simulate("axyb", seed=6, noise=ACCURACY_NOISE, pairs=8)
     sol = handeye.solve("axyb", solver="refine", **camera_in_own_unit(data, 1.0 / factor))
@@ -180,7 +180,7 @@ def test_auto_estimates_the_scale_where_the_data_demand_it(problem, factor):
 
 
 KINHEC = Path(__file__).parent / "data" / "kinhec"
-#: check 6's warning and failure (handeye.self_check._camera_scale_noise)
+#: check 6's warning and failure (handeye.checks.self_check._camera_scale_noise)
 BIAS_WARNING = "too small, "
 BIAS_FAILURE = "the data do not determine the camera's scale"
 

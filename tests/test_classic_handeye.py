@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from tolerances import solved
 
 import handeye
-from tolerances import solved
-from handeye.framework.errors import (
+from handeye.base.errors import (
     BackendUnavailableError,
     DegenerateDataError,
     InputError,

@@ -15,7 +15,7 @@ import pytest
 
 from handeye import SolverError
 from handeye.cli import COMMANDS
-from handeye.framework.registry import get_registry
+from handeye.host.registry import get_registry
 from handeye.io.data_files import load_data, save_data
 from tests.conftest import run_cli
 

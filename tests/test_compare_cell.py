@@ -10,10 +10,15 @@ import json
 import numpy as np
 import pytest
 
-from handeye import registry
 from handeye.cli.compare_cell import image_example_cell
-from handeye.harness.crossval_images import DEFAULT_LABEL, corner_errors, image_specs, run_image_crossval
+from handeye.harness.crossval_images import (
+    DEFAULT_LABEL,
+    corner_errors,
+    image_specs,
+    run_image_crossval,
+)
 from handeye.harness.study import Spec
+from handeye.host import registry
 from handeye.workflow.calibration import read_stations
 from tests.conftest import run_cli
 

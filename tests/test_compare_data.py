@@ -11,9 +11,9 @@ import pytest
 
 from handeye.cli import main
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.registry import get_registry
 from handeye.harness import Spec
 from handeye.harness.crossval import TRUTH_LABEL, CrossValData, make_folds, run_crossval
+from handeye.host.registry import get_registry
 from handeye.io.data_files import load_file, save_data
 from tests.conftest import run_cli
 

@@ -8,8 +8,9 @@ import math
 import pytest
 from scipy import stats
 
-from handeye.checks import best_fit, validation
+from handeye.checks import best_fit
 from handeye.estimation import robust, whitening
+from handeye.geometry import validation
 from handeye.plugins import auto
 
 

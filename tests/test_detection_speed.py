@@ -72,7 +72,7 @@ def test_parallel_and_serial_detection_are_identical_and_in_order(chess_folder):
 
 
 def test_workers_must_be_a_whole_number(monkeypatch):
-    from handeye.framework.errors import InputError
+    from handeye.base.errors import InputError
 
     with pytest.raises(InputError, match="whole number >= 1"):
         detection_pool.run([], 0)

@@ -1,4 +1,4 @@
-"""The `dual-quaternion` solver (paper Sec. III.C) and the helpers of `handeye.dualquat`."""
+"""The `dual-quaternion` solver (paper Sec. III.C) and the helpers of `handeye.geometry.dualquat`."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from tolerances import solved
 
 import handeye
-from tolerances import solved
 from handeye.estimation.noise import NoiseModel
 from handeye.geometry.dualquat import (
     conjugate,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.framework.errors import UnknownPluginError
+from handeye.base.errors import UnknownPluginError
 from handeye.geometry.kinematics import random_flange_poses
 from handeye.geometry.se3 import inverse, make_pose, random_rotations, rotation_angle
 from handeye.io.examples import list_examples, load_example

@@ -11,9 +11,8 @@ import numpy as np
 import pytest
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
+from handeye.base.errors import InputError, UnknownPluginError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError, UnknownPluginError
-from handeye.framework.registry import list_solvers, register_plugin, unregister_plugin
 from handeye.harness import (
     PAPER_METHODS,
     Spec,
@@ -32,6 +31,7 @@ from handeye.harness import (
     write_report,
 )
 from handeye.harness.report import band
+from handeye.host.registry import list_solvers, register_plugin, unregister_plugin
 
 ERROR_COLUMNS = ["err_rot_X", "err_trans_X", "err_rot_Y", "err_trans_Y"]
 RESIDUAL_COLUMNS = ["res_rot_mean", "res_rot_median", "res_trans_mean", "res_trans_median"]
@@ -491,7 +491,7 @@ def load_study_text(text: str) -> Study:
 
 
 def test_axxb_default_specs_have_opencvs_five_methods():
-    from handeye.framework.registry import get_registry
+    from handeye.host.registry import get_registry
 
     specs = default_specs("axxb")
     assert {s.solver for s in specs} <= set(list_solvers("axxb"))

@@ -26,8 +26,8 @@ import cv2
 import numpy as np
 import pytest
 
+from handeye.base.errors import InputError
 from handeye.cli import main
-from handeye.framework.errors import InputError
 from handeye.io.examples import image_example_dir
 from handeye.vision.boards import parse_board
 from handeye.vision.circlegrid import blob_limit

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from handeye.base.errors import HandEyeError, InputError
 from handeye.cli import main
-from handeye.framework.errors import HandEyeError, InputError
 from handeye.geometry.se3 import make_pose, random_poses, so3_exp
 from handeye.io import npz
 from handeye.io.data_files import load_data, save_data

@@ -22,9 +22,9 @@ import numpy as np
 import pytest
 
 import handeye
+from handeye.base.errors import HandEyeError, InputError, SolverError
 from handeye.cli import main
 from handeye.estimation.kronecker import MIN_TRANSLATION
-from handeye.framework.errors import HandEyeError, InputError, SolverError
 from handeye.framework.options import check_int, check_positive, parse_options
 from handeye.geometry.se3 import rotation_angle
 from handeye.io.data_files import load_data, save_data

@@ -358,7 +358,7 @@ def test_the_intrinsics_1_sigma_is_read_in_each_spelling(tmp_path):
     """``std_px`` as a mapping, OpenCV's ``stdDeviationsIntrinsics`` (a column), the ROS-Industrial
     ``intrinsics: {..., std: {...}}``; a file with a 1-sigma that is not four numbers >= 0 is
     refused in one line naming it."""
-    from handeye.framework.errors import InputError
+    from handeye.base.errors import InputError
     from handeye.vision.intrinsics import load_camera
 
     K = "[[1000, 0, 800], [0, 1000, 600], [0, 0, 1]]"

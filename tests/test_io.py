@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
+from handeye.base.errors import InputError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError
 from handeye.io.data_files import load_data, load_file, save_data, supported_extensions
 from handeye.problems.axyb import PROBLEM
 

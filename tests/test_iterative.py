@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import handeye
+from handeye.base.errors import InputError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError
 from handeye.geometry.se3 import make_pose, random_rotations, so3_exp
 from handeye.plugins.iterative import (
     RotationSums,

@@ -1,5 +1,5 @@
 """``handeye bench --kinhec``: handeye's solvers registered into KinHEC's benchmark protocol
-(handeye.cli._kinhec, docs/kinhec.md).
+(handeye.harness.kinhec, docs/kinhec.md).
 
 KinHEC is an optional extra (``pip install "handeye[kinhec]"``), so the CLI path without it and the
 registration / adaptor logic are tested against a FAKE minimal ``kinhec`` module (a SOLVERS dict and
@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from handeye.cli import _kinhec
 from handeye.estimation.noise import NoiseModel
 from handeye.geometry.se3 import inverse
+from handeye.harness import kinhec as _kinhec
 from handeye.problems.axyb import PROBLEM
 from tests.conftest import run_cli
 
@@ -161,7 +161,7 @@ def test_registers_every_pose_solver_runs_the_protocol_and_restores_kinhec(capsy
 
     # registered during the run: axyb solvers as handeye:NAME (auto first), axxb ones as handeye-axxb:NAME,
     # beside the references; solvers needing more than poses (reprojection: images) left out
-    from handeye.framework.registry import get_registry
+    from handeye.host.registry import get_registry
 
     registry = get_registry()
     axyb = {f"handeye:{n}" for n in registry.solver_names("axyb")} - {"handeye:reprojection"}
@@ -219,7 +219,7 @@ def test_scale_aware_variants_solve_a_camera_known_up_to_scale():
     """Every solver that takes camera_scale='unknown' is registered twice, the second time as
     NAME+scale with the scale unknown (like KinHEC's andreff_scale): on poses whose camera
     translations are 3x too large it finds X (the data's noise: 0.001 rad / 0.1 mm)."""
-    from handeye.framework.registry import get_registry
+    from handeye.host.registry import get_registry
 
     entries, _ = _kinhec.handeye_entries(probe=False)
     by = {e.name: e for e in entries}

@@ -22,12 +22,12 @@ import types
 
 import numpy as np
 import pytest
+from tolerances import solved
 
 import handeye
-from tolerances import solved
 from handeye import Status
+from handeye.base.errors import BackendUnavailableError, InputError, SolverError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import BackendUnavailableError, InputError, SolverError
 from handeye.geometry.se3 import gram_schmidt, project_to_so3, rotation_angle
 from handeye.plugins import lmi_sdp
 from handeye.plugins._sdp_backends import svec

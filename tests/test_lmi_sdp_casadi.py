@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from handeye import Status
+from handeye.base.errors import InputError, SolverError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError, SolverError
 from handeye.plugins import kron_lstsq
 from handeye.plugins.lmi_sdp import casadi as lc
 from handeye.problems.axyb import (

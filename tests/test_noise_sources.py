@@ -1,4 +1,4 @@
-"""The noise-source model of A_i X = Y B_i (handeye.noise_sources; refine's and auto's
+"""The noise-source model of A_i X = Y B_i (handeye.estimation.noise_sources; refine's and auto's
 ``noise="sources"``): where the noise lives, estimated with the unknowns."""
 
 from __future__ import annotations

@@ -7,13 +7,13 @@ import runpy
 
 import numpy as np
 import pytest
+from tolerances import solved
 
 import handeye
-from tolerances import solved
+from handeye.base.errors import BackendUnavailableError, InputError, SolverError
 from handeye.cli import main as cli_main
 from handeye.cli.list_cmd import collect
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import BackendUnavailableError, InputError, SolverError
 from handeye.geometry.se3 import orthonormality_error, rotation_angle
 from handeye.plugins import opencv as plugin
 from handeye.problems.axyb import PROBLEM, random_truth

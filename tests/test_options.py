@@ -1,4 +1,4 @@
-"""Solver options (handeye.options): the shared validators, and bool options of every solver."""
+"""Solver options (handeye.framework.options): the shared validators, and bool options of every solver."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Output files: complete or absent, created exclusively, never written through an input.
 
-`handeye.output_files` writes to a temporary file in the target's folder and links or renames
+`handeye.io.output_files` writes to a temporary file in the target's folder and links or renames
 it into place. Checked here: a writer killed with SIGKILL at random moments never leaves a
 partial target (and the rerun is not blocked); a full disk names the file and leaves nothing;
 two writers of one name without --force: exactly one wins, the other is told; --force replaces
@@ -34,7 +34,7 @@ ETH = ROOT / "core" / "data"
 
 WRITER = textwrap.dedent("""
     import sys, time
-    from handeye.output_files import new_file
+    from handeye.io.output_files import new_file
     with new_file(sys.argv[1], force=True) as fh:
         for k in range(100000):
             fh.write("%06d " % k * 20 + "\\n")

@@ -18,8 +18,8 @@ from handeye import DegenerateDataError, InputError
 from handeye.cli import main
 from handeye.estimation import nlls
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.registry import get_registry
 from handeye.geometry.se3 import inverse, make_pose, so3_exp
+from handeye.host.registry import get_registry
 from handeye.io.data_files import save_data
 from handeye.io.pose_readers import write_poses
 from handeye.problems import planar

@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 import handeye
+from handeye.base.errors import InputError
 from handeye.cli import main
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError
 from handeye.geometry.se3 import inverse, make_pose, so3_exp, so3_log
 from handeye.io.pose_readers import read_poses
 from handeye.planning import design, stations, views

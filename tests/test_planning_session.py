@@ -10,9 +10,9 @@ import pytest
 
 import handeye
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.registry import get_registry
 from handeye.geometry import so3_fast
 from handeye.geometry.se3 import inverse, make_pose
+from handeye.host.registry import get_registry
 from handeye.planning import design, live_fit, views
 from handeye.planning.plan import Noise, plan, planners
 from handeye.planning.session import Session, SessionError, Tolerance

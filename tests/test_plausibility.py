@@ -1,4 +1,4 @@
-"""Plausibility checks of ``handeye calibrate`` (handeye.plausibility): simulated cells written
+"""Plausibility checks of ``handeye calibrate`` (handeye.workflow.plausibility): simulated cells written
 with each usual setup mistake are caught (status unreliable, exit 1, the right mistake named
 with its flag); clean noisy cells at 1x and 10x the accuracy study's noise pass without a warning."""
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.checks.plausibility import MIN_STATIONS_FOR_SIGMA, station_warnings
+from handeye.checks.stations import MIN_STATIONS_FOR_SIGMA, station_warnings
 from handeye.cli import main
 from handeye.estimation.noise import NoiseModel
 from handeye.framework.solution import Status
@@ -185,9 +185,9 @@ def test_a_far_board_seen_from_few_stations_is_not_taken_for_millimetres():
     'camera file in mm, not m' hypothesis shrank the board's distance to 3 mm, where almost any
     poses fit, and was suggested (this seed, before the distance guard). A camera calibrates from
     2 cm to 50 m: a unit hypothesis outside that is not tried."""
-    from handeye.checks import plausibility as P
     from handeye.geometry.kinematics import random_flange_poses
     from handeye.geometry.se3 import make_pose, so3_exp
+    from handeye.workflow import plausibility as P
 
     rng = np.random.default_rng(19)
     n = int(rng.integers(4, 8))

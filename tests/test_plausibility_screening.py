@@ -1,4 +1,4 @@
-"""The plausibility check on long streams (handeye.checks.plausibility): the hypotheses are
+"""The plausibility check on long streams (handeye.workflow.plausibility): the hypotheses are
 screened on a subsample of the stations and fitted on all only where they may explain the data.
 The verdict, the mistake named, its figures and the alternatives named must be those of fitting
 every hypothesis on all stations (SCREEN_STATIONS = 0), for each usual mistake and on clean data."""
@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 import handeye
-from handeye.checks import plausibility as P
 from handeye.cli import main
 from handeye.estimation.noise import NoiseModel
 from handeye.geometry.se3 import inverse
 from handeye.problems.axxb import simulate_stations
+from handeye.workflow import plausibility as P
 
 STATIONS = 120
 

@@ -26,7 +26,7 @@ import pytest
 
 import handeye
 from handeye.cli import main
-from handeye.framework import registry
+from handeye.host import registry
 from handeye.problems.axyb import PROBLEM
 
 DIST = "handeye-faulty-plugin"
@@ -59,7 +59,7 @@ def plugin(tmp_path, monkeypatch):
     """plugin(body): install a faulty plugin and rebuild the registry (undone afterwards)."""
     site = tmp_path / "site"
 
-    def make(body: str) -> handeye.registry.Registry:
+    def make(body: str) -> handeye.host.registry.Registry:
         install(site, body)
         monkeypatch.syspath_prepend(str(site))
         sys.modules.pop(MODULE, None)

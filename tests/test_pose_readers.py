@@ -1,4 +1,4 @@
-"""handeye.pose_readers / handeye.pose_formats: every preset against an explicit product of
+"""handeye.io.pose_readers / handeye.io.pose_formats: every preset against an explicit product of
 elementary rotations, round trips through every file type, the real FANUC export, bad input."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.geometry.se3 import random_poses
 from handeye.io.pose_formats import PRESETS, format_names, parse_format
 from handeye.io.pose_readers import (

@@ -10,7 +10,7 @@ The contract (`check_contract`), for any input whatever:
 - the caller's inputs are not modified (compared with deep copies taken before the call);
 - every unknown returned is exactly in SE(3): finite, R^T R = I to 1e-9, det R = +1, last row
   exactly [0, 0, 0, 1];
-- the status agrees with the host's self-check (`handeye.self_check`): an answer the
+- the status agrees with the host's self-check (`handeye.checks.self_check`): an answer the
   self-check finds unreliable never has a usable status (optimal, optimal_inaccurate,
   uncertified) and carries the self-check's "self-check failed" warning; status ``unreliable``
   comes with its reason as the first warning.
@@ -50,6 +50,7 @@ from hypothesis import strategies as st
 
 import handeye
 from handeye import Status
+from handeye.base.errors import HandEyeError
 from handeye.checks.self_check import (
     DISTANCE_WARN,
     PRECISION_ROTATION_DEG,
@@ -57,13 +58,12 @@ from handeye.checks.self_check import (
 )
 from handeye.estimation.kronecker import translation_rms
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import HandEyeError
 from handeye.harness.campaign import KINDS, cases, solver_runs
 
 #: statuses under which a user may use the answer (the self-check turns them into unreliable)
 USABLE = (Status.OPTIMAL, Status.OPTIMAL_INACCURATE, Status.UNCERTIFIED)
 #: first words of the reason for status unreliable: the host's self-check (handeye.solve), or the
-#: plausibility checks of `handeye calibrate` / `handeye solve` (handeye.plausibility)
+#: plausibility checks of `handeye calibrate` / `handeye solve` (handeye.workflow.plausibility)
 UNRELIABLE_REASONS = ("self-check failed", "implausible fit")
 #: keyword names of `handeye.solve` itself (a data field or option cannot take them)
 SOLVE_KEYWORDS = ("problem", "solver", "backend")
@@ -606,7 +606,7 @@ RELATIVE_LIMIT = (5.0, 3.0)
 #: 0.34); over 240 further cases (seed 100) 3.3% and 0.93 (axxb 0.87% and 0.60).
 ABSOLUTE_LIMIT_TRANSLATION = 4 * PRECISION_TRANSLATION
 #: warnings of the self-check that are not failures: the distance from the best fit, and the
-#: precision the data give (handeye.self_check._local_fit / _precision)
+#: precision the data give (handeye.checks.self_check._local_fit / _precision)
 SELF_CHECK_WARNINGS = ("self-check:", "the data determine the rotation", "the data determine the translation")
 #: fewest confident answers per problem for the bound to mean something (measured: 86 for axyb,
 #: 113 for axxb; planar cases are now refused by every solver without the unobservable offsets)
@@ -686,7 +686,7 @@ def test_no_confident_wrong_answer_in_the_campaign(problem):
 # --------------------------------------------------------------------------- found on valid data
 # Not breaches of the contract above (the status said "do not use" and why), but the default
 # solver's status on valid simulated data that it solves correctly: exact data at 3 pairs ran to
-# max_iter (now: stop at rounding, `handeye.nlls.ROUNDING`); rotation-exact data with noisy
+# max_iter (now: stop at rounding, `handeye.estimation.nlls.ROUNDING`); rotation-exact data with noisy
 # translations failed check 1 (now: the rotation a fit trades for translation noise counts).
 
 

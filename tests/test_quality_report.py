@@ -1,5 +1,5 @@
 """``--report FILE`` of ``handeye calibrate`` and ``handeye solve``: the quality report
-(handeye.quality_report) written as one self-contained HTML page or as markdown with its PNGs,
+(handeye.workflow.quality_report) written as one self-contained HTML page or as markdown with its PNGs,
 on a simulated cell with one corrupted station, and the bad-path exits."""
 
 from __future__ import annotations

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from tolerances import solved
 
 import handeye
-from tolerances import solved
+from handeye.base.errors import InputError, UnknownPluginError
 from handeye.estimation import lm_objective, nlls
 from handeye.estimation.noise import NoiseModel
 from handeye.estimation.whitening import estimate_sigmas
-from handeye.framework.errors import InputError, UnknownPluginError
 from handeye.geometry.se3 import make_pose, rotation_angle, so3_exp
 from handeye.plugins import refine as R
 from handeye.problems.axxb import PROBLEM as AXXB
@@ -477,7 +477,7 @@ def test_axbycz_is_served_with_three_start_poses():
 def test_axbycz_a_start_that_refuses_the_data_gives_way_to_the_next(monkeypatch):
     """Each axbycz start serves one data protocol: wu (both robots moving) refuses exact phase
     data, and the next start takes over, with a warning; a start asked for by name is not replaced."""
-    from handeye.framework.errors import DegenerateDataError
+    from handeye.base.errors import DegenerateDataError
     from handeye.problems.axbycz import PROBLEM as AXBYCZ
 
     data, truth = AXBYCZ.simulate(pairs=30, seed=5, protocol="phases")

@@ -13,7 +13,7 @@ from conftest import identity_run as _run
 
 import handeye
 from handeye import PluginRegistrationError, SolverSpec, UnknownPluginError, hookimpl
-from handeye.framework import registry
+from handeye.host import registry
 from handeye.problems.axyb import AXYB
 
 

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import handeye
+from handeye.base.errors import InputError
 from handeye.estimation.nlls import retract
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError
 from handeye.vision.observations import Camera
 
 PROBLEM = handeye.get_registry().problem("axyb")

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import handeye
+from handeye.base.errors import InputError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError
 
 PROBLEM = handeye.get_registry().problem("axyb")
 #: robot pose noise per axis (rad, mm, flange frame): ~3x the 0.3 px corners' effect at 350-750 mm

@@ -1,4 +1,4 @@
-"""Property tests of handeye.se3 (hypothesis): exp/log, stable rotation angle, inverse,
+"""Property tests of handeye.geometry.se3 (hypothesis): exp/log, stable rotation angle, inverse,
 projection onto SO(3), Gram-Schmidt, quaternions."""
 
 from __future__ import annotations

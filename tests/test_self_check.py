@@ -1,4 +1,4 @@
-"""The host's self-check (handeye.self_check) on the data an audit found answered confidently and
+"""The host's self-check (handeye.checks.self_check) on the data an audit found answered confidently and
 wrongly, on third-party solvers, and the noise-aware precision warnings."""
 
 from __future__ import annotations
@@ -8,15 +8,15 @@ import math
 
 import numpy as np
 import pytest
+from tolerances import solved
 
 import handeye
-from tolerances import solved
 from handeye import SolverOutput, SolverSpec, Status, hookimpl
 from handeye.checks.self_check import DISTANCE_FAIL, PRECISION_TRANSLATION
 from handeye.cli import main
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.registry import get_registry, register_plugin, unregister_plugin
 from handeye.harness import campaign
+from handeye.host.registry import get_registry, register_plugin, unregister_plugin
 from handeye.io.data_files import save_data
 
 AXYB = get_registry().problem("axyb")

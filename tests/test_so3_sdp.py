@@ -10,9 +10,9 @@ import importlib
 
 import numpy as np
 import pytest
+from tolerances import solved
 
 import handeye
-from tolerances import solved
 from handeye import InputError, Status
 from handeye.estimation.noise import NoiseModel
 from handeye.geometry.se3 import random_poses, random_rotations, rotation_angle

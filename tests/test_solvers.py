@@ -31,8 +31,8 @@ from tolerances import (
 )
 
 import handeye
+from handeye.base.errors import InputError, UnknownPluginError
 from handeye.framework.solution import USABLE
-from handeye.framework.errors import InputError, UnknownPluginError
 from handeye.geometry.se3 import rotation_angle
 
 NOISE_FREE_SEEDS = (11, 12, 13)

@@ -15,9 +15,9 @@ import pytest
 import handeye
 from handeye.checks.systematic import SPREAD_GROUPS, group_jackknife
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.registry import get_registry
 from handeye.framework.solution import standard_deviations
 from handeye.geometry.se3 import so3_exp
+from handeye.host.registry import get_registry
 
 EXAMPLE = Path(handeye.__file__).parent / "data" / "eth_robot_arm.json"
 

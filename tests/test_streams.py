@@ -1,6 +1,6 @@
 """handeye.streams: resampling, clock offset, motion selection, pairing; --match interpolate.
 
-Simulated cell: an LR Mate 200iD-like arm (handeye.kinematics) moving its joints along smooth
+Simulated cell: an LR Mate 200iD-like arm (handeye.geometry.kinematics) moving its joints along smooth
 sines, recorded at 100 Hz (robot, mm) and ~30 Hz (camera, T_cam_target, with a clock offset
 t_robot = t_camera + offset), the paper's X and Y. Real data: the ETH ASL sets (skipped when
 absent). Figures are in docs/streams.md.

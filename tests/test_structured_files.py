@@ -5,10 +5,9 @@ of the wrong type where a unit is named (a list or a mapping: "unhashable type" 
 
 from __future__ import annotations
 
-
 import pytest
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.io.arm_files import read_arm
 from handeye.io.pose_readers import read_poses
 from handeye.vision.boards import parse_board

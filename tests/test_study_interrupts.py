@@ -22,8 +22,8 @@ from pathlib import Path
 
 import pytest
 
+from handeye.base.errors import InputError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError
 from handeye.harness import (
     Spec,
     Study,
@@ -47,7 +47,7 @@ SCRIPT = textwrap.dedent("""
     import os, sys, time
     import numpy as np
     from handeye import SolverOutput, SolverSpec, hookimpl
-    from handeye.registry import register_plugin
+    from handeye.host.registry import register_plugin
 
     def slow(data, options, backend):
         if os.environ.get("INTERRUPT_TEST_MARK"):
@@ -289,11 +289,11 @@ def test_a_signalled_cross_validation_leaves_no_file(tmp_path):
 
 
 def test_a_worker_without_prctl_notices_its_parent_died(tmp_path):
-    """The fallback of `handeye.processes.die_with_parent` where PR_SET_PDEATHSIG is not available: a thread
+    """The fallback of `handeye.framework.processes.die_with_parent` where PR_SET_PDEATHSIG is not available: a thread
     that watches os.getppid()."""
     middle = textwrap.dedent("""
         import os, sys, time
-        from handeye import processes
+        from handeye.framework import processes
         parent = os.getpid()
         child = os.fork()
         if child == 0:

@@ -19,7 +19,7 @@ import pytest
 from conftest import example_entry_points, example_project
 
 import handeye
-from handeye.framework import registry
+from handeye.host import registry
 from handeye.problems.axyb import PROBLEM, random_truth
 
 SOLVER = "example-kron"

@@ -16,8 +16,8 @@ from conftest import PROBLEM_EXAMPLE_DIR, example_entry_points, example_project
 
 import handeye
 from handeye.estimation.noise import NoiseModel
-from handeye.framework import registry
 from handeye.geometry.se3 import make_pose, so3_exp
+from handeye.host import registry
 from tests.conftest import run_cli
 
 NAME, SOLVER = "registration", "registration-mean"

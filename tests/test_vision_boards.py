@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.vision.boards import Board, parse_board
 from handeye.vision.detect import BoardNotFound, Detection, detect
 from handeye.vision.observations import Camera

@@ -21,7 +21,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import handeye
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.geometry.se3 import inverse, make_pose, rotation_angle
 from handeye.io.data_files import from_poses
 from handeye.io.pose_readers import PoseStack, read_pose_dir

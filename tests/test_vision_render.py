@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.vision.boards import parse_board
 from handeye.vision.observations import Camera
 from handeye.vision.render import board_texture, project, render, view_pose

@@ -192,8 +192,8 @@ def test_a_rewritten_recording_is_noticed_and_followed_from_its_start(tmp_path, 
     """The recorder restarts and rewrites the files (the board moved 60 mm): the stations read
     before are not this recording's. The pair says so at the next poll (also for a file cut
     short), and `restart` follows the new recording from its first station."""
-    from handeye.planning.watch_source import PoseFilePair, RecordingRewritten
     from handeye.workflow.cell import CameraStream, PoseStream
+    from handeye.workflow.watch_source import PoseFilePair, RecordingRewritten
 
     A, B = stations
     write_pair(tmp_path, A, B, rows=slice(0, 12))

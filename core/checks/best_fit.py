@@ -1,5 +1,5 @@
 """The self-check's best fit near an answer: the local least-squares fit with estimated weights
-(refine's engine, `handeye.nlls`), robust where pairs are far off, with its covariance. Shared by
+(refine's engine, `handeye.estimation.nlls`), robust where pairs are far off, with its covariance. Shared by
 the self-check's checks (`handeye.checks.self_check`, `handeye.checks.scale_checks`) and the
 studies of systematic errors (bench/systematic.py)."""
 

@@ -13,10 +13,10 @@ from typing import Any
 import numpy as np
 from scipy.stats import norm
 
+from handeye.base.errors import DegenerateDataError
 from handeye.checks.best_fit import FIT_TOL, MAX_ITER, best_fit
 from handeye.estimation import camera_scale, camera_scales, nlls
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE
-from handeye.framework.errors import DegenerateDataError
 from handeye.geometry.linalg import solve
 
 #: check 5: the camera's translations need a factor s to fit the robot's: a failure beyond a
@@ -51,7 +51,7 @@ SCALE_FLOOR = 1e-6
 #: above: KinHEC's noisiest camera fits best at 0.72 with a right answer, its noise's bias)
 EFFECT_MAX = 0.05
 #: check 6 (the scale fitted): noise in the camera's translations biases the fitted scale toward
-#: zero by a relative amount up to kappa (`handeye.camera_scale.noise_bias`); flagged when that
+#: zero by a relative amount up to kappa (`handeye.estimation.camera_scale.noise_bias`); flagged when that
 #: is NOISE_BIAS_SIGMAS standard deviations of the scale (and SCALE_WARN). Measured
 #: (docs/camera-scale.md): genuinely monocular data at most 2.2 sigma (KinHEC's 32 monocular
 #: sequences; 2.9 for its mixed monocular ones), simulated ones at most 1.0 (camera noise 5 mm)
@@ -115,7 +115,7 @@ def camera_scale_screen(model: Any, poses: tuple[np.ndarray, ...], e: np.ndarray
                         cov: np.ndarray) -> tuple[float, float] | None:
     """Check 5's screen: (s, its standard deviation) for the scale of the camera's translations
     in one Gauss-Newton step from a least-squares fit (`poses`, its residuals e, per-group
-    weights W, covariance cov as `handeye.nlls.covariance` gives it); exact in s, which the
+    weights W, covariance cov as `handeye.estimation.nlls.covariance` gives it); exact in s, which the
     residual is linear in, with the poses stationary at the fit. None where the data do not
     determine s (the Schur complement of s is not positive)."""
     screen = _screen(model, poses, e, W, cov)
@@ -146,7 +146,7 @@ def slightly_off(s: float, std: float, residuals: int, sigmas: float = EFFECT_SC
     """Whether a screened camera scale s (its standard deviation std) is a little off: within
     EFFECT_MAX of 1 but `sigmas` standard deviations beyond what exact cameras give, which is 1, or up to
     kappa = n (std / s)^2 short of it, the bias that noise in the camera's translations puts on a
-    fitted scale (`handeye.camera_scale.noise_bias`; n the translation residuals less the
+    fitted scale (`handeye.estimation.camera_scale.noise_bias`; n the translation residuals less the
     unknowns': KinHEC's noisy cameras fit best at 0.65-0.9, 8-10 standard deviations short, with
     answers as right as their 1-sigma), and beyond SCALE_FLOOR."""
     if not abs(s - 1.0) < EFFECT_MAX:
@@ -184,7 +184,7 @@ def camera_scale_check(model: Any, res: Any, cov: np.ndarray, failures: list[str
                   figures: dict[str, Any]) -> None:
     """Check 5: do the camera's translations fit the robot's at scale 1? Screened in one
     Gauss-Newton step from the best fit for the scale s of the camera's translations
-    (`handeye.camera_scale`; the residual is linear in s and the fit stationary in the poses),
+    (`handeye.estimation.camera_scale`; the residual is linear in s and the fit stationary in the poses),
     with its standard deviation from the Schur complement of s in the information matrix; where
     s moves by more than SCALE_WARN and two standard deviations, the fit is redone with s free
     (the residuals at s = 1 carry the misfit of a wrong scale, which inflates the noise and
@@ -240,7 +240,7 @@ def camera_scales_check(model: Any, res: Any, cov: np.ndarray, failures: list[st
     and each Y, whose cameras the data do not single out), before check 5 for all cameras at once:
     one monocular camera among metric ones misfits by a factor that a scale for all would average
     away. The fit with groups' scales free that explains the most
-    (`handeye.camera_scales.groups_off_scale`), its scales judged as check 5 judges one camera;
+    (`handeye.estimation.camera_scales.groups_off_scale`), its scales judged as check 5 judges one camera;
     where it names none, the groups whose scale would move the answer beyond its 1-sigma
     (`_groups_moving`). `held_out`: the solver's held-out comparison of factors for some groups
     (`handeye.plugins._auto_scales.held_out`), which the advice then follows."""
@@ -357,7 +357,7 @@ def camera_scale_noise(model: Any, res: Any, factor: float, failures: list[str],
                         figures: dict[str, Any]) -> None:
     """Check 6, where the camera's scale is unknown (fitted with the answer): could noise in the
     camera's translations have biased the fitted scale s toward zero by more than its stated
-    uncertainty (`handeye.camera_scale.noise_bias`)? A failure beyond NOISE_BIAS_FAIL (the data
+    uncertainty (`handeye.estimation.camera_scale.noise_bias`)? A failure beyond NOISE_BIAS_FAIL (the data
     do not determine s), a warning beyond SCALE_WARN; both only NOISE_BIAS_SIGMAS standard
     deviations of s. Skipped for models whose scale is known."""
     if not isinstance(model, camera_scale.ScaledCameraModel) or res.W.L is not None:
@@ -369,7 +369,7 @@ def camera_scale_noise(model: Any, res: Any, factor: float, failures: list[str],
     s, std, bias, sigmas = f["camera_scale"], f["camera_scale_std"], f["bias"], f["bias_sigmas"]
     figures["camera_scale_noise"] = {"scale": s, "std": std, "bias": bias, "bias_sigmas": sigmas}
     whose, fitted = "the camera's scale", f"the camera's scale {s:.4g} (+-{std:.2g})"
-    if "camera" in f:  # several cameras (`handeye.camera_scales`): the worst named, all in the figures
+    if "camera" in f:  # several cameras (`handeye.estimation.camera_scales`): the worst named, all in the figures
         whose = f"the scale of camera {f['camera']!r}"
         fitted = f"the scale {s:.4g} (+-{std:.2g}) of camera {f['camera']!r}"
         figures["camera_scale_noise"].update(camera=f["camera"], cameras=f["cameras"])

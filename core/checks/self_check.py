@@ -12,14 +12,14 @@ solver's (third parties' too), against the data it was computed from:
    fit trades for the translation noise (`expected_from_invariants`); an answer whose median
    residual rotation exceeds `ROTATION_RESIDUAL_FACTOR` times that is broken.
 2. **Distance from the best fit.** From the answer, a local maximum-likelihood fit of the same
-   data (`handeye.nlls`, the engine of ``refine``; Cauchy loss when some pairs are far off the
+   data (`handeye.estimation.nlls`, the engine of ``refine``; Cauchy loss when some pairs are far off the
    others) gives the best answer near it and its covariance. The answer's distance from it in
    standard deviations, d = sqrt(delta^T Sigma^-1 delta), is ~0-3 for a good estimator; beyond
    `DISTANCE_WARN` a warning says how far and that ``auto`` fits better (and the host makes the
    status ``suboptimal``: an ``optimal`` answer beside that warning would contradict it); beyond `DISTANCE_FAIL`
    the answer is unreliable. (Sigma gets a floor of NUMERICAL_FLOOR so that noise-free data, where
    every numerical solver is "infinitely many sigmas" from the exact answer at 1e-8, pass.)
-3. **Gross pairs.** Pairs whose whitened residual exceeds OUTLIER_CHI2 (`handeye.robust`) at the
+3. **Gross pairs.** Pairs whose whitened residual exceeds OUTLIER_CHI2 (`handeye.estimation.robust`) at the
    least-squares fit, or pairs outside the data's largest group that agree with each other
    (check 7), make the best fit of check 2 a robust (Cauchy) one, from the least-squares fit and
    from the answer, the lower Cauchy cost kept (`handeye.checks.best_fit.robust_fit`); the pairs still far off
@@ -30,7 +30,7 @@ solver's (third parties' too), against the data it was computed from:
    `rotation_block_figures`): det <= 0 or singular values further apart than BLOCK_SPREAD.
 
 5. **Camera scale** (A X = Y B, A X = X B): the factor s the camera's translations need to fit
-   the robot's (`handeye.camera_scale`), from the best fit (`handeye.checks.scale_checks.camera_scale_check`): beyond a factor
+   the robot's (`handeye.estimation.camera_scale`), from the best fit (`handeye.checks.scale_checks.camera_scale_check`): beyond a factor
    SCALE_FAIL either way a failure (a unit mix-up, or a monocular camera: give
    camera_scale="unknown"), beyond SCALE_WARN a warning; both only SCALE_SIGMAS standard
    deviations from 1. A cell of several cameras (``axyb-multi``) first per camera
@@ -38,13 +38,13 @@ solver's (third parties' too), against the data it was computed from:
    camera_scale=[names].
 6. **Camera scale fitted** (the data's camera_scale unknown, or fitted by ``auto``): noise in the
    camera's translations biases the fitted scale toward zero (errors in variables), by up to
-   kappa (`handeye.camera_scale.noise_bias`), which its stated uncertainty leaves out
+   kappa (`handeye.estimation.camera_scale.noise_bias`), which its stated uncertainty leaves out
    (`camera_scale_noise`): beyond NOISE_BIAS_FAIL a failure (the data do not determine the
    scale), beyond SCALE_WARN a warning; both only NOISE_BIAS_SIGMAS standard deviations of s.
 
 7. **A consistent majority** (A X = Y B, A X = X B): the largest group of pairs that agree with
    each other, without X or Y (robot and camera rotation angles between them equal to
-   `handeye.validation.AGREEMENT_ANGLE`), must hold more than half the pairs (`MAJORITY`); else
+   `handeye.geometry.validation.AGREEMENT_ANGLE`), must hold more than half the pairs (`MAJORITY`); else
    at least half are gross and no fit can be trusted (a failure, named first).
 
 8. **Systematic robot errors** (`handeye.checks.systematic`): residuals at the best fit that
@@ -57,7 +57,7 @@ precisely the data determine each unknown; where the 1-sigma of a rotation excee
 arm (their RMS translation), a warning gives the figures and the worst direction, named when it
 is the robot's main rotation axis (few or nearly parallel rotation axes).
 
-A problem takes part through four optional methods of `handeye.problem.Problem`:
+A problem takes part through four optional methods of `handeye.framework.problem.Problem`:
 ``check_model`` (the least-squares model of check 2, with nuisance unknowns fitted),
 ``expected_rotation_residual`` (check 1) and ``rotation_axes`` (for naming directions), and
 ``configurations`` (check 8).
@@ -72,6 +72,7 @@ from typing import Any
 
 import numpy as np
 
+from handeye.base.errors import DegenerateDataError
 from handeye.checks import systematic
 from handeye.checks.best_fit import best_fit
 from handeye.checks.scale_checks import (
@@ -79,14 +80,13 @@ from handeye.checks.scale_checks import (
     camera_scale_noise,
     camera_scales_check,
 )
-from handeye.checks.validation import AGREEMENT_ANGLE
 from handeye.estimation.robust import MAD_TO_SIGMA
 from handeye.estimation.whitening import CHI3_MEDIAN
-from handeye.framework.errors import DegenerateDataError
 from handeye.framework.problem import item_listing
 from handeye.framework.solution import standard_deviations
 from handeye.geometry import so3_fast
 from handeye.geometry.linalg import eigh_stack, einsum, median, row_norms, solve
+from handeye.geometry.validation import AGREEMENT_ANGLE
 
 #: check 1: median residual rotation beyond this many times what the data's noise gives
 ROTATION_RESIDUAL_FACTOR = 10.0
@@ -222,7 +222,7 @@ def assess(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], diagnost
 
 def _majority(data: Any, failures: list[str], figures: dict[str, Any]) -> None:
     """Check 7: the data's largest group of mutually agreeing pairs (`data.agreeing_share`, where
-    the problem's data have it: `handeye.validation.agreeing_share`) must be a majority."""
+    the problem's data have it: `handeye.geometry.validation.agreeing_share`) must be a majority."""
     share = getattr(data, "agreeing_share", None)
     if share is None:
         return

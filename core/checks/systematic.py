@@ -4,7 +4,7 @@ On a real cell the robot's own systematic errors (its kinematics: DH parameters 
 a millimetre and of a degree) often dominate, and the covariance of the answer cannot see them:
 it takes every station's residual as independent noise. Such an error is a smooth function of
 the arm's joints, hence of where the flange is; noise is not. So the residuals at the best fit
-(`handeye.self_check`'s check 2) are regressed on smooth functions of the flange's position at
+(`handeye.checks.self_check`'s check 2) are regressed on smooth functions of the flange's position at
 each station, and an F test asks whether that explains more than noise would:
 
     e_i (6 numbers: rotation and translation residual of station i, whitened), Z_i = (p_i - mean p) / RMS
@@ -36,7 +36,7 @@ where larger than the covariance of independent noise, per unknown (the host app
 last joint, which moves X alike at every station) no data of the arm show; the warning says so.
 
 The warning fires at p < `P_WARN` and needs `MIN_STATIONS` stations. A problem takes part through
-the optional `handeye.problem.Problem.configurations` (the flange poses of the rows of its
+the optional `handeye.framework.problem.Problem.configurations` (the flange poses of the rows of its
 `check_model`'s model).
 """
 
@@ -99,7 +99,7 @@ def configuration_test(ew: np.ndarray, J: np.ndarray, Z: np.ndarray,
     runs on the stations, its denominator's degrees of freedom 6S - k less what the fit's
     projection took from the sums (the squared norm of the summed projector's columns)."""
     m = len(ew)
-    w, V = eigh(ew.T @ ew / m)  # LAPACK directly (`handeye.linalg.eigh`: numpy's numbers)
+    w, V = eigh(ew.T @ ew / m)  # LAPACK directly (`handeye.geometry.linalg.eigh`: numpy's numbers)
     if not w[-1] > 0:
         return None
     w = np.maximum(w, 1e-12 * w[-1])
@@ -187,7 +187,7 @@ def _stations(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def assess_configuration(configurations: np.ndarray | None, model: Any, res: Any, flagged: np.ndarray,
                          warnings: list[str], figures: dict[str, Any], covered: bool = False,
                          cov: np.ndarray | None = None, stated: bool = True) -> None:
-    """The check for `handeye.self_check`: the residuals of its best fit `res` (the engine's
+    """The check for `handeye.checks.self_check`: the residuals of its best fit `res` (the engine's
     result for `model`, `cov` its covariance) regressed on the flange positions `configurations`
     ((m, 4, 4), one per row of the model; None: the problem gives none), the rows `flagged` far
     off left out; a warning beyond P_WARN, the figures in ``figures["systematic"]``. `covered`:

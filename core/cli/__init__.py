@@ -24,6 +24,7 @@ import threading
 from collections.abc import Sequence
 
 from handeye import __version__
+from handeye.base.errors import HandEyeError, SolverError
 from handeye.cli import (
     bench_cmd,
     calibrate_cmd,
@@ -35,7 +36,6 @@ from handeye.cli import (
     watch_cmd,
 )
 from handeye.cli._common import in_cli_words
-from handeye.framework.errors import HandEyeError, SolverError
 
 #: the subcommand modules, in the order ``handeye --help`` shows them
 COMMANDS = [list_cmd, simulate_cmd, solve_cmd, calibrate_cmd, plan_cmd, watch_cmd, compare, bench_cmd]

@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from handeye.base.errors import InputError
 from handeye.cli._cell_flags import cell_words
-from handeye.framework.errors import InputError
 from handeye.io.output_files import check_writable
 from handeye.workflow.exports import dump_json  # noqa: F401 (the commands' JSON text)
 from handeye.workflow.exports import plain as _plain  # noqa: F401

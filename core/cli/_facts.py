@@ -4,7 +4,7 @@ go to the problem's validation as well as to the solve (they are not solver opti
 - ``--tz-X``, ``--tz-Y``: a robot whose rotations all share one axis (a SCARA) cannot determine
   the translation of X along that axis; the user gives it (handeye.problems.planar, docs/planar.md);
 - ``--camera-scale unknown``: the camera's translations are known only up to scale (monocular
-  SLAM or structure from motion; handeye.camera_scale, docs/camera-scale.md); in a cell of several
+  SLAM or structure from motion; handeye.estimation.camera_scale, docs/camera-scale.md); in a cell of several
   cameras ``--camera-scale cam0,wrist1`` names the monocular cameras, each with its own scale
   (`camera_scale_value`).
 """
@@ -14,8 +14,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from handeye.base.errors import InputError
 from handeye.cli._common import finite_number
-from handeye.framework.errors import InputError
 from handeye.workflow.solving import in_robot_unit  # noqa: F401 (the residuals' data, as before)
 
 #: flag -> the keyword of handeye.solve

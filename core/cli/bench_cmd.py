@@ -28,6 +28,7 @@ import argparse
 import json
 from typing import Any
 
+from handeye.base.errors import InputError
 from handeye.cli import _kinhec
 from handeye.cli._common import (
     add_force_flag,
@@ -36,8 +37,6 @@ from handeye.cli._common import (
     seed_number,
     whole_number,
 )
-from handeye.framework.errors import InputError
-from handeye.framework.registry import get_registry
 from handeye.harness import bench
 from handeye.harness.bench_report import (
     data_line,
@@ -47,6 +46,7 @@ from handeye.harness.bench_report import (
     table,
     target_lines,
 )
+from handeye.host.registry import get_registry
 from handeye.io.output_files import check_writable, new_file
 
 NAME = "bench"

@@ -48,7 +48,7 @@ eye-to-hand T_base_cam, parent ``base``) with child ``camera_optical_frame``: th
 of solvePnP is the optical frame (z forward, x right, y down), not a driver's ``camera_link``.
 ``--frame-ids PARENT,CHILD`` names your frames (e.g. ``tool0,camera_color_optical_frame``).
 
-Plausibility checks (always, unless ``--no-checks``; handeye.plausibility): residuals beyond
+Plausibility checks (always, unless ``--no-checks``; handeye.workflow.plausibility): residuals beyond
 what a calibrated cell's noise allows, or a usual setup mistake (Euler order, inverted camera
 or robot poses, the other setup, pairs shifted by one, camera unit x1000) that explains the data
 far better, give status ``unreliable``, a warning naming the mistake and its flag, and exit 1;
@@ -71,7 +71,7 @@ Python: ``handeye.calibrate(handeye.Cell.from_file("cell.yaml"))``.
 ``--report FILE`` writes a quality report: .html (one self-contained page, plots embedded) or .md
 (its PNG plots next to it): the answer with 1-sigma, the residual per station with the outliers
 marked, the data diagnostics and checks, a 3D plot of the poses and solved frames, and the
-warnings with what to do (handeye.quality_report; docs/calibrate.md).
+warnings with what to do (handeye.workflow.quality_report; docs/calibrate.md).
 """
 
 # The docstring above is this command's --help. This module is argparse and printing only: the
@@ -86,6 +86,7 @@ from typing import Any
 
 import numpy as np
 
+from handeye.base.errors import HandEyeError, InputError
 from handeye.cli import _facts
 from handeye.cli._cell_flags import cell_words, flag_settings, merged
 from handeye.cli._common import (
@@ -105,7 +106,6 @@ from handeye.cli._common import (
     whole_number,
 )
 from handeye.cli.solve_cmd import _setup_note, noise_lines
-from handeye.framework.errors import HandEyeError, InputError
 from handeye.framework.solution import Status
 from handeye.io.output_files import check_writable, write_text
 from handeye.io.pose_formats import format_names

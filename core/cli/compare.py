@@ -44,6 +44,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from handeye.base.errors import InputError
+from handeye.base.vocabulary import SETUPS
 from handeye.cli._common import (
     add_force_flag,
     check_new_results,
@@ -52,8 +54,7 @@ from handeye.cli._common import (
     whole_number,
 )
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError
-from handeye.framework.registry import get_registry
+from handeye.host.registry import get_registry
 
 NAME = "compare"
 #: the noise levels (sigma_N, paper reading: rad and mm on A and B) when neither levels nor a
@@ -84,7 +85,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                        help="every real recording handeye bundles, each as --cell / --example (needs -o OUTDIR)")
     parser.add_argument("--folds", type=whole_number, default=None, metavar="K",
                         help="--data/--example: number of cross-validation folds (default 5)")
-    parser.add_argument("--setup", choices=("eye-in-hand", "eye-to-hand"), default=None,
+    parser.add_argument("--setup", choices=SETUPS, default=None,
                         help="--data/--example: setup of a file of absolute poses (overrides the file's)")
     parser.add_argument("-o", "--output", metavar="OUTDIR", help="output directory (not with --paper/--accuracy)")
     parser.add_argument("--problem", default=None,

@@ -20,8 +20,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from handeye.base.errors import InputError
 from handeye.cli._common import check_new_results, check_outputs_apart
-from handeye.framework.errors import InputError
 
 #: the bundled image example's board and pose files (`handeye.io.examples.image_example_dir`)
 IMAGE_EXAMPLE_BOARD = "circlegrid:10x10:25.4mm"

@@ -17,17 +17,18 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from handeye.base.errors import InputError
+from handeye.base.vocabulary import METRES_PER, millimetres_per
 from handeye.cli._common import check_new_results, check_outputs_apart
-from handeye.framework.errors import InputError
-from handeye.framework.registry import get_registry
 from handeye.geometry.se3 import inverse
+from handeye.host.registry import get_registry
 from handeye.io.data_files import PoseFile, from_poses, load_file, station_readers
 
 #: flags of the simulated studies that make no sense with --data / --example
 SIMULATION_FLAGS = ("paper", "accuracy", "study", "noise_levels", "noise_rot", "noise_trans", "noise_on",
                     "pairs", "paper_pairs", "trials", "units", "truth", "jobs", "scheduler")
 #: length unit of a file -> factor to mm
-TO_MM = {"m": 1000.0, "cm": 10.0, "mm": 1.0}
+TO_MM = {unit: millimetres_per(unit) for unit in METRES_PER}
 DEFAULT_FOLDS = 5
 #: what a cross-validation writes to its folder, after its name (`write_crossval`); an earlier
 #: run's files of that name are not overwritten without --force

@@ -9,7 +9,7 @@ import dataclasses
 from typing import Any
 
 from handeye.cli._common import dump_json
-from handeye.framework.registry import get_registry
+from handeye.host.registry import get_registry
 
 NAME = "list"
 

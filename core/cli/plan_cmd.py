@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from handeye.base.errors import InputError
 from handeye.cli._common import (
     add_force_flag,
     add_workspace_flags,
@@ -33,7 +34,6 @@ from handeye.cli._common import (
     whole_number,
     workspace_of,
 )
-from handeye.framework.errors import InputError
 from handeye.geometry.se3 import make_pose
 from handeye.io.arm_files import read_arm
 from handeye.io.output_files import check_figure_format

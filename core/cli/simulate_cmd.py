@@ -2,7 +2,7 @@
 
 For ``axyb`` this is the paper's simulation (Sec. IV-A): A_i from the forward kinematics of an
 LR Mate 200iD-like arm at random joints (mm), the paper's X and Y, B_i = Y^-1 A_i X, then
-Gaussian noise (`handeye.noise.NoiseModel`) on B, A or both.
+Gaussian noise (`handeye.estimation.noise.NoiseModel`) on B, A or both.
 
 For ``axxb`` the same arm and cell (eye-in-hand) record absolute poses at stations, noise goes on
 the robot poses (``--noise-on A``), the camera poses (``B``, the default) or both, and the file
@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from handeye.base.errors import InputError
 from handeye.cli._common import (
     add_force_flag,
     check_outputs,
@@ -31,11 +32,10 @@ from handeye.cli._common import (
     whole_number,
 )
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.api import plugin_faults
-from handeye.framework.errors import InputError
-from handeye.framework.registry import get_registry
 from handeye.geometry.kinematics import simulate_stations
 from handeye.geometry.se3 import inverse
+from handeye.host.api import plugin_faults
+from handeye.host.registry import get_registry
 from handeye.io.data_files import (
     DEFAULT_PAIRING,
     PAIRINGS,

@@ -26,7 +26,7 @@ make the status unreliable.
 """
 
 # The docstring above is this command's --help: it speaks of the user's data and names no
-# equation numbers (the paper's eqs. 30-33 are cited in handeye.problem.Problem.residuals/errors).
+# equation numbers (the paper's eqs. 30-33 are cited in handeye.framework.problem.Problem.residuals/errors).
 
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.checks.plausibility import Streams, check
+from handeye.base.errors import InputError
 from handeye.cli import _facts
 from handeye.cli._common import (
     add_force_flag,
@@ -51,11 +51,10 @@ from handeye.cli._common import (
     spread_note,
     time_limit,
 )
-from handeye.framework.api import solve
-from handeye.framework.errors import InputError
-from handeye.framework.registry import get_registry
 from handeye.framework.solution import Status, standard_deviations
 from handeye.geometry.se3 import inverse
+from handeye.host.api import solve
+from handeye.host.registry import get_registry
 from handeye.io.data_files import (
     DEFAULT_PAIRING,
     PAIRINGS,
@@ -73,6 +72,7 @@ from handeye.io.examples import (
     load_example,
 )
 from handeye.workflow.frames import equation_of, frame_names, single_poses, unknown_of
+from handeye.workflow.plausibility import Streams, check
 from handeye.workflow.quality_report import (
     check_new_report,
     collect,
@@ -339,7 +339,7 @@ def _per_pair(r: dict[str, Any], item: str, unit: str) -> list[str]:
 
 
 def noise_lines(diagnostics: dict[str, Any], unit: str) -> list[str]:
-    """Where the answer's fit found the noise (`handeye.noise_sources`), when it weighed the pairs
+    """Where the answer's fit found the noise (`handeye.estimation.noise_sources`), when it weighed the pairs
     by it: each source's 1-sigma that did not vanish."""
     fit = diagnostics.get("refine", diagnostics)
     if fit.get("noise_model") != "sources":

@@ -21,7 +21,7 @@ docs/planning-live.md.
 """
 
 # The docstring above is this command's --help. This module is argparse and printing only: the
-# files are followed by handeye.planning.watch_source, the session is handeye.planning.session.
+# files are followed by handeye.workflow.watch_source, the session is handeye.planning.session.
 
 from __future__ import annotations
 
@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from handeye.base.errors import InputError
 from handeye.cli._common import (
     add_force_flag,
     add_workspace_flags,
@@ -43,23 +44,22 @@ from handeye.cli._common import (
     whole_number,
     workspace_of,
 )
-from handeye.framework.errors import InputError
 from handeye.framework.solution import USABLE, standard_deviations
 from handeye.io.pose_formats import format_names, parse_format
 from handeye.planning.plan import Noise, planners
 from handeye.planning.session import MIN_STATIONS, Session, Tolerance, Update
-from handeye.planning.watch_source import (
-    MATCHES,
-    PoseFilePair,
-    RecordingRewritten,
-    Station,
-)
 from handeye.workflow.cell_parts import (
     CAMERA_POSES,
     SETUPS,
     UNITS,
     CameraStream,
     PoseStream,
+)
+from handeye.workflow.watch_source import (
+    MATCHES,
+    PoseFilePair,
+    RecordingRewritten,
+    Station,
 )
 
 NAME = "watch"

@@ -13,7 +13,7 @@ with g_i = d e_i / d s = [0; -R_Y t_Bi] (`AXYBModel.camera_direction`), exactly.
   solves that cost: docs/solvers/so3-sdp.md), and given them the translations and s are linear
   least squares (one Gauss-Newton step of the residual, which is affine in them).
 - **Refinement** (`ScaledCameraModel`): s is profiled out, s*(X, Y) = argmin_s |e(s)|^2 in closed
-  form, and the engine (`handeye.nlls`) refines the poses on e(s*) with the Jacobian projected
+  form, and the engine (`handeye.estimation.nlls`) refines the poses on e(s*) with the Jacobian projected
   orthogonally to g (variable projection: Golub & Pereyra 1973; Kaufman's Jacobian, 1975). The
   minimiser is that of the joint problem over (X, Y, s), and the covariance of the poses is the
   marginal one (the projection is the Schur complement of s). The projection is exact under the
@@ -35,8 +35,8 @@ from typing import Any
 
 import numpy as np
 
+from handeye.base.errors import DegenerateDataError, InputError
 from handeye.estimation.nlls import PoseModel, Poses
-from handeye.framework.errors import DegenerateDataError, InputError
 
 #: values of the data fact ``camera_scale``
 CHOICES = ("known", "unknown")
@@ -67,7 +67,7 @@ def rotation_only(data: Any) -> Any:
 def model_for(data: Any, model: PoseModel) -> PoseModel:
     """`model` of `data`, with the camera's scale profiled out when the data say it is unknown;
     one scale per camera when the data make that model themselves (``scaled_cameras_model``, as a
-    cell of several cameras does: `handeye.camera_scales.ScaledCamerasModel`)."""
+    cell of several cameras does: `handeye.estimation.camera_scales.ScaledCamerasModel`)."""
     if not getattr(data, "camera_scale_unknown", False):
         return model
     several = getattr(data, "scaled_cameras_model", None)

@@ -1,5 +1,5 @@
 """Several cameras, each known only up to its own scale (monocular SLAM or structure from motion
-per camera): `handeye.camera_scale` for q scales s_1, ..., s_q whose directions act on disjoint
+per camera): `handeye.estimation.camera_scale` for q scales s_1, ..., s_q whose directions act on disjoint
 sets of observations. Camera c's scale multiplies the translations t_Bi of its own observations
 (``groups[i] == c``; -1: a metric camera's observation, scale 1), so with g_i = d e_i / d s =
 [0; -R_Y t_Bi] (`camera_direction`, exact: e is affine in every s_c)
@@ -31,9 +31,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from handeye.base.errors import DegenerateDataError
 from handeye.estimation.camera_scale import ScaledCameraModel, with_translations
 from handeye.estimation.nlls import PoseModel, Poses
-from handeye.framework.errors import DegenerateDataError
 
 #: a camera's scale column of the translation system whose share outside the span of the other
 #: columns (sin^2 of the angle to it) is below this is not determined by the data (noise-free
@@ -151,7 +151,7 @@ class ScaledCamerasModel(ScaledCameraModel):
 
     def noise_bias(self, poses: Poses, sigma_rot: float, sigma_trans: float,
                    variance_factor: float = 1.0) -> dict[str, Any]:
-        """`handeye.camera_scale.noise_bias` per camera: "cameras" {name: {"camera_scale",
+        """`handeye.estimation.camera_scale.noise_bias` per camera: "cameras" {name: {"camera_scale",
         "camera_scale_std", "bias", "bias_sigmas", "dof"}}, and at the top the figures of the camera
         with the largest "bias_sigmas" with its name ("camera")."""
         s, std, (Jf, _) = self._marginal(poses, sigma_rot, sigma_trans, variance_factor)
@@ -175,7 +175,7 @@ def translations_and_scales(model: PoseModel, rotations: Poses, groups: np.ndarr
                             ) -> tuple[Poses, np.ndarray, dict[str, Any]]:
     """The translations of the unknowns and the q cameras' scales that fit `model`'s data best
     for the given poses' rotations (their translations are not used), by one linear least
-    squares (the residual is affine in them: `handeye.camera_scale.translations_and_scale`):
+    squares (the residual is affine in them: `handeye.estimation.camera_scale.translations_and_scale`):
     (poses, s (q,), figures {"camera_scales", "camera_scales_std" (from the residual's RMS,
     the rotations held fixed), "weak": names of cameras fitted fewer than WEAK_SIGMAS standard
     deviations from zero}). DegenerateDataError naming a camera whose scale the system does not

@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from handeye.base.errors import DegenerateDataError, InputError
 from handeye.framework.caching import cached_property
-from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.geometry.linalg import cholesky_upper, solve_triangular
 from handeye.geometry.se3 import gram
 
@@ -36,7 +36,7 @@ def overflow_error(where: str) -> InputError:
 #: Smallest accepted largest translation entry max |t| (data units) of data whose translations
 #: are not all exactly zero. Below it the least squares under- and overflow float64: the solvers square
 #: translations and weigh residuals by 1 / sigma^2, with sigma floored at 1e-12 times the RMS
-#: translation s (`handeye.whitening.SIGMA_FLOOR`), so they form numbers of order s^2 and
+#: translation s (`handeye.estimation.whitening.SIGMA_FLOOR`), so they form numbers of order s^2 and
 #: 1 / (1e-12 s)^2, which leave float64's normal range (2e-308 .. 2e308) from s ~ 1e-142 on
 #: (measured with every solver: overflow warnings from max |t| ~ 2e-142 on, a ZeroDivisionError
 #: at ~2e-152).
@@ -93,7 +93,7 @@ def reduce_normal_equations(N: np.ndarray, g: np.ndarray, ww: float) -> Kronecke
     if not (np.isfinite(N).all() and np.isfinite(g).all() and np.isfinite(ww)):
         raise overflow_error("the sums of the linear system")
     d = np.sqrt(np.diag(N))
-    try:  # LAPACK directly (`handeye.linalg`: scipy's numbers without its checks, ~30 us at 24 x 24)
+    try:  # LAPACK directly (`handeye.geometry.linalg`: scipy's numbers without its checks, ~30 us at 24 x 24)
         R1 = cholesky_upper(N / np.outer(d, d)) * d[None, :]
     except np.linalg.LinAlgError:
         raise DegenerateDataError(
@@ -146,7 +146,7 @@ class TranslationSums:
 
 def validated_stacks(problem: str, data: Mapping[str, Any], fields: tuple[str, ...], min_pairs: int) -> list[np.ndarray]:
     """The stacks `fields` of `problem` from its raw data: no other key and all present, every pose
-    checked (`handeye.validation.pose_stacks`: shapes, SE(3), the same length >= min_pairs), and
+    checked (`handeye.geometry.validation.pose_stacks`: shapes, SE(3), the same length >= min_pairs), and
     translations whose sums of squares neither overflow nor underflow (`MIN_TRANSLATION`; every
     solver needs them: the linear systems, the unit normalisation, the weights of the least
     squares). Raises InputError / DegenerateDataError naming what is wrong."""
@@ -157,7 +157,7 @@ def _validated_stacks(problem: str, data: Mapping[str, Any], fields: tuple[str, 
                       min_pairs: int) -> tuple[list[np.ndarray], float]:
     """`validated_stacks` and the stacks' `translation_rms`, which it checks (the data's length
     unit: `PosePairs.validated` keeps it rather than computing it again)."""
-    from handeye.checks.validation import pose_stacks
+    from handeye.geometry.validation import pose_stacks
 
     unexpected = set(data) - set(fields)
     if unexpected:

@@ -7,9 +7,9 @@ a `PoseModel` (`handeye.estimation.pose_model`): per pair i a residual 6-vector 
 the frame of T, retracted as (R exp([omega]_x), t + R v) (`retract`; SE(3)'s exp to first
 order). Everything else is here, once:
 
-- the objective F = 1/2 sum_i rho(|W^(1/2) e_i|^2) with the whitening of `handeye.whitening`
+- the objective F = 1/2 sum_i rho(|W^(1/2) e_i|^2) with the whitening of `handeye.estimation.whitening`
   (stated per-group sigmas or a Cholesky covariance, or estimated) and the losses of
-  `handeye.robust`; with estimated weights and least squares the profile likelihood over the two
+  `handeye.estimation.robust`; with estimated weights and least squares the profile likelihood over the two
   variances, L = 3m log sigma_rot + 3m log sigma_trans + 3m (`objective`);
 - Levenberg-Marquardt with Marquardt's diagonal scaling (invariant to the units of the
   parameters), its weight modes (`mode_of`: fixed, profile, irls, initial) and its convergence
@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from scipy.linalg import lapack
 
+from handeye.base.errors import DegenerateDataError
 from handeye.estimation.lm_objective import local_model, mode_of, objective
 from handeye.estimation.pose_model import PoseModel, Poses
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, loss_terms
@@ -48,7 +49,6 @@ from handeye.estimation.whitening import (
     relative_change,
     sums_of_squares,
 )
-from handeye.framework.errors import DegenerateDataError
 from handeye.framework.solution import Status
 from handeye.geometry import so3_fast
 
@@ -320,7 +320,7 @@ def _newton_step(H: np.ndarray, g: np.ndarray) -> np.ndarray:
 @dataclasses.dataclass(frozen=True)
 class Settings:
     """How to refine: stated whitening W (None: estimate it) and its kind ("stated",
-    "covariance", "estimated"; `handeye.whitening.stated`), loss and loss_scale, estimate
+    "covariance", "estimated"; `handeye.estimation.whitening.stated`), loss and loss_scale, estimate
     ("profile" or "initial"), max_iter, tol (see `levenberg_marquardt`)."""
 
     W: Whitening | None

@@ -12,7 +12,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.geometry.se3 import Array, so3_exp
 
 

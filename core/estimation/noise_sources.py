@@ -1,6 +1,6 @@
 """Where the noise of pose residuals lives, estimated by maximum likelihood with the unknowns.
 
-The least squares of `handeye.nlls` with estimated weights assumes one noise level per residual
+The least squares of `handeye.estimation.nlls` with estimated weights assumes one noise level per residual
 group (rotation, translation), the same for every observation. Real noise enters through the
 measured poses, each in its own frame, and differs from camera to camera: a rotation error of a
 camera's pose moves the translation residual by a lever arm, a pose from PnP is less sure of its
@@ -21,7 +21,7 @@ no more per observation than a few.
 `fit` takes two steps (feasible generalised least squares): the per-group least squares, the
 variances by maximum likelihood at its residuals (`variances`: Fisher scoring from a moment
 estimate, non-negative, with an EM step wherever scoring would lower the likelihood), then the
-unknowns by `handeye.nlls` with every pair whitened by its Sigma_i. The first step's answer is
+unknowns by `handeye.estimation.nlls` with every pair whitened by its Sigma_i. The first step's answer is
 consistent, so the second is as efficient as the joint maximum likelihood to first order.
 Measured on the KinHEC small tier (docs/solvers/auto.md, "Noise sources"): median X translation
 0.68x the per-group model's on the noise track and 0.36x on the PnP track; alternating the two
@@ -40,9 +40,9 @@ import numpy as np
 from scipy.optimize import nnls
 from scipy.stats import chi2
 
+from handeye.base.errors import DegenerateDataError
 from handeye.estimation import nlls
 from handeye.estimation.whitening import Whitening
-from handeye.framework.errors import DegenerateDataError
 
 #: the variances' iterations stop when the log-likelihood gains less than this (nats) or after
 #: VARIANCE_ITER

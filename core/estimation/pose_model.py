@@ -36,7 +36,7 @@ class PoseModel(abc.ABC):
     sums_min_pairs: float = math.inf
     fixed: tuple[tuple[int, np.ndarray], ...] = ()
     #: the model states where its residuals' noise comes from (`noise_factors`), for
-    #: `handeye.noise_sources`
+    #: `handeye.estimation.noise_sources`
     noise_sources: bool = False
 
     @abc.abstractmethod
@@ -49,7 +49,7 @@ class PoseModel(abc.ABC):
 
     def noise_factors(self, data: Any, poses: Poses) -> Any:
         """Where `noise_sources` is True: the noise sources of the residuals at the poses, a
-        `handeye.noise_sources.Sources`."""
+        `handeye.estimation.noise_sources.Sources`."""
         raise NotImplementedError
 
     def normal_equations(self, poses: Poses, e: np.ndarray, wr: float, wt: float,

@@ -1,4 +1,4 @@
-"""Robust losses of the nonlinear least-squares engine (`handeye.nlls`), shared by every problem.
+"""Robust losses of the nonlinear least-squares engine (`handeye.estimation.nlls`), shared by every problem.
 
 A loss rho acts on s = |e_i|^2, the squared norm of one pair's whitened residual 6-vector, and the
 objective is F = 1/2 sum_i rho(s_i) (rho(s) = s is least squares):
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 
 LOSSES = ("linear", "huber", "cauchy")
 #: sqrt of the 95% quantile of chi^2 with 6 degrees of freedom: a pair whose whitened 6-vector is

@@ -12,7 +12,7 @@ y^T M y + rest with y = [r; 1] (`RotationCost.matrix`), the cost the SDP relaxat
 NLP and the trust-region solver minimise. Two ways to get there:
 
 - `eliminate_translations(system)`: a QR of [R1_t | R1_r | q1] of the reduced system of eq. 10
-  (`handeye.kronecker.KroneckerSystem`), translation columns first: S upper triangular. Needs R1,
+  (`handeye.estimation.kronecker.KroneckerSystem`), translation columns first: S upper triangular. Needs R1,
   i.e. H of full column rank.
 - `RotationCost.from_normal_equations(N, g, w^T w, k)`: from H^T H, H^T w directly, through the
   Cholesky factor of the translation block only (T^T T = N_tt) and the Schur complement
@@ -32,10 +32,10 @@ from collections.abc import Callable
 import numpy as np
 from scipy.linalg import lapack
 
+from handeye.base.errors import DegenerateDataError
 from handeye.estimation.kronecker import KroneckerSystem
 from handeye.estimation.trust_region import TrustRegionSolution, solve_trust_region
 from handeye.framework.caching import cached_property
-from handeye.framework.errors import DegenerateDataError
 from handeye.geometry.linalg import solve_triangular
 from handeye.geometry.se3 import project_to_so3
 
@@ -82,7 +82,7 @@ class RotationCost:
 
     def translations(self, r: np.ndarray) -> tuple[np.ndarray, ...]:
         """The k translations (3,) minimising the cost for the rotations r: (9k,)."""
-        t = solve_triangular(self.T, self.u - self.U @ r)  # LAPACK directly (`handeye.linalg`)
+        t = solve_triangular(self.T, self.u - self.U @ r)  # LAPACK directly (`handeye.geometry.linalg`)
         return tuple(t[3 * j:3 * j + 3] for j in range(len(t) // 3))
 
     @classmethod
@@ -156,7 +156,7 @@ def _below_diagonal(shape: tuple[int, int]) -> np.ndarray:
 def sphere_least_squares(cost: RotationCost) -> TrustRegionSolution:
     """The r minimising |S r - s|^2 on the sphere |r|^2 = 3k (the squared Frobenius norm of k
     rotations): a trust-region subproblem with an equality constraint, solved exactly
-    (`handeye.trust_region`). Its x is r; r and -r are told apart by `signed_rotations`."""
+    (`handeye.estimation.trust_region`). Its x is r; r and -r are told apart by `signed_rotations`."""
     P, p, _ = cost.quadratic
     return solve_trust_region(P, p, float(np.sqrt(3.0 * cost.rotations)))
 

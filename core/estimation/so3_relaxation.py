@@ -4,7 +4,7 @@ certificate of global optimality. Shared by `so3-sdp` for every problem (k = 1 f
 2 for ``axyb``, 3 for AX B = Y C Z); the SDP solvers themselves are the plugin's.
 
 Variable y = [vec R_1; ...; vec R_k; h] (9k + 1, column-major vec), cost y^T M y
-(`handeye.rotation_cost.RotationCost.matrix`). Constraints y^T A_j y = b_j, per rotation
+(`handeye.estimation.rotation_cost.RotationCost.matrix`). Constraints y^T A_j y = b_j, per rotation
 (cf. Heller et al., ICRA 2014, and Giamou et al., RA-L 2019, for one rotation; Briales &
 Gonzalez-Jimenez, CVPR 2017, for the redundant ones):
 
@@ -32,6 +32,7 @@ import functools
 import numpy as np
 from scipy.linalg import lapack
 
+from handeye.base.errors import SolverError
 from handeye.estimation.rotation_cost import (
     RotationCost,
     rotation_blocks,
@@ -39,7 +40,6 @@ from handeye.estimation.rotation_cost import (
     signed_rotations,
     sphere_least_squares,
 )
-from handeye.framework.errors import SolverError
 from handeye.geometry import so3_fast
 from handeye.geometry.linalg import eigvalsh, lstsq, vector_norm
 from handeye.geometry.se3 import project_to_so3, skew
@@ -231,7 +231,7 @@ def certificate(M: np.ndarray, y: np.ndarray, nu: np.ndarray, redundant: bool) -
     L = np.zeros((len(y), len(b)))
     np.add.at(L, (p, j), 0.5 * c * y[q])
     np.add.at(L, (q, j), 0.5 * c * y[p])
-    correction = lstsq(L, M @ y - L @ nu)  # LAPACK directly (`handeye.linalg.lstsq`: numpy's numbers)
+    correction = lstsq(L, M @ y - L @ nu)  # LAPACK directly (`handeye.geometry.linalg.lstsq`: numpy's numbers)
     nu = nu + correction
     S = np.array(M, dtype=float)
     np.subtract.at(S, (p, q), 0.5 * c * nu[j])

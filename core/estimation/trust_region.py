@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.geometry.linalg import eigh, vector_norm
 
 #: Eigenvalues within this (relative to the largest |eigenvalue|, or to |p| / rho when larger)
@@ -84,7 +84,7 @@ def solve_trust_region(P: np.ndarray, p: np.ndarray, rho: float) -> TrustRegionS
                          f"got {P.shape} and {p.shape}")
     if not (np.isfinite(rho) and rho > 0):
         raise InputError(f"trust region: rho must be a finite number > 0, got {rho!r}")
-    d, V = eigh(0.5 * (P + P.T))  # LAPACK directly (`handeye.linalg.eigh`)
+    d, V = eigh(0.5 * (P + P.T))  # LAPACK directly (`handeye.geometry.linalg.eigh`)
     q = V.T @ p
     q_norm = vector_norm(q)
     spread = max(float(np.abs(d).max()), q_norm / rho, _TINY)

@@ -1,5 +1,5 @@
 """Whitening of the per-pair residual 6-vectors [r_i; t_i] (rotation group, translation group)
-of the nonlinear least-squares engine (`handeye.nlls`), and the estimates of its scales.
+of the nonlinear least-squares engine (`handeye.estimation.nlls`), and the estimates of its scales.
 
 A pair's residual e_i = [r_i; t_i] (rad, data units) is whitened to L^-1 e_i, with L the
 Cholesky factor of its covariance: either per-group sigmas, C = diag(sigma_rot^2 I3,
@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from handeye.checks.validation import float_array
+from handeye.base.errors import InputError
 from handeye.framework.caching import cached_property
-from handeye.framework.errors import InputError
 from handeye.geometry.linalg import einsum
+from handeye.geometry.validation import float_array
 
 #: median of the chi distribution with 3 degrees of freedom: median |n| for n ~ N(0, sigma^2 I3)
 #: is CHI3_MEDIAN * sigma; turns the median residual norm into a per-axis standard deviation.

@@ -2,7 +2,7 @@
 
 A plugin is any module or object with functions decorated by `handeye.hookimpl`; it is found
 through the entry-point group ``handeye`` (the built-in problems and solvers are registered that
-way too) or registered explicitly with `handeye.registry.register_plugin`.
+way too) or registered explicitly with `handeye.host.registry.register_plugin`.
 """
 
 from __future__ import annotations
@@ -21,10 +21,10 @@ def register_problems(register: Callable) -> None:
     """Register calibration problems.
 
     :param register: call ``register(problem)`` once per problem, with an instance of a
-        `handeye.problem.Problem` subclass. A name another plugin already registered raises
+        `handeye.framework.problem.Problem` subclass. A name another plugin already registered raises
         `PluginRegistrationError` naming both plugins.
 
-    Called once, when the registry is first used (or rebuilt by `handeye.registry.reload`).
+    Called once, when the registry is first used (or rebuilt by `handeye.host.registry.reload`).
     """
 
 

@@ -23,7 +23,7 @@ import warnings
 from collections.abc import Callable, Iterator
 from typing import Any
 
-from handeye.framework.errors import SolverError, SolverTimeoutError
+from handeye.base.errors import SolverError, SolverTimeoutError
 from handeye.framework.processes import set_parent_death_signal
 
 

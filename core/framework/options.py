@@ -21,7 +21,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from handeye.framework.errors import InputError, UnknownPluginError, shown
+from handeye.base.errors import InputError, UnknownPluginError, shown
 
 T = TypeVar("T")
 

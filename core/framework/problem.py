@@ -207,7 +207,7 @@ class JointStations:
         return len(self.q)
 
 
-#: the setup mistakes `handeye.plausibility` knows how to undo and try (`Problem.mistakes`)
+#: the setup mistakes `handeye.workflow.plausibility` knows how to undo and try (`Problem.mistakes`)
 MISTAKES = ("camera-inverted", "robot-inverted", "other-setup", "shifted", "camera-unit", "euler")
 
 
@@ -281,8 +281,8 @@ class Problem(ABC):
         return {"warnings": []}
 
     def check_model(self, data: Any, unknowns: Poses) -> tuple[Any, tuple[np.ndarray, ...], tuple[str, ...]] | None:
-        """For the host's self-check (`handeye.self_check`): a least-squares model of the data
-        (`handeye.nlls.PoseModel`), the poses to start it from (the answer's, with any nuisance
+        """For the host's self-check (`handeye.checks.self_check`): a least-squares model of the data
+        (`handeye.estimation.nlls.PoseModel`), the poses to start it from (the answer's, with any nuisance
         unknown of the model fitted to it) and the names among the model's unknowns that are
         the answer's; None: the problem offers no such check."""
         return None

@@ -24,7 +24,7 @@ class Status(str, enum.Enum):
       unknowns are its last iterate and must not be trusted.
     - ``failed``: no usable answer (used by the harness for solvers that raised).
     - ``unreliable``: set by the host, not by a solver: the solver solved its problem, but the
-      residuals are implausible for the data (`handeye.plausibility`: most often a setup mistake
+      residuals are implausible for the data (`handeye.workflow.plausibility`: most often a setup mistake
       such as inverted poses, another Euler order or a unit); the unknowns must not be used.
     """
 

@@ -1,7 +1,7 @@
 """`SolverSpec`: what a solver plugin declares when it registers.
 
 A spec is pure data plus one callable, ``run(data, options, backend) -> SolverOutput``. The host
-(`handeye.api`) does everything shared: name look-up, backend choice and availability, option
+(`handeye.host.api`) does everything shared: name look-up, backend choice and availability, option
 parsing, timing, checking that the unknowns returned are in SE(3), and building the `Solution`.
 """
 
@@ -49,7 +49,7 @@ class SolverSpec:
         about one axis, with the translation that leaves undetermined given by the user (the
         validated data's ``planar``); the host refuses such data for the other solvers.
     camera_scale_mode: True when the solver honours data whose camera translations are known
-        only up to scale (``camera_scale="unknown"``, `handeye.camera_scale`); the host refuses
+        only up to scale (``camera_scale="unknown"``, `handeye.estimation.camera_scale`); the host refuses
         such data for the other solvers.
     variants: (option, values) when one option selects between different methods (OpenCV's
         five hand-eye methods behind ``method``): default studies compare one entry per value,

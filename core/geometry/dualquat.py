@@ -1,6 +1,6 @@
 """Quaternion and dual-quaternion algebra for the dual-quaternion solver (paper Sec. III.C).
 
-Convention here (unlike `handeye.se3`, which follows scipy): Hamilton quaternions with the scalar
+Convention here (unlike `handeye.geometry.se3`, which follows scipy): Hamilton quaternions with the scalar
 FIRST, ``q = (q0, qx, qy, qz)``, as in the paper's eq. 25 and Daniilidis (1999). Every function is
 vectorised over leading axes and returns new arrays.
 

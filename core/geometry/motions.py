@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
+from handeye.base.vocabulary import PAIRINGS
 from handeye.geometry.se3 import inverse
 
 #: which pairs of stations make the motions: consecutive ones, or every pair i < j
-PAIRINGS = ("consecutive", "all")
 
 
 def relative_motions(A_abs: np.ndarray, B_abs: np.ndarray, pairing: str = "all") -> tuple[np.ndarray, np.ndarray]:

@@ -1,8 +1,8 @@
 """Fast SO(3) helpers for iterative solvers: log of a stack, exp of one vector, skew matrices and
 the inverse Jacobians of SO(3), in plain numpy.
 
-`handeye.se3` holds the general helpers (scipy's `Rotation` behind so3_exp / so3_log). These are
-the versions an inner loop calls many times on small stacks (`handeye.nlls`, and through it
+`handeye.geometry.se3` holds the general helpers (scipy's `Rotation` behind so3_exp / so3_log). These are
+the versions an inner loop calls many times on small stacks (`handeye.estimation.nlls`, and through it
 `refine` for every problem): at the usual m (tens of pairs) the cost of an iteration is the
 number of numpy calls (1-3 us each), not arithmetic, so 3x3 blocks are built from (m, 9) rows
 with one product against a constant (`_SKEW`, `_LOG_MAP`) instead of entry-by-entry
@@ -115,7 +115,7 @@ def exp(w: np.ndarray) -> np.ndarray:
 
 def skew(v: np.ndarray) -> np.ndarray:
     """[v]_x: (..., 3) -> (..., 3, 3) by one product with a constant (finite float input; the
-    general `handeye.se3.skew` takes any array-like)."""
+    general `handeye.geometry.se3.skew` takes any array-like)."""
     return (v @ _SKEW).reshape(v.shape[:-1] + (3, 3))
 
 
@@ -159,7 +159,7 @@ def inverse_jacobians(r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 #: R.reshape(m, 9) @ _QUAT_MAP + _QUAT_ONE: (m, 16), the four candidate rows of Shepperd's method
-#: (row k: 4 q_k q for the divisor k, `handeye.dualquat.quat_from_rotation`) in one product:
+#: (row k: 4 q_k q for the divisor k, `handeye.geometry.dualquat.quat_from_rotation`) in one product:
 #: diagonal terms 1 +- r00 +- r11 +- r22, off-diagonal sums and differences r_ij +- r_ji.
 _QUAT_MAP = np.zeros((9, 16))
 _QUAT_ONE = np.zeros(16)
@@ -178,7 +178,7 @@ del _array, _k, _signs, _a, _b, _i, _j, _sign, _row, _col
 def quat(R: np.ndarray) -> np.ndarray:
     """Unit quaternions (q0, qx, qy, qz), scalar FIRST, with q0 >= 0, of R: (m, 3, 3) -> (m, 4).
 
-    Shepperd's method exactly as `handeye.dualquat.quat_from_rotation` (the candidate with the
+    Shepperd's method exactly as `handeye.geometry.dualquat.quat_from_rotation` (the candidate with the
     largest of the four diagonal expressions, normalised), equal to it to rounding, with the 16
     candidate entries from one product with a constant (`_QUAT_MAP`): 3-10x fewer numpy calls.
     """

@@ -29,22 +29,24 @@ from handeye.harness.study import (
     PAPER_OPTIONS,
     PAPER_PAIRS,
     UNITS,
-    Cell,
+    GridPoint,
     Spec,
     Study,
     Sweep,
     accuracy_study,
     default_specs,
-    load_study,
     missing_paper_methods,
     paper_noise,
     paper_specs,
     paper_study,
+    sweep_study,
+)
+from handeye.harness.study_files import (
+    load_study,
     parse_floats,
     parse_ints,
     parse_specs,
     study_from_dict,
-    sweep_study,
 )
 
 __all__ = [
@@ -56,7 +58,7 @@ __all__ = [
     "PAPER_OPTIONS",
     "PAPER_PAIRS",
     "UNITS",
-    "Cell",
+    "GridPoint",
     "Spec",
     "Study",
     "StudyResult",

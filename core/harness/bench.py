@@ -40,11 +40,11 @@ from typing import Any
 import numpy as np
 
 from handeye import __version__
+from handeye.base.errors import InputError, UnknownPluginError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.api import solve
-from handeye.framework.errors import InputError, UnknownPluginError
 from handeye.framework.problem import BenchRow, BenchSettings, Problem
-from handeye.framework.registry import get_registry
+from handeye.host.api import solve
+from handeye.host.registry import get_registry
 
 DEFAULT_REPEATS = 7
 DEFAULT_BUDGET = 5.0
@@ -62,7 +62,7 @@ class Row:
 
 
 @dataclasses.dataclass
-class Cell:
+class Timings:
     """Timings of one row at one m (seconds)."""
 
     warmup: float | None = None
@@ -81,8 +81,8 @@ class Cell:
         return statistics.median(self.runs) if self.runs else None
 
 
-#: cells of a run: (row label, m) -> Cell
-Cells = dict[tuple[str, int], Cell]
+#: cells of a run: (row label, m) -> Timings
+TimingTable = dict[tuple[str, int], Timings]
 
 
 @dataclasses.dataclass
@@ -98,7 +98,7 @@ class BenchRun:
     noise_rot: float
     noise_trans: float
     rows: list[Row]
-    cells: Cells
+    cells: TimingTable
     unavailable: list[str]
     machine: str
 
@@ -270,10 +270,10 @@ def make_timer(problem: str, row: Row, data: Mapping[str, Any],
 
 
 def measure(problem: str, rows: Sequence[Row], pairs: Sequence[int], repeats: int, budget: float,
-            noise: NoiseModel, seed: int, progress: bool = False) -> Cells:
+            noise: NoiseModel, seed: int, progress: bool = False) -> TimingTable:
     """Time every row at every m: warm-up, then `repeats` solves round-robin over the rows; a
     progress bar on stderr when `progress` (and tqdm is installed)."""
-    cells: Cells = {}
+    cells: TimingTable = {}
     over_budget: dict[str, float] = {}  # row label -> the m at which one solve exceeded the budget
     bar = _progress(len(rows) * len(pairs) * (1 + repeats), enabled=progress)
     registry = get_registry()
@@ -282,7 +282,7 @@ def measure(problem: str, rows: Sequence[Row], pairs: Sequence[int], repeats: in
         by_protocol: dict[str, Mapping[str, Any]] = {}  # data of the rows whose solver asks for other simulator options
         timers = {}
         for row in rows:
-            cell = cells[(row.label, m)] = Cell()
+            cell = cells[(row.label, m)] = Timings()
             if row.label in over_budget:
                 cell.note = f"skipped (>{budget:g} s)"
                 bar.update(1 + repeats)

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from handeye.framework.registry import get_registry
 from handeye.harness.bench import BenchRun, reference_name, row_label
+from handeye.host.registry import get_registry
 
 #: width of a table's time column
 COLUMN = 20

@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from handeye.base.errors import InputError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError
 from handeye.geometry.kinematics import PAPER_X, PAPER_Y, random_flange_poses
 from handeye.geometry.se3 import inverse, make_pose, random_rotations, so3_exp
 
@@ -49,7 +49,7 @@ class Case:
     def data(self, problem: str) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
         """The problem's data fields and truth, made from the case's eye-in-hand stations by the
         problem's `StationReader` (A X = Y B: the stations; A X = X B: the motions of every pair)."""
-        from handeye.framework.registry import get_registry
+        from handeye.host.registry import get_registry
 
         reader = get_registry().problem(problem).station_reader
         if reader is None:
@@ -133,7 +133,7 @@ def solver_runs(problem: str) -> list[tuple[str, str]]:
     """(solver, backend) of every registered solver of `problem` that can run here: the default
     backend, and every other backend of a solver whose backends solve different formulations
     (lmi-sdp's casadi)."""
-    from handeye.framework.registry import get_registry
+    from handeye.host.registry import get_registry
 
     reg = get_registry()
     out = []
@@ -152,9 +152,9 @@ def run_case(case: Case, problem: str, runs: list[tuple[str, str]]) -> list[dict
     unknowns), status, number of warnings, or the error type when it raised."""
     import warnings
 
-    from handeye.framework.api import solve
-    from handeye.framework.errors import HandEyeError
-    from handeye.framework.registry import get_registry
+    from handeye.base.errors import HandEyeError
+    from handeye.host.api import solve
+    from handeye.host.registry import get_registry
 
     prob = get_registry().problem(problem)
     data, truth = case.data(problem)

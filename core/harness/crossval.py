@@ -35,28 +35,17 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import HandEyeError, InputError
+from handeye.base.errors import HandEyeError, InputError
+from handeye.estimation.folds import make_folds  # noqa: F401 (the harness's folds, named here too)
 from handeye.framework.problem import StationReader
-from handeye.framework.registry import get_registry
 from handeye.framework.solution import Status
 from handeye.harness.runner import SolveTimeout, _progress, limited_solve
 from handeye.harness.study import Spec
+from handeye.host.registry import get_registry
 
 #: the label of the reference row when the data carry a truth: the true unknowns' residuals on
 #: the same held-out pairs (the noise floor of the data)
 TRUTH_LABEL = "truth"
-
-
-def make_folds(n: int, k: int, seed: int = 0, *, contiguous: bool = False) -> list[np.ndarray]:
-    """Test indices of k folds partitioning ``range(n)``: sorted int arrays, sizes differing by at
-    most one. Shuffled by ``numpy.random.default_rng(seed)`` (deterministic), or with `contiguous`
-    consecutive blocks (the seed is then unused)."""
-    if k < 2:
-        raise InputError(f"--folds must be >= 2, got {k}")
-    if n < k:
-        raise InputError(f"cannot split {n} items into {k} folds; use --folds {max(2, n)} or fewer, or more data")
-    order = np.arange(n) if contiguous else np.random.default_rng(seed).permutation(n)
-    return [np.sort(part) for part in np.array_split(order, k)]
 
 
 @dataclasses.dataclass(frozen=True)

@@ -36,12 +36,12 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import HandEyeError
-from handeye.framework.registry import get_registry
+from handeye.base.errors import HandEyeError
+from handeye.estimation.folds import make_folds
 from handeye.framework.solution import USABLE
-from handeye.harness.crossval import make_folds
 from handeye.harness.runner import SolveTimeout, limited_solve
 from handeye.harness.study import Spec, default_specs
+from handeye.host.registry import get_registry
 from handeye.vision.observations import BoardObservations, board_in_camera
 from handeye.vision.projection import project
 

@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.registry import get_registry
 from handeye.harness.result import StudyResult, describe, moved, staged_outputs
+from handeye.host.registry import get_registry
 
 #: y axis goes logarithmic when the centres and lower band edges plotted (noise level 0 excluded)
 #: span more than this ratio

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.harness.study import Spec, Study
 
 GROUP_KEYS = ("sweep", "level", "pairs", "label")

@@ -13,7 +13,7 @@ count and executor. The noise level is not in the key: trial k of every level of
 the same poses and the same standard-normal noise, scaled by the level (common random numbers),
 so error-vs-noise curves compare levels on paired data instead of adding the scatter of new
 poses at every level. Units run in-process (``jobs=1``), in a `ProcessPoolExecutor` (fork start
-method where available, so run-time plugins registered with `handeye.registry.register_plugin`
+method where available, so run-time plugins registered with `handeye.host.registry.register_plugin`
 are inherited; elsewhere workers re-register them) or on a dask.distributed cluster.
 
 Each record (one per trial x spec) holds: where it comes from (study, sweep, level, pairs,
@@ -29,7 +29,7 @@ every finished unit's records are on disk as soon as the unit returns, and a rer
 study skips them. While a study runs, SIGINT and SIGTERM stop it cleanly (`stop_on_signals`): no
 more units start, queued ones are cancelled, the process-pool workers are terminated, and
 `StudyInterrupted` (a KeyboardInterrupt) says how many units are saved. The workers also end
-when the process running the study is killed outright (SIGKILL): `handeye.processes.die_with_parent`.
+when the process running the study is killed outright (SIGKILL): `handeye.framework.processes.die_with_parent`.
 """
 
 from __future__ import annotations
@@ -51,15 +51,10 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.api import solve
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.framework.isolation import fork_available
 from handeye.framework.problem import Problem
 from handeye.framework.processes import die_with_parent
-from handeye.framework.registry import (
-    _extra as _runtime_plugins,  # run-time plugins, re-registered in workers
-)
-from handeye.framework.registry import get_registry, register_plugin
 from handeye.framework.solution import Status
 from handeye.geometry.se3 import random_poses
 from handeye.harness.interrupts import (
@@ -70,7 +65,12 @@ from handeye.harness.interrupts import (
     stop_on_signals,
 )
 from handeye.harness.result import StudyJournal, StudyResult, UnitKey
-from handeye.harness.study import UNITS, Cell, Spec, Study
+from handeye.harness.study import UNITS, GridPoint, Spec, Study
+from handeye.host.api import solve
+from handeye.host.registry import (
+    _extra as _runtime_plugins,  # run-time plugins, re-registered in workers
+)
+from handeye.host.registry import get_registry, register_plugin
 
 #: std of each translation axis of a random truth (mm), as `handeye.problems.axyb.random_truth`
 RANDOM_TRUTH_MM = 500.0
@@ -86,7 +86,7 @@ class Unit:
     index: int
     study: Study
     specs: tuple[Spec, ...]
-    cell: Cell
+    cell: GridPoint
     trial: int
 
     @property
@@ -95,7 +95,7 @@ class Unit:
         return (self.cell.sweep, self.cell.level_index, self.cell.pairs_index, self.trial)
 
 
-def data_seed(study: Study, cell: Cell, trial: int) -> int:
+def data_seed(study: Study, cell: GridPoint, trial: int) -> int:
     """The 63-bit simulation seed of a unit, from the master seed and the unit's sweep, pair-count
     and trial indices only (the same at every noise level of the sweep)."""
     seq = np.random.SeedSequence(study.seed, spawn_key=(cell.sweep_index, cell.pairs_index, trial))
@@ -111,7 +111,7 @@ def units_of(study: Study, specs: Sequence[Spec]) -> list[Unit]:
     return units
 
 
-def simulate(study: Study, cell: Cell, trial: int) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], int]:
+def simulate(study: Study, cell: GridPoint, trial: int) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], int]:
     """The unit's data and truth (in mm, the simulator's unit) and its seed."""
     problem = get_registry().problem(study.problem)
     seed = data_seed(study, cell, trial)
@@ -282,7 +282,7 @@ Finish = Callable[[int, list[dict[str, Any]], int], None]
 
 def _init_worker(plugins: list[tuple[str, Any]], parent: int | None = None) -> None:
     """Prepare a process-pool worker: make it end with `parent` (the process running the study,
-    `handeye.processes.die_with_parent`), leave Ctrl-C to the parent (which stops the workers itself) and let
+    `handeye.framework.processes.die_with_parent`), leave Ctrl-C to the parent (which stops the workers itself) and let
     SIGTERM end it at once, and make it see the run-time plugins of its parent (a no-op after
     fork)."""
     if parent is not None:

@@ -33,14 +33,16 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError, shown
+from handeye.base import vocabulary
+from handeye.base.errors import InputError, shown
+from handeye.base.vocabulary import METRES_PER, RADIANS_PER
 from handeye.geometry.kinematics import DHArm
 from handeye.io.input_files import check_not_looping, load_yaml, number
 
 #: the conventions read (standard DH only, for now)
 CONVENTIONS = ("standard-dh",)
-LENGTH_UNITS = {"mm": 1e-3, "m": 1.0}
-ANGLE_UNITS = {"deg": math.pi / 180.0, "rad": 1.0}
+LENGTH_UNITS = {unit: METRES_PER[unit] for unit in vocabulary.LENGTH_UNITS}
+ANGLE_UNITS = RADIANS_PER
 #: the keys of the file and of each joint
 KEYS = ("convention", "length_unit", "angle_unit", "joints", "base", "tool", "description")
 JOINT_KEYS = ("name", "a", "alpha", "d", "offset")

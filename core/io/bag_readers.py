@@ -1,7 +1,7 @@
 """Reading pose streams from ROS 1 bags (.bag) and ROS 2 bags (a directory with .db3 or .mcap
 files, or one such file) with the pure-Python `rosbags` package: no ROS installation needed.
 
-`read_bag_poses(path, topic)` returns a `handeye.pose_readers.PoseStack` in metres with the
+`read_bag_poses(path, topic)` returns a `handeye.io.pose_readers.PoseStack` in metres with the
 messages' header stamps (seconds) as `stamps`. A topic spec is one of
 
 - ``/topic`` of type geometry_msgs/PoseStamped, geometry_msgs/TransformStamped,
@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.geometry.se3 import make_pose
 from handeye.io.input_files import check_not_looping
 from handeye.io.pose_readers import PoseStack
@@ -320,7 +320,7 @@ class _Link:
 def _tf_chain(messages: list[tuple[str, Any]], topic: str, frames: tuple[str, str],
               source: str) -> tuple[np.ndarray, np.ndarray]:
     """T_parent_child at the stamps of the chain's busiest moving link."""
-    from handeye.streams.resample import resample_poses
+    from handeye.geometry.resample import resample_poses
 
     links: dict[tuple[str, str], _Link] = {}
     parent_of: dict[str, str] = {}

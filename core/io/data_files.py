@@ -15,15 +15,15 @@ motions, `handeye.problems.axxb.motions`), so one file of stations can be solved
 
 Formats are chosen by file extension through `FORMATS`: each entry is a reader
 ``(path) -> RawFile`` and a writer ``(binary file object, PoseFile) -> None`` (`save_data` opens
-the file with `handeye.output_files.new_file`: written whole or not at all). A new format (CSV, YAML,
+the file with `handeye.io.output_files.new_file`: written whole or not at all). A new format (CSV, YAML,
 xyz + quaternion, Fanuc WPR, ...) is one reader (and optionally one writer) plus one line in
 `FORMATS`; key checking, pose validation and error messages are shared (`_finish`).
 
 Every problem in the file is validated only as far as a file can be: the expected keys are
 present, nothing unexpected is there, every stack is a finite (m, 4, 4) array of rigid motions
-(`handeye.validation.pose_stack`). The problem's own checks (lengths, degeneracy) run when the
-data are solved. Files are not trusted: NPZ through `handeye.npz.load_npz` (size limits, no
-pickles), JSON through `handeye.input_files.load_json` (duplicate keys refused), and a JSON pose
+(`handeye.geometry.validation.pose_stack`). The problem's own checks (lengths, degeneracy) run when the
+data are solved. Files are not trusted: NPZ through `handeye.io.npz.load_npz` (size limits, no
+pickles), JSON through `handeye.io.input_files.load_json` (duplicate keys refused), and a JSON pose
 holds JSON numbers only (``"303.5"`` or ``true`` is refused, not converted).
 """
 
@@ -37,11 +37,12 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from handeye.checks.validation import float_array, pose_stack
-from handeye.framework.errors import HandEyeError, InputError, shown
+from handeye.base.errors import HandEyeError, InputError, shown
+from handeye.base.vocabulary import METRES_PER, SETUPS
 from handeye.framework.problem import StationReader
-from handeye.framework.registry import get_registry
 from handeye.geometry.motions import PAIRINGS
+from handeye.geometry.validation import float_array, pose_stack
+from handeye.host.registry import get_registry
 from handeye.io.input_files import check_not_looping, load_json
 from handeye.io.npz import load_npz
 from handeye.io.output_files import new_file
@@ -49,9 +50,8 @@ from handeye.io.output_files import new_file
 #: metadata keys a file may carry (all optional, all strings)
 METADATA_KEYS = ("units", "setup", "pairing", "description", "source", "license")
 #: accepted values of the ``units`` metadata (length unit of every translation in the file)
-UNITS = ("m", "cm", "mm")
+UNITS = tuple(METRES_PER)
 #: accepted values of the ``setup`` metadata (see docs/conventions.md)
-SETUPS = ("eye-in-hand", "eye-to-hand")
 #: the accepted values of the ``pairing`` metadata, which stations' absolute poses form a motion
 #: (``consecutive``: station i with i + 1; ``all``: every i < j, as OpenCV's calibrateHandEye),
 #: are `handeye.geometry.motions.PAIRINGS`; the pairing used for absolute poses when neither the
@@ -151,7 +151,7 @@ def save_data(path: str | Path, data: Mapping[str, Any], truth: Mapping[str, Any
     ``setup``; for ``axxb`` ``pairing`` defaults to `DEFAULT_PAIRING`); truth: unknown -> (4, 4); metadata:
     keys of `METADATA_KEYS`. Everything is validated as `load_data` would, so a file written here
     always reads back (floats are written with full precision: the round trip is exact). The
-    file appears complete or not at all (`handeye.output_files`); force=False refuses to replace
+    file appears complete or not at all (`handeye.io.output_files`); force=False refuses to replace
     an existing file (InputError), atomically. Returns the path written.
     """
     path = Path(path)

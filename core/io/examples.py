@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handeye.framework.errors import UnknownPluginError
+from handeye.base.errors import UnknownPluginError
 from handeye.io.data_files import load_file
 
 #: example name -> file in handeye/data/

@@ -1,7 +1,7 @@
 """Reading the text documents users hand to handeye (YAML, JSON) and their paths, without trusting them.
 
 Every pose, board, intrinsics and time-stamp file that is YAML is read by `load_yaml`, every JSON
-pose file by `load_json`; both raise one-line `handeye.errors.InputError`s naming the file (the
+pose file by `load_json`; both raise one-line `handeye.base.errors.InputError`s naming the file (the
 caller's `where`) and the line. Refused, beyond what the parsers refuse:
 
 - **Alias bombs** (YAML). PyYAML shares an aliased node instead of copying it, so a 300-byte
@@ -38,7 +38,7 @@ from typing import Any, ClassVar
 
 import yaml
 
-from handeye.framework.errors import InputError, shown
+from handeye.base.errors import InputError, shown
 
 #: most nodes the aliases of one YAML document may add when expanded (each use of ``*name`` adds
 #: the expanded size of the anchored node). 10^5 is far above sparing use (a 4x4 matrix is 21

@@ -24,11 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from handeye.framework.errors import InputError, shown
+from handeye.base.errors import InputError, shown
+from handeye.base.vocabulary import RADIANS_PER
 from handeye.io.input_files import check_not_looping
 
 #: the angle units of joint readings and their size in radians
-JOINT_UNITS = {"deg": math.pi / 180.0, "rad": 1.0}
+JOINT_UNITS = RADIANS_PER
 #: joint readings in radians beyond this are degrees written as radians (no revolute joint turns
 #: more than two turns either way)
 MAX_RADIANS = 4.0 * math.pi

@@ -50,7 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 
 #: exceptions of zipfile / numpy for an archive that cannot be read (damaged, truncated, encrypted,
 #: compressed with an unsupported method, or a .npy header that does not parse)

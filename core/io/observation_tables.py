@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.io.input_files import check_not_looping, load_json
 from handeye.io.npz import load_npz
 from handeye.io.pose_formats import normalise_header

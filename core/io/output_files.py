@@ -30,7 +30,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 
 #: suffix of the temporary files (a killed run may leave one behind: it is never a result)
 PART_SUFFIX = ".part"

@@ -15,7 +15,7 @@ each convention is written once, here, and tested against an explicit product of
 rotations (tests/test_pose_readers.py).
 
 Reading files (CSV, JSON, YAML, NPZ), column selection, units and orthonormalisation live in
-`handeye.pose_readers`.
+`handeye.io.pose_readers`.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 
 Array = NDArray[np.float64]
 

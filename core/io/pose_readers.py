@@ -1,7 +1,7 @@
 """Reading the pose files robot cells produce (CSV/TSV/TXT, JSON, YAML, NPZ) into 4x4 pose stacks.
 
 `read_poses(path, format, unit=...)` reads one stream of poses (the robot's flange poses, or the
-camera's board poses) written in one of the representations of `handeye.pose_formats`
+camera's board poses) written in one of the representations of `handeye.io.pose_formats`
 (``fanuc-wpr``, ``xyz-quat-xyzw``, ``matrix``, ...) and returns a `PoseStack`: the poses as a
 read-only (n, 4, 4) float64 array, the length unit, and the index / name / time-stamp column
 when the file has one. docs/formats.md ("Pose files of robots and cameras") is the reference.
@@ -18,12 +18,12 @@ re-orthonormalised only when asked, one-line errors naming the line) is one job,
 Numbers are read strictly: a text cell is a plain decimal number (ASCII digits, sign, point,
 exponent; ``nan`` / ``inf`` are read and then refused as not finite), not everything Python's
 float() takes (``1_000``, full-width ``１２３``); a JSON / YAML value must be a number, not text
-(``"303.5"``) nor a bool; YAML is read by `handeye.input_files.load_yaml` (``1:30`` stays text,
-duplicate keys and alias bombs are refused) and JSON by `handeye.input_files.load_json`
+(``"303.5"``) nor a bool; YAML is read by `handeye.io.input_files.load_yaml` (``1:30`` stays text,
+duplicate keys and alias bombs are refused) and JSON by `handeye.io.input_files.load_json`
 (duplicate keys refused). A pose is a row of numbers or a 4x4 / 3x4 matrix: other nestings and
 NPZ shapes are refused, not flattened.
 
-Nothing passed in is modified; every check raises `handeye.errors.InputError` with a one-line
+Nothing passed in is modified; every check raises `handeye.base.errors.InputError` with a one-line
 message naming the file, the line (text) or pose (JSON / YAML / NPZ) and what to do.
 """
 
@@ -41,13 +41,19 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from handeye.checks.validation import LAST_ROW_TOL, is_masked, masked_count, pose_stack
-from handeye.framework.errors import InputError, shown
+from handeye.base.errors import InputError, shown
+from handeye.base.vocabulary import LENGTH_UNITS
 from handeye.geometry.se3 import (
     ORTHONORMALITY_TOL,
     make_pose,
     orthonormality_error,
     project_to_so3,
+)
+from handeye.geometry.validation import (
+    LAST_ROW_TOL,
+    is_masked,
+    masked_count,
+    pose_stack,
 )
 from handeye.io.input_files import check_not_looping
 from handeye.io.output_files import new_file, write_text
@@ -68,7 +74,7 @@ from handeye.io.pose_tables import (
 Array = NDArray[np.float64]
 
 #: accepted length units (the unit of every translation of the file, recorded in the result)
-UNITS = ("mm", "m")
+UNITS = LENGTH_UNITS
 #: largest re-orthonormalisation accepted with orthonormalize=True: Frobenius norm |R - proj(R)|
 #: for matrices, | |q| - 1 | for quaternions. Rounding to 3 decimals moves a rotation by ~1e-3;
 #: more than 0.01 is not rounding but a wrong layout, unit or format.
@@ -86,10 +92,10 @@ class PoseStack:
     """Poses read from a file.
 
     poses: (n, 4, 4) float64, read-only; translations in `unit`; rotation blocks in SO(3) to
-        1e-6 (``handeye.se3.ORTHONORMALITY_TOL``), exactly (SVD projection) with orthonormalize=True,
+        1e-6 (``handeye.geometry.se3.ORTHONORMALITY_TOL``), exactly (SVD projection) with orthonormalize=True,
         and always exact for angle, rotation-vector and quaternion formats.
     unit: ``"mm"`` or ``"m"``.
-    format: the canonical format name (`handeye.pose_formats.PoseFormat.name`).
+    format: the canonical format name (`handeye.io.pose_formats.PoseFormat.name`).
     names: the index / name column as text, one a pose, or None.
     stamps: the time-stamp column (n,) float64 read-only, or None.
     max_correction: with orthonormalize=True the largest change made to a rotation (Frobenius
@@ -126,7 +132,7 @@ def read_poses(path: str | Path, format: str | PoseFormat, *, unit: str | None =
                degrees: bool | None = None, orthonormalize: bool = False, delimiter: str | None = None) -> PoseStack:
     """Read a file of poses into a `PoseStack` (poses: (n, 4, 4)).
 
-    format: a name of `handeye.pose_formats.format_names` (``"fanuc-wpr"``, ``"matrix"``,
+    format: a name of `handeye.io.pose_formats.format_names` (``"fanuc-wpr"``, ``"matrix"``,
         ``"euler:ZYX:deg"``, ...) or a `PoseFormat`.
     unit: ``"mm"`` or ``"m"``, the unit of the file's translations (kept, not converted; use
         `PoseStack.in_unit`). Default: the unit a JSON / YAML / NPZ file states (``units``), else
@@ -268,7 +274,7 @@ def write_poses(path: str | Path, poses: ArrayLike | PoseStack, format: str | Po
                 unit: str | None = None, degrees: bool | None = None) -> Path:
     """Write poses (n, 4, 4) (or a `PoseStack`, with its names and stamps) in `format`, the file
     type chosen by extension, so that `read_poses` reads them back (floats written in full). The
-    file appears complete or not at all, replacing an existing one (`handeye.output_files`).
+    file appears complete or not at all, replacing an existing one (`handeye.io.output_files`).
     unit: required for bare arrays; a `PoseStack`'s own unit by default."""
     path = Path(path)
     fmt = parse_format(format)

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError, shown
+from handeye.base.errors import InputError, shown
 from handeye.io.input_files import TEXT_NUMBER, load_json, load_yaml
 from handeye.io.npz import load_npz
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.geometry.dh_conversion import dh_from_axes
 
 #: the joint types of the arm, and those folded into the transforms between them

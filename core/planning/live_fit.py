@@ -26,9 +26,9 @@ import math
 
 import numpy as np
 
+from handeye.base.errors import DegenerateDataError, InputError
 from handeye.estimation.nlls import PoseModel, retract_all
 from handeye.estimation.whitening import rms_whitening, sums_of_squares
-from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.framework.problem import Problem
 
 #: Gauss-Newton steps per fit at most (from a warm start one or two are taken)

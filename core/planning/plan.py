@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from handeye.checks.validation import pose_stack
-from handeye.framework.errors import InputError
-from handeye.framework.registry import get_registry
+from handeye.base.errors import InputError
+from handeye.geometry.validation import pose_stack
+from handeye.host.registry import get_registry
 from handeye.planning import design, route, stations, views
 from handeye.planning.reach import Reach
 from handeye.planning.stations import Workspace
@@ -119,7 +119,7 @@ class Plan:
         return write_joints(path, self.joints, joint_names, unit=unit, names=names, force=True)
 
     def write(self, path: str | Path, format: str, unit: str) -> Path:
-        """The stations in a robot's pose format (`handeye.pose_formats`, e.g. "kuka-abc",
+        """The stations in a robot's pose format (`handeye.io.pose_formats`, e.g. "kuka-abc",
         "ur-rotvec"), named station01, ... in the order to drive them."""
         from handeye.io.pose_readers import PoseStack, write_poses
 
@@ -164,16 +164,16 @@ def plan(problem: str | None = None, *, setup: str, X: np.ndarray, Y: np.ndarray
         new = ~_near(A, A0, np.radians(rough_deg), rough_length)  # a station again adds no new geometry
         A, seen, info = A[new], seen[new], info[new]
         prior = _information(spec, problem, A0, B0, views.views_of(B0, setup), board, camera, setup, X, Y, noise)[0].sum(0)
-    admissible = None if reach is None else (lambda i: reach.joints_for(A[i], key=i) is not None)
-    chosen = design.greedy(info, count, prior=prior, interest=mask, admissible=admissible)
-    if len(chosen) < count and reach is not None:
-        raise stations.PlanningError(f"the arm reaches only {len(chosen)} of the usable stations within its joint "
-                                     "limits; widen the limits or the workspace, or plan fewer stations")
-    if len(chosen) < count:
-        raise stations.PlanningError(f"only {len(chosen)} usable stations were found for the {count} asked (views of the "
+    if len(A) < count:  # fewer usable stations than asked: said before the design would take them all
+        raise stations.PlanningError(f"only {len(A)} usable stations were found for the {count} asked (views of the "
                                      "board within the viewing distance and angle, the flange in the workspace"
                                      + (", not already recorded" if recorded is not None else "") + "); plan fewer "
                                      "stations, or widen the workspace or the viewing limits")
+    admissible = None if reach is None else (lambda i: reach.joints_for(A[i], key=i) is not None)
+    chosen = design.greedy(info, count, prior=prior, interest=mask, admissible=admissible)
+    if len(chosen) < count:
+        raise stations.PlanningError(f"the arm reaches only {len(chosen)} of the usable stations within its joint "
+                                     "limits; widen the limits or the workspace, or plan fewer stations")
     # driven in the order that keeps the flange's motion short (what they tell together is the same)
     chosen = np.asarray(chosen)[route.driving_order(A[chosen], route.LEVER_MM * UNITS["mm"] / UNITS[board.unit])]
     base = np.zeros(info.shape[1:]) if prior is None else prior

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.geometry import so3_fast
 
 #: starts per pose: the nearest solved station's joints, then random joints in the limits (measured on the
@@ -34,6 +34,12 @@ MAX_ITERATIONS = 200
 STEP = 1e-7
 #: the damping beyond which a start has stalled
 STALLED = 1e8
+#: ... and the iterations over which some start must halve its cost, else every start has settled
+#: on a pose it cannot improve (out of reach within the limits). Measured on the LR Mate-like arm:
+#: reached poses converge in 5-14 iterations; unreached ones used all MAX_ITERATIONS before (the
+#: damping rises and falls without stalling), 95% of a planning run's time. With 25: the same
+#: plan 3.1x faster, 296 of 300 random reachable poses found as before (10: 295)
+PROGRESS_WINDOW = 25
 #: a pose is reached when the inverse kinematics leave less than this (rad; share of the reach)
 ROTATION_TOL = 1e-8
 TRANSLATION_TOL = 1e-8
@@ -81,13 +87,15 @@ class Reach:
         """Levenberg-Marquardt on every start q (k, n) at once, each step clipped to the limits
         (a projected method: at a limit the step slides along it), the Jacobian by forward
         differences (one forward-kinematics call for all starts and joints); the first start to
-        meet the tolerances, or None after MAX_ITERATIONS."""
+        meet the tolerances, or None after MAX_ITERATIONS or once no start halves its cost over
+        PROGRESS_WINDOW iterations."""
         k, n = q.shape
         damping = np.full(k, 1e-3)
         r = self._error(q, T)
         cost = np.sum(r * r, axis=1)
         eye = np.eye(n)
-        for _ in range(MAX_ITERATIONS):
+        window_start = cost.copy()
+        for iteration in range(1, MAX_ITERATIONS + 1):
             done = (np.linalg.norm(r[:, :3], axis=1) < ROTATION_TOL) & (np.linalg.norm(r[:, 3:], axis=1) < TRANSLATION_TOL)
             if done.any():
                 return q[int(np.argmax(done))]
@@ -106,6 +114,10 @@ class Reach:
             damping = np.where(better, damping / 3.0, damping * 4.0)
             if np.all(damping > STALLED):  # no start improves any more: a local minimum, or the limits
                 break
+            if iteration % PROGRESS_WINDOW == 0:
+                if not np.any(cost < 0.5 * window_start):  # every start settled short of the pose
+                    break
+                window_start = cost.copy()
         return None
 
     def _starts(self, T: np.ndarray) -> list[np.ndarray]:

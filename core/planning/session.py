@@ -40,12 +40,12 @@ from typing import Any
 
 import numpy as np
 
-from handeye.checks.plausibility import DUPLICATE_DEG, DUPLICATE_FRACTION, cell_size
-from handeye.checks.validation import pose_stack
-from handeye.framework.errors import HandEyeError, InputError, SolverError
-from handeye.framework.registry import get_registry
+from handeye.base.errors import HandEyeError, InputError, SolverError
+from handeye.checks.stations import DUPLICATE_DEG, DUPLICATE_FRACTION, cell_size
 from handeye.framework.solution import Solution, Status
 from handeye.geometry.se3 import inverse, rotation_angle
+from handeye.geometry.validation import pose_stack
+from handeye.host.registry import get_registry
 from handeye.planning import design, live_fit, views
 from handeye.planning.plan import Noise, default_limits, planners
 from handeye.planning.session_types import (
@@ -233,7 +233,7 @@ class Session:
                       time.perf_counter() - start)
 
     def _repeated(self, index: int) -> int | None:
-        """The kept station whose robot pose the new one `index` repeats (`handeye.checks.plausibility`'s
+        """The kept station whose robot pose the new one `index` repeats (`handeye.workflow.plausibility`'s
         duplicated stations: within DUPLICATE_DEG and DUPLICATE_FRACTION of the cell's size), or None."""
         kept = [k for k in range(index) if self._kept[k]]
         if not kept:
@@ -249,7 +249,7 @@ class Session:
         """The full ``handeye.solve`` of the stations kept (`options` passed on: solver, ...): the
         self-checked answer. A problem other than the cell problem: of the data it makes of the
         stations (A X = X B: the motions between every pair)."""
-        from handeye.framework.api import solve
+        from handeye.host.api import solve
         from handeye.io.data_files import from_poses
 
         A, B = self._kept_stations()
@@ -289,7 +289,7 @@ class Session:
     def _solve(self, warnings: list[str]) -> bool:
         """A full handeye.solve of the stations kept; the stations it finds far off are left out.
         Whether it gave an answer (else the previous one stands, or none)."""
-        from handeye.framework.api import solve
+        from handeye.host.api import solve
 
         A, B = self._kept_stations()
         rows = np.flatnonzero(self.kept)

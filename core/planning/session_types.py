@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 
 
 class SessionError(InputError):

@@ -18,7 +18,7 @@ from collections import Counter
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.geometry.se3 import inverse, make_pose
 from handeye.planning.views import ViewLimits, board_centre, usable
 from handeye.vision.boards import Board

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.geometry.se3 import inverse
 from handeye.vision.boards import Board
 from handeye.vision.observations import Camera

@@ -2,8 +2,8 @@
 
 A tracker or camera records poses at its rate, the robot at its own, with clocks that differ by
 an unknown constant offset. `pair_streams(robot, camera, setup=...)` turns the two streams
-(`handeye.pose_readers.PoseStack` with stamps, from pose files or from ROS bags via
-`handeye.bag_readers.read_bag_poses`) into the stations of a calibration:
+(`handeye.io.pose_readers.PoseStack` with stamps, from pose files or from ROS bags via
+`handeye.io.bag_readers.read_bag_poses`) into the stations of a calibration:
 
 - the clock offset, t_robot = t_camera + offset (`offset`): cross-correlation of the angular
   speeds, refined by minimising the residuals of A_i X = Y B_i, with a 1-sigma;
@@ -16,6 +16,7 @@ docs/streams.md is the user's guide; ``handeye calibrate --match interpolate`` t
 
 from __future__ import annotations
 
+from handeye.geometry.resample import Resampled, angular_speed, resample_poses
 from handeye.streams.offset import (
     CoarseOffset,
     OffsetEstimate,
@@ -23,7 +24,6 @@ from handeye.streams.offset import (
     refine_offset,
 )
 from handeye.streams.pairing import MAX_OFFSET, StreamPairs, pair_streams
-from handeye.streams.resample import Resampled, angular_speed, resample_poses
 from handeye.streams.selection import MAX_PAIRS, MIN_ANGULAR_SPEED
 from handeye.streams.timeline import checked_stream, default_max_gap
 

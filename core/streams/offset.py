@@ -38,8 +38,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
-from handeye.framework.errors import DegenerateDataError, InputError, SolverError
-from handeye.streams.resample import angular_speed, resample_poses
+from handeye.base.errors import DegenerateDataError, InputError, SolverError
+from handeye.geometry.resample import angular_speed, resample_poses
 
 #: a correlation peak below this does not identify the offset clearly (warning)
 WEAK_CORRELATION = 0.5
@@ -151,8 +151,8 @@ def profile_cost(robot_t: NDArray, robot_T: NDArray, camera_t: NDArray, B: NDArr
                  max_gap: float, length: float) -> tuple[float, int, float, float]:
     """S(offset) of the module docstring on the camera samples `camera_t` (all must be
     interpolable; B: the camera side at them): (S, pairs, rms rotation rad, rms translation)."""
-    from handeye.framework.api import solve
-    from handeye.framework.registry import get_registry
+    from handeye.host.api import solve
+    from handeye.host.registry import get_registry
 
     name = get_registry().cell_problem()
     problem = get_registry().problem(name)

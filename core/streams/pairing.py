@@ -17,11 +17,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from handeye.framework.errors import DegenerateDataError, InputError
+from handeye.base.errors import DegenerateDataError, InputError
+from handeye.base.vocabulary import SETUPS
+from handeye.geometry.resample import angular_speed, resample_poses, valid_times
 from handeye.geometry.se3 import inverse
 from handeye.io.pose_readers import PoseStack
 from handeye.streams.offset import OffsetEstimate, coarse_offset, refine_offset
-from handeye.streams.resample import angular_speed, resample_poses, valid_times
 from handeye.streams.selection import (
     MAX_PAIRS,
     MIN_ANGULAR_SPEED,
@@ -37,7 +38,6 @@ from handeye.streams.timeline import (
     span_text,
 )
 
-SETUPS = ("eye-in-hand", "eye-to-hand")
 CAMERA_POSES = ("board-in-camera", "camera-in-board")
 #: default half-width of the offset search (s)
 MAX_OFFSET = 1.0
@@ -121,8 +121,8 @@ def pair_streams(robot: PoseStack, camera: PoseStack, *, setup: str, camera_pose
                  min_angular_speed: float = MIN_ANGULAR_SPEED, max_pairs: int = MAX_PAIRS) -> StreamPairs:
     """Pair a robot stream (T_base_flange) with a camera stream into stations.
 
-    robot, camera: `PoseStack` with stamps (seconds; e.g. from `handeye.pose_readers.read_poses`
-        or `handeye.bag_readers.read_bag_poses`); the camera is converted to the robot's unit.
+    robot, camera: `PoseStack` with stamps (seconds; e.g. from `handeye.io.pose_readers.read_poses`
+        or `handeye.io.bag_readers.read_bag_poses`); the camera is converted to the robot's unit.
     setup: ``"eye-in-hand"`` or ``"eye-to-hand"`` (needed to refine the offset on A_i X = Y B_i).
     camera_poses: ``"board-in-camera"`` (T_cam_target, solvePnP) or ``"camera-in-board"`` (T_target_cam).
     time_offset: ``"auto"`` to estimate it, or seconds: t_robot = t_camera + time_offset.

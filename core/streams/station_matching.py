@@ -10,7 +10,7 @@ stream's order for ``time`` and the robot's for ``name``:
   at most ``max_dt`` seconds away (else the camera pose is dropped). No interpolation and no clock
   offset estimation: the robot pose nearest in time is taken as it is.
 
-Nothing passed in is modified; bad input raises `handeye.errors.InputError`.
+Nothing passed in is modified; bad input raises `handeye.base.errors.InputError`.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 
 MATCHES = ("row", "name", "time")
 #: default --max-dt when the robot stream has fewer than two stamps (seconds)

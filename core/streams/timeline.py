@@ -1,6 +1,6 @@
 """Checking a time-stamped pose stream before it is resampled: order, duplicates, spacing.
 
-A stream is a `handeye.pose_readers.PoseStack` with `stamps` (seconds). Recorders write stamps
+A stream is a `handeye.io.pose_readers.PoseStack` with `stamps` (seconds). Recorders write stamps
 out of order (several publishers in one bag) or twice (a message logged twice): out-of-order
 stamps are sorted (with a warning, because the order of the file is then not the order of time),
 a stamp repeated with the same pose is dropped (warning), a stamp repeated with a different pose
@@ -17,7 +17,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.io.pose_readers import PoseStack
 
 #: two poses at one stamp count as the same when they differ by less than this (rad; unit of the stream)

@@ -44,7 +44,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.vision.camera_poses import board_pose
 from handeye.vision.detection import Detection
 from handeye.vision.intrinsics import CameraCalibration, calibrate_camera

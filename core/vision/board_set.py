@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.vision.boards import APRILGRID_DICTIONARY, Board
 from handeye.vision.observations import Camera
 

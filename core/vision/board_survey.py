@@ -27,7 +27,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.vision.boards import Board
 
 #: the seed pattern (inner corners) the survey grows from, at most this many each way: large

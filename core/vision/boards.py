@@ -35,11 +35,12 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
+from handeye.base.vocabulary import LENGTH_UNITS, METRES_PER
 from handeye.io.input_files import load_json, load_yaml, number
 
 KINDS = ("chessboard", "charuco", "circles", "circlegrid", "aprilgrid")
-UNITS = {"mm": 1e-3, "m": 1.0}
+UNITS = {unit: METRES_PER[unit] for unit in LENGTH_UNITS}
 
 #: the spec syntax per kind, with an example, quoted in every parse error
 SYNTAX = {

@@ -31,7 +31,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.vision.boards import Board, parse_board
 from handeye.vision.chessboard_region import Region
 from handeye.vision.detection import BoardNotFound, Detection

@@ -9,7 +9,7 @@ import dataclasses
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.vision.boards import Board
 
 

@@ -108,7 +108,7 @@ def doubtful(outcomes: dict[int, Outcome], camera: Camera | None) -> list[int]:
     from those candidates) `DOUBT_FACTOR` x worse than the median image: they run every flag set,
     so that corners the planned flag sets agree on wrongly (a board numbered a row off) are outvoted
     by the others, as in a full run, instead of making an outlier the image set drops."""
-    from handeye.framework.errors import InputError
+    from handeye.base.errors import InputError
     from handeye.vision.best_corners import fit_rms
     from handeye.vision.intrinsics import calibrate_camera
 

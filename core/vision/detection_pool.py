@@ -25,7 +25,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import TypeVar
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.vision.boards import Board
 from handeye.vision.image_detection import Outcome, read_and_detect
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.vision.boards import Board
 from handeye.vision.detection import Detection
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 
 #: imread flags: one grey channel at the file's own depth (8, 16 bit, float). Unlike IMREAD_UNCHANGED
 #: this still turns a JPEG by its EXIF orientation; IMREAD_UNCHANGED is the fallback for what it

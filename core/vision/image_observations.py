@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.io.pose_readers import PoseStack
 from handeye.vision.best_corners import choose
 from handeye.vision.board_set import Detector, check_distinct, detect_board_files

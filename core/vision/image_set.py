@@ -10,7 +10,7 @@ which robot pose, the board's pose in each kept image, and why the others were d
    directory, else its 0-based row number; integers compare as numbers, ``007`` = ``7``);
    ``index``: the k-th image with the k-th robot pose (equal counts required);
    ``time``: a stamp in the file name or a sidecar file (`image_stamp`) with the robot pose at the
-   nearest time stamp within `max_dt` (``handeye.station_matching.match_by_time``);
+   nearest time stamp within `max_dt` (``handeye.streams.station_matching.match_by_time``);
 3. reads each image (`read_image`: grayscale; 16-bit and float images scaled to 8 bits by their
    own range) and detects the board; unreadable images, images of another size than most
    (`_majority_size`) and images where the board is not found are dropped with their robot pose
@@ -26,9 +26,9 @@ which robot pose, the board's pose in each kept image, and why the others were d
    (recalibrating the intrinsics without them when they were calibrated here).
 
 A directory of one robot pose file per station (ROS-Industrial's ``poses/N.yaml`` with x, y, z,
-qx, qy, qz, qw) is read by `handeye.pose_readers.read_pose_dir` (re-exported here), names = file stems.
+qx, qy, qz, qw) is read by `handeye.io.pose_readers.read_pose_dir` (re-exported here), names = file stems.
 
-Nothing passed in is modified; bad input raises `handeye.errors.InputError` with a one-line
+Nothing passed in is modified; bad input raises `handeye.base.errors.InputError` with a one-line
 message; an `InputError` is raised only when no usable station remains.
 """
 
@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.io.input_files import load_json, load_yaml, number
 from handeye.io.pose_readers import PoseStack, natural_key, read_pose_dir  # noqa: F401 (re-exported)
 from handeye.streams.station_matching import default_max_dt, match_by_time

@@ -26,7 +26,7 @@ points of several images. The model is OpenCV's default pinhole with k1, k2, p1,
 fixed at 0 with fewer than `K3_MIN_VIEWS` images (a sixth-order radial term is poorly determined
 by few planar views and then mostly absorbs noise). Fewer than `MIN_VIEWS` images are refused.
 
-Nothing passed in is modified; bad input raises `handeye.errors.InputError` with a one-line message.
+Nothing passed in is modified; bad input raises `handeye.base.errors.InputError` with a one-line message.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from typing import Any, Protocol
 import cv2
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.io.input_files import MAX_DEPTH, load_json, load_yaml, number
 from handeye.vision.observations import Camera
 

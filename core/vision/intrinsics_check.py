@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.vision.observations import Camera
 
 #: the file's focal length this many of the images' 1-sigma from theirs: a warning. Simulated

@@ -59,7 +59,7 @@ def focal_percent(std: Sequence[float], camera: Camera) -> float:
 def pose_sensitivity(T_cam_target: np.ndarray, object_points: np.ndarray, camera: Camera) -> np.ndarray:
     """(6, 4) d xi / d (fx, fy, cx, cy) of the PnP pose of a board with points `object_points`
     (n, 3) seen at `T_cam_target`, xi = (omega, v) the pose's right perturbation T <- T exp(xi)
-    (`handeye.nlls.retract`): the Gauss-Newton step -(Jp^T Jp)^-1 Jp^T Jk of PnP's least squares."""
+    (`handeye.estimation.nlls.retract`): the Gauss-Newton step -(Jp^T Jp)^-1 Jp^T Jk of PnP's least squares."""
     from handeye.vision.projection import project
 
     T = np.asarray(T_cam_target, dtype=float)

@@ -20,11 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from handeye.checks.validation import float_array
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
+from handeye.base.vocabulary import SETUPS
 from handeye.geometry.se3 import inverse
+from handeye.geometry.validation import float_array
 
-SETUPS = ("eye-in-hand", "eye-to-hand")
 #: where the intrinsics' 1-sigma comes from: calibrated from the images themselves, stated by an
 #: intrinsics file, or assumed for a file that states none (the images' own knowledge of them)
 STD_SOURCES = ("images", "file", "assumed")

@@ -41,7 +41,7 @@ def project(points: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray,
 
 def point_jacobians(q: np.ndarray, G: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """d p / d xi_L and d p / d xi_R, each (n, 3, 6), of p = exp(xi_L)^-1 L^-1 M R exp(xi_R) P at
-    xi = 0, for perturbations xi = (omega, v) applied as T <- T exp(xi) (`handeye.nlls.retract`).
+    xi = 0, for perturbations xi = (omega, v) applied as T <- T exp(xi) (`handeye.estimation.nlls.retract`).
 
     q: (n, 3) the points p at xi = 0; G: (3, 3) the rotation of L^-1 M R; P: (n, 3) the points in
     the frame of R. To first order exp(xi) x = x + omega x x + v, so

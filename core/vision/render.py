@@ -24,7 +24,7 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.vision.boards import BIG_DOT_RATIO, Board
 from handeye.vision.observations import Camera
 

@@ -12,7 +12,7 @@ The calibrate workflow, once, for the library and the command line (``handeye ca
    (`handeye.workflow.solving`); for images the corner fit (with the robot's noise estimated or its
    poses as measured, whichever predicts held-out corners better) gives way to the pose-based
    answer where that predicts them better still, with a warning;
-4. measure the residuals and run the plausibility checks (`handeye.checks.plausibility`: the usual
+4. measure the residuals and run the plausibility checks (`handeye.workflow.plausibility`: the usual
    setup mistakes, residuals beyond a calibrated cell's noise): an implausible fit, or a clock
    offset the stream pairing does not trust, makes the status ``unreliable``. Nothing is switched:
    the answer is the one for the data as given, and the first warning says what explains them.
@@ -28,15 +28,15 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
-from handeye.checks.plausibility import Streams, check
-from handeye.framework.api import solve
-from handeye.framework.errors import InputError
-from handeye.framework.registry import get_registry
+from handeye.base.errors import InputError
 from handeye.framework.solution import Status
 from handeye.geometry.se3 import inverse
+from handeye.host.api import solve
+from handeye.host.registry import get_registry
 from handeye.io.data_files import from_poses
 from handeye.workflow.cell import Cell
 from handeye.workflow.image_stations import image_stations
+from handeye.workflow.plausibility import Streams, check
 from handeye.workflow.reading import rereader
 from handeye.workflow.result import CalibrationResult
 from handeye.workflow.solving import (

@@ -33,7 +33,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from handeye.framework.errors import InputError, shown
+from handeye.base.errors import InputError, shown
 from handeye.io.data_files import station_readers
 from handeye.workflow import cell_file
 from handeye.workflow.cell_parts import (  # noqa: F401 (the parts and their names, as handeye.workflow.cell's)
@@ -65,7 +65,7 @@ def _reader_problem(problem: str | None, key: str, what: str) -> str:
     """`problem`, checked to be a registered problem made from the cell's `key` entry (``reads_`` +
     `key`: `Problem.from_observations`, `Problem.from_joints`; `what` says what that is); None:
     the one registered problem that is, if exactly one."""
-    from handeye.framework.registry import get_registry
+    from handeye.host.registry import get_registry
 
     readers = sorted(name for name, spec in get_registry().problems.items() if getattr(spec, f"reads_{key}"))
     if problem is None and len(readers) == 1:
@@ -123,7 +123,7 @@ def _check_camera_names(value: Any) -> None:
 def _stations_problem(problem: str | None) -> str:
     """`problem` (None: the default problem), checked to be a registered problem that a cell's
     stations make data for (`Problem.station_reader`)."""
-    from handeye.framework.registry import get_registry
+    from handeye.host.registry import get_registry
 
     problem = get_registry().default_problem() if problem is None else problem
     if problem in get_registry().problems and get_registry().problem(problem).reads_joints:

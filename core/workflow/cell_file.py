@@ -26,7 +26,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from handeye.framework.errors import InputError, shown
+from handeye.base.errors import InputError, shown
 from handeye.io.input_files import check_not_looping, load_yaml
 from handeye.workflow.cell_parts import (
     CameraStream,

@@ -19,20 +19,19 @@ import os
 from collections.abc import Sequence
 from typing import Any
 
-from handeye.framework.errors import InputError, shown
+from handeye.base.errors import InputError, shown
+from handeye.base.vocabulary import ANGLE_UNITS, LENGTH_UNITS, PAIRINGS, SETUPS  # noqa: F401 (the cell's words, named here too)
 
 #: the setups: camera on the flange (board fixed), or camera fixed (board on the flange)
-SETUPS = ("eye-in-hand", "eye-to-hand")
 #: what a camera pose file holds: T_cam_target (as solvePnP gives it) or T_target_cam
 CAMERA_POSES = ("board-in-camera", "camera-in-board")
 #: length units of pose files
-UNITS = ("mm", "m")
+UNITS = LENGTH_UNITS
 #: how robot and camera poses pair into stations (`Matching.method`)
 MATCH_METHODS = ("row", "index", "name", "time", "interpolate")
 #: the methods of board images: row and index both pair the k-th image with the k-th robot pose
 IMAGE_MATCHES = {"row": "index", "index": "index", "name": "name", "time": "time"}
 #: motions between stations for axxb: every pair i < j, or consecutive stations only
-PAIRINGS = ("all", "consecutive")
 #: facts about the cell (not solver options) that the problem's validation also reads
 FACTS = ("tz_X", "tz_Y", "camera_scale")
 #: the interpolation settings of `Matching`, which apply to ``method: interpolate`` only
@@ -238,7 +237,7 @@ class ObservationStream(CameraStream):
 
 
 #: the angle units of joint readings (`JointStream.unit`)
-JOINT_UNITS = ("deg", "rad")
+JOINT_UNITS = ANGLE_UNITS
 
 
 @dataclasses.dataclass(frozen=True)

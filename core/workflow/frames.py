@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.framework.problem import Published
-from handeye.framework.registry import get_registry
+from handeye.host.registry import get_registry
 
 #: the short names of frames in T_parent_child -> the frame's name in words
 FRAME_WORDS = {"flange": "flange", "base": "base", "cam": "camera", "target": "target"}

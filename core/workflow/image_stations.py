@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.io.pose_readers import PoseStack
 from handeye.workflow.cell import IMAGE_MATCHES, Cell
 from handeye.workflow.reading import read_stream

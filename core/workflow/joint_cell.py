@@ -20,7 +20,7 @@ A kinematic fit absorbs what it is given: readings in the wrong unit or order, a
 angles in radians under ``angle_unit: deg``, camera poses in m given as mm or a board 2% off
 became DH "corrections" (J2's a by +330 m) beside an answer metres off, ``optimal``. So the cell
 gets the checks every pose cell gets (`pose_checks`), on the nominal arm's flange poses: the
-plausibility checks of the A X = Y B fit (`handeye.checks.plausibility`: the usual setup
+plausibility checks of the A X = Y B fit (`handeye.workflow.plausibility`: the usual setup
 mistakes, residuals beyond any calibrated cell's) and its camera scale (self-check 5, with what
 a kinematic fit would make of it), and the corrections are bounded by what a real arm can be off
 its model (`MAX_LENGTH_CORRECTION_MM`, `MAX_ANGLE_CORRECTION_DEG`): beyond, named, and the
@@ -36,13 +36,13 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.api import solve
-from handeye.framework.errors import HandEyeError, InputError
+from handeye.base.errors import HandEyeError, InputError
 from handeye.framework.problem import JointStations
-from handeye.framework.registry import get_registry
 from handeye.framework.solution import Status
 from handeye.geometry.kinematics import DHArm
 from handeye.geometry.se3 import inverse
+from handeye.host.api import solve
+from handeye.host.registry import get_registry
 from handeye.io.arm_files import ANGLE_UNITS, ArmModel, arm_yaml, read_arm
 from handeye.io.joint_files import JointStack, read_joints
 from handeye.io.pose_readers import PoseStack
@@ -133,18 +133,18 @@ def pose_checks(cell: Cell, stations: Any, camera: PoseStack, camera_read: PoseS
                 invert: bool) -> tuple[Any, list[str]]:
     """The checks of a pose cell on the A X = Y B fit of the nominal arm's flange poses (the robot
     stream made from the readings) and the camera's: the plausibility report
-    (`handeye.checks.plausibility.check`: camera poses inverted or in another unit, the other
+    (`handeye.workflow.plausibility.check`: camera poses inverted or in another unit, the other
     setup, pairs shifted, residuals beyond any calibrated cell's) and, where the camera's
     translations fit the robot's at another scale (self-check 5), what a kinematic fit makes of
     that: it scales the arm's links instead. Errors of the arm's kinematics, which the kinematic
     fit is for, stay within what a calibrated cell shows."""
-    from handeye.checks.plausibility import Streams, check
     from handeye.checks.scale_checks import (
         SCALE_SIGMAS,
         SCALE_WARN,
         camera_scale_verdict,
     )
     from handeye.io.data_files import from_poses
+    from handeye.workflow.plausibility import Streams, check
     from handeye.workflow.reading import rereader
 
     robot = stations.robot

@@ -32,11 +32,11 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.api import solve
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.framework.problem import Observations
-from handeye.framework.registry import get_registry
 from handeye.geometry.se3 import inverse
+from handeye.host.api import solve
+from handeye.host.registry import get_registry
 from handeye.io.observation_tables import (
     ObservationTable,
     check_unrepeated,

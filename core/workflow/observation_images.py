@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.io.observation_tables import ObservationTable
 from handeye.io.pose_readers import PoseStack
 from handeye.workflow.cell import IMAGE_MATCHES, Cell, ObservationStream
@@ -130,10 +130,10 @@ def with_intrinsics(solution: Any, cell: Cell, imaged: ImageTables | None, obser
     warning where a translation's 1-sigma at least doubles.
 
     Unchanged where no camera applies, the answer is unusable, or a moved solve fails."""
-    from handeye.framework.api import solve
-    from handeye.framework.errors import HandEyeError
-    from handeye.framework.registry import get_registry
+    from handeye.base.errors import HandEyeError
     from handeye.framework.solution import jsonable
+    from handeye.host.api import solve
+    from handeye.host.registry import get_registry
     from handeye.vision import intrinsics_effect as effect
     from handeye.workflow.solving import UNUSABLE
 

@@ -5,7 +5,7 @@ unknown with its frame, as a 4x4 and as xyz + quaternion, with its 1-sigma when 
 reports one), the per-pair residuals of the problem's equation (eqs. 32-33 of the paper: the
 rotation angle and translation distance between the two sides) as a table and a bar plot with the
 outliers marked, the data diagnostics (pairs / stations, rotation excitation or axis spread,
-largest rotation, likely mismatched motions), the plausibility checks (handeye.plausibility),
+largest rotation, likely mismatched motions), the plausibility checks (handeye.workflow.plausibility),
 a 3D plot of the flange positions and the solved frames, the warnings with what to do about
 them, and the run (status, solver, time, version, inputs).
 
@@ -17,7 +17,7 @@ Three steps, so both commands share everything after the solve:
   PNG ``data:`` URIs, no external asset; markdown referencing PNG files named next to it);
 - `write_report` chooses by the extension (``.html`` / ``.htm`` / ``.md``) and writes.
 
-matplotlib is imported only when a plot is drawn (handeye.report_plots), never by ``import
+matplotlib is imported only when a plot is drawn (handeye.workflow.report_plots), never by ``import
 handeye`` or a solve.
 """
 
@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.framework.solution import jsonable, standard_deviations
 from handeye.geometry.se3 import largest_relative_angle
 from handeye.io.output_files import write_bytes, write_text
@@ -39,7 +39,7 @@ from handeye.workflow.report_render import html_page, markdown
 
 #: extension -> report format
 FORMATS = {".html": "html", ".htm": "html", ".md": "markdown"}
-#: the plots a markdown report writes next to it, as <stem>_<plot>.png (`handeye.report_plots.draw_all`)
+#: the plots a markdown report writes next to it, as <stem>_<plot>.png (`handeye.workflow.report_plots.draw_all`)
 PLOTS = ("residuals", "poses", "graph", "overlay1", "overlay2", "overlay3")
 
 
@@ -115,13 +115,13 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
     stations, pairing: for data made of stations (a problem of motions: which stations each motion
     joins);
     command: the command line as given; images: an image run's entry
-    (`handeye.report_images.image_entries`), or None; pair_table: the residuals per pair of
+    (`handeye.workflow.report_images.image_entries`), or None; pair_table: the residuals per pair of
     poses of a cell of several cameras and targets (`Problem.residual_table`: the table and the
     graph of the report), or None; labels: such a cell's (station, camera, target) of each
     observation, which label the per-observation rows instead of their index, or None.
     """
     from handeye import __version__
-    from handeye.framework.registry import get_registry
+    from handeye.host.registry import get_registry
     from handeye.workflow.frames import single_poses, unknown_of
 
     rot = np.degrees(np.asarray(residuals["rotation"], dtype=float))
@@ -189,7 +189,7 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
 
 def build_html(r: Mapping[str, Any], images: Mapping[str, bytes] | None = None) -> str:
     """The report of `r` as one HTML page; `images` (figure name -> PNG bytes, default: drawn here
-    with handeye.report_plots) are embedded as base64 ``data:`` URIs."""
+    with handeye.workflow.report_plots) are embedded as base64 ``data:`` URIs."""
     if images is None:
         from handeye.workflow.report_plots import draw_all
 
@@ -210,7 +210,7 @@ def write_report(path: str | Path, r: Mapping[str, Any], force: bool = False) ->
     """Write the report of `r` (from `collect`) to `path`, HTML or markdown by its extension
     (markdown: its PNGs as ``<stem>_<plot>.png`` next to it); return the files written. Each
     file appears complete or not at all, and an existing one is replaced only with `force`
-    (`handeye.output_files`)."""
+    (`handeye.io.output_files`)."""
     from handeye.workflow.report_plots import draw_all
 
     fmt = check_report_path(path)

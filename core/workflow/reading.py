@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.geometry.se3 import inverse
 from handeye.io.bag_readers import is_bag, read_bag_poses
 from handeye.io.pose_formats import parse_format

@@ -1,5 +1,5 @@
 """The image run's part of the quality report: its data (`image_entries`, JSON-ready, for
-`handeye.quality_report.collect`) and its corner overlays (`overlay_png`).
+`handeye.workflow.quality_report.collect`) and its corner overlays (`overlay_png`).
 
 Each kept image's reprojection error is stated twice: at the board pose of the image alone (the
 corners' own fit: detection and intrinsics) and through the robot's pose and the answer, i.e.

@@ -1,5 +1,5 @@
 """The quality report's content, as a list of blocks built once from the report's data
-(`handeye.quality_report.collect`) and rendered as HTML or markdown (`handeye.report_render`).
+(`handeye.workflow.quality_report.collect`) and rendered as HTML or markdown (`handeye.workflow.report_render`).
 
 What a section says lives here only, so that the two formats cannot drift apart: the answer, the
 warnings with what to do (every warning of the run is a row: a curated action where one is
@@ -55,7 +55,7 @@ class Table:
 
 @dataclasses.dataclass(frozen=True)
 class Figure:
-    """A plot or an image by name (`handeye.report_plots.draw_all`), with its alternative text."""
+    """A plot or an image by name (`handeye.workflow.report_plots.draw_all`), with its alternative text."""
 
     name: str
     alt: str

@@ -1,4 +1,4 @@
-"""The plots of the quality report (handeye.quality_report), as PNG bytes, drawn with matplotlib's
+"""The plots of the quality report (handeye.workflow.quality_report), as PNG bytes, drawn with matplotlib's
 Agg backend (imported here, lazily: ``import handeye`` and the solvers never import matplotlib).
 
 - ``residuals``: the per-pair residuals of the problem's equation (eqs. 32-33: rotation angle in
@@ -53,7 +53,7 @@ def _png(fig: Any) -> bytes:
 def draw_all(r: Mapping[str, Any]) -> dict[str, bytes]:
     """name -> PNG bytes of every plot the report's data `r` allows: the residuals, the poses,
     and for an image run the corner overlays of its worst images (``overlay1``, ...;
-    `handeye.report_images.overlay_png`)."""
+    `handeye.workflow.report_images.overlay_png`)."""
     images = {"residuals": residual_plot(r)}
     if r.get("robot_poses") is not None:
         images["poses"] = pose_plot(r)

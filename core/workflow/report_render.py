@@ -1,4 +1,4 @@
-"""The quality report's blocks (`handeye.report_layout`) as one self-contained HTML page or as
+"""The quality report's blocks (`handeye.workflow.report_layout`) as one self-contained HTML page or as
 markdown with its figures beside it.
 
 Everything taken from the user's data (file names, the command line, warnings) is escaped: in

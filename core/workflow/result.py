@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.framework.solution import Solution, Status, standard_deviations
 from handeye.io.pose_readers import PoseStack
 from handeye.workflow.cell import Cell

@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import HandEyeError, InputError
-from handeye.framework.registry import get_registry
+from handeye.base.errors import HandEyeError, InputError
 from handeye.framework.solution import Solution, Status, jsonable
+from handeye.host.registry import get_registry
 
 #: solvers tried, in order, when none is chosen
 DEFAULT_SOLVERS = ("auto", "kron-lstsq")
@@ -94,7 +94,7 @@ def time_limit(given: float | None, problem: str, solver: str) -> float | None:
     for a third party's solver and none for handeye's own. InputError for a negative or
     non-finite `given`."""
     if given is not None:
-        from handeye.framework.api import MAX_TIME_LIMIT
+        from handeye.host.api import MAX_TIME_LIMIT
 
         if not 0 <= given <= MAX_TIME_LIMIT:
             raise InputError(f"`time_limit` must be a number of seconds from 0 (no limit) to {MAX_TIME_LIMIT:.2g} (a "
@@ -161,7 +161,7 @@ def pose_based_intrinsics(solution: Solution, image_set: Any, robot_poses: np.nd
     the same solver, facts and options (4 solves of a few ms). The corner fit
     (`REPROJECTION_SOLVER`), which does this itself, an unusable answer, or no images: `solution`
     as it is."""
-    from handeye.framework.api import solve
+    from handeye.host.api import solve
     from handeye.io.data_files import from_poses
     from handeye.vision import intrinsics_effect as effect
 

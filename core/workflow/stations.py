@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.io.pose_readers import PoseStack
 from handeye.streams.station_matching import (
     default_max_dt,

@@ -6,11 +6,11 @@ errors by Levenberg-Marquardt, from the pose-only answer.
 2. Fit (X, Y, delta) to the stations, delta the corrections of the identifiable DH parameters
    (`handeye.problems.axyb_kinematic.model`), with the residuals of problem axyb's least squares
    per station, r_i = log(R_Ai R_X R_Bi^T R_Y^T), t_i = t(A_i X) - t(Y B_i), A_i = FK(q_i; DH +
-   delta), X, Y perturbed on the right as in `handeye.nlls` and delta through the base-frame
+   delta), X, Y perturbed on the right as in `handeye.estimation.nlls` and delta through the base-frame
    twists of the parameters: d r = Jl^-1(r) omega_k, d t = v_k - [t(A_i X)]_x omega_k.
    Weights as the shared engine estimates them: the RMS of each residual group (rotation rad,
    translation), re-estimated at every iteration (a stationary point of the profile likelihood
-   over the two variances, `handeye.whitening.estimate_sigmas`). Lengths are in units of the
+   over the two variances, `handeye.estimation.whitening.estimate_sigmas`). Lengths are in units of the
    data's RMS translation throughout, so the answer does not depend on the length unit.
 3. The corrections' prior (``prior="estimated"``, the default: `prior`): delta ~
    N(0, diag(tau^2)), one tau for the angles and one for the lengths, tau and the two noise
@@ -44,8 +44,8 @@ from typing import Any
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status, hookimpl, run_registered
+from handeye.base.errors import DegenerateDataError
 from handeye.estimation.whitening import SIGMA_FLOOR
-from handeye.framework.errors import DegenerateDataError
 from handeye.framework.options import check_choice, check_int
 from handeye.framework.solution import standard_deviations
 from handeye.geometry import so3_fast

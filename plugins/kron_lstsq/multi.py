@@ -37,7 +37,7 @@ guard, never a guess): a second null direction of N (lambda_2 <= UNDETERMINED_RT
 eigenvalue), or a singular translation system, raises DegenerateDataError naming the component's
 unknowns; a null direction that stands out from the next by less than WEAK_GAP gives a warning.
 
-Cameras known only up to their own scales (``camera_scale=[names]``, `handeye.camera_scales`):
+Cameras known only up to their own scales (``camera_scale=[names]``, `handeye.estimation.camera_scales`):
 the rotation step is the same (it never sees a translation); the translations and every
 camera's scale then come from one linear least squares given the rotations
 (`camera_scales.translations_and_scales`: a camera whose scale it does not fix is refused by
@@ -200,7 +200,7 @@ def run(data: AXYBMultiData, options: Any, backend: str) -> SolverOutput:
 
 
 def _unknown_scales(data: AXYBMultiData, options: Any, backend: str) -> SolverOutput:
-    """Cameras known only up to their own scales (`handeye.camera_scales`): the rotations from
+    """Cameras known only up to their own scales (`handeye.estimation.camera_scales`): the rotations from
     the rotation rows, which do not see the scales (the data with every translation zero), then
     the translations and the cameras' scales by one linear least squares given them."""
     from handeye.estimation import camera_scale, camera_scales

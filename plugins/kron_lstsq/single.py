@@ -10,8 +10,8 @@ are homogeneous, so plain least squares gets the scale of r = vec R_X from the t
 alone, and is singular when all motions rotate about one common point (t_Ai = (I - R_Ai) u: a
 camera rotating about its own centre). Instead: minimise |H beta - w|^2 subject to |r|^2 = 3
 (the squared Frobenius norm of every rotation), with t_X minimised out in closed form
-(`handeye.rotation_cost`), a trust-region subproblem on the sphere solved exactly
-(`handeye.trust_region`); then R_X = the SVD projection of r or of -r, whichever costs less (the
+(`handeye.estimation.rotation_cost`), a trust-region subproblem on the sphere solved exactly
+(`handeye.estimation.trust_region`); then R_X = the SVD projection of r or of -r, whichever costs less (the
 sign is free where the translations carry no scale), and t_X re-solved given R_X
 (`solve_translation`).
 

@@ -11,7 +11,7 @@ fix it from 15 triples on. Option ``scale`` says what fixes it:
 
 ``scale="translations"``: the paper's eq. 14 as it is on the lifted system: minimise u subject to
   [[u - rest, (R1 beta - q1)^T], [R1 beta - q1, I_132]] >= 0 (a 133 x 133 LMI; R1, q1, rest of
-  eqs. 10-12 from the O(m) normal equations, `handeye.kronecker.reduce_normal_equations`), solved
+  eqs. 10-12 from the O(m) normal equations, `handeye.estimation.kronecker.reduce_normal_equations`), solved
   by `handeye.plugins.lmi_sdp.axyb.solve_lmi` as for ``axyb``. Its only constraint is the Schur
   complement, so its optimum is the least squares of the lifted system (tested). Needs >= 15
   triples; with fewer the system is rank deficient and a one-line DegenerateDataError says so.
@@ -34,7 +34,7 @@ fix it from 15 triples on. Option ``scale`` says what fixes it:
      below 15 triples p = 0, the translation rows not informing r) the missing norm goes along the
      eigenvector k of largest w_k - rho_k^2: candidates V (rho +- tau e_k), tau^2 = 12 - |rho|^2.
   4. Polish (option ``polish``, default True): Newton on (P - lambda I) r = p, |r|^2 = 12 from the
-     SDP's r (`handeye.trust_region.refine_trust_region`), as for AX = XB: the SDP places r to
+     SDP's r (`handeye.estimation.trust_region.refine_trust_region`), as for AX = XB: the SDP places r to
      ~1e-6, the polish to rounding; when the global conditions hold the status is ``optimal``.
 
 Both: R_X, R_Y, R_Z from r (`axbycz_kronecker.extract_rotations`: the nearest rank-one factors of
@@ -61,10 +61,10 @@ from typing import Any
 import numpy as np
 
 from handeye import SolverOutput, Status
+from handeye.base.errors import DegenerateDataError, SolverError
 from handeye.checks.self_check import rotation_block_figures
 from handeye.estimation.kronecker import reduce_normal_equations
 from handeye.estimation.trust_region import refine_trust_region
-from handeye.framework.errors import DegenerateDataError, SolverError
 from handeye.framework.options import check_choice
 from handeye.geometry.se3 import make_pose
 from handeye.plugins._sdp_backends import (

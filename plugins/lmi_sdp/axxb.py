@@ -7,7 +7,7 @@ homogeneous, so the same SDP would return beta = 0 plus whatever scale the trans
 give, and nothing when all motions rotate about one point (docs/solvers/kron-lstsq.md). The cost
 is therefore kept and the scale fixed as `kron-lstsq` fixes it, |r|^2 = 3 (r = vec R_X):
 
-1. Translations minimised out in closed form (`handeye.rotation_cost`, from the normal equations
+1. Translations minimised out in closed form (`handeye.estimation.rotation_cost`, from the normal equations
    of problems/axxb/data.py): |H beta - w|^2 = |T t + U r - u|^2 + y^T M y + rest, y = [r; 1],
    M = [[P, -p], [-p^T, c]] (10 x 10, PSD), t(r) = T^-1 (u - U r).
 2. The QCQP min y^T M y s.t. |r|^2 = 3, h^2 = 1 lifted to Z = y y^T: the SDP
@@ -29,7 +29,7 @@ is therefore kept and the scale fixed as `kron-lstsq` fixes it, |r|^2 = 3 (r = v
    or ~1e-6 (CVXOPT): r lies on the boundary of the PSD cone, where the objective is flat to
    second order, so an objective accurate to epsilon places r to ~sqrt(epsilon) (measured in
    docs/solvers/lmi-sdp.md). A few Newton steps on the optimality system (P - lambda I) r = p,
-   |r|^2 = 3 from the SDP's r (`handeye.trust_region.refine_trust_region`) take it to the
+   |r|^2 = 3 from the SDP's r (`handeye.estimation.trust_region.refine_trust_region`) take it to the
    minimiser to rounding, and check the global conditions (lambda <= lambda_min(P)): when they
    hold the status is ``optimal`` whatever the SDP solver's own claim (Clarabel often says
    "optimal_inaccurate" at the tolerances used); otherwise the SDP solver's status stands and
@@ -54,9 +54,9 @@ from typing import Any
 import numpy as np
 
 from handeye import SolverOutput, Status
+from handeye.base.errors import SolverError
 from handeye.estimation.rotation_cost import RotationCost, signed_rotations
 from handeye.estimation.trust_region import refine_trust_region
-from handeye.framework.errors import SolverError
 from handeye.geometry.linalg import frobenius_norm
 from handeye.geometry.se3 import make_pose
 from handeye.plugins._sdp_backends import (

@@ -21,7 +21,7 @@ Method, as the paper has it:
    the top-left entry: it shifts the optimal u (u* = rest + |R1 beta* - q1|^2) and does not
    affect beta.
 4. After eq. 14, the rotation blocks M_X = unvec beta[0:9], M_Y = unvec beta[9:18] are made
-   rotations by Schmidt orthogonalisation (`handeye.se3.gram_schmidt`, columns in order).
+   rotations by Schmidt orthogonalisation (`handeye.geometry.se3.gram_schmidt`, columns in order).
    Translations are taken from beta (beta[18:24]) as they are: the paper re-solves them
    (eqs. 20-21) only in its iterative method (Sec. III.B), not in this one.
 
@@ -58,9 +58,9 @@ from typing import Any
 import numpy as np
 
 from handeye import SolverOutput, Status
+from handeye.base.errors import DegenerateDataError, SolverError
 from handeye.estimation.kronecker import KroneckerSystem
 from handeye.estimation.rotation_cost import signed_blocks
-from handeye.framework.errors import DegenerateDataError, SolverError
 from handeye.geometry.se3 import make_pose
 from handeye.plugins._sdp_backends import (
     CLARABEL_TIGHT,

@@ -7,7 +7,7 @@ modules of the three problems call these for ``backend="casadi"``.
 Formulation (measurements: docs/solvers/lmi-sdp.md, backend casadi):
 
 1. Cost. |H beta - w|^2 with beta = [r; t], r = [vec R_1; ...; vec R_k] (9k, column-major vec),
-   t the k translations, is split (`handeye.rotation_cost`) into
+   t the k translations, is split (`handeye.estimation.rotation_cost`) into
    |T t + U r - u|^2 + |S r - s|^2 + rest, so for any rotations the optimal translations are
    t(r) = T^-1 (u - U r) (for ``axyb`` exactly the least squares of eqs. 20-21) and the NLP is
    over r only: minimise |S r - s|^2 (S: 9k x 9k). ``axyb``: S from a QR of
@@ -81,6 +81,7 @@ from typing import Any
 import numpy as np
 
 from handeye import SolverOutput, Status
+from handeye.base.errors import InputError, SolverError
 from handeye.estimation.rotation_cost import (
     RotationCost,
     eliminate_translations,
@@ -89,7 +90,6 @@ from handeye.estimation.rotation_cost import (
     signed_rotations,
     sphere_least_squares,
 )
-from handeye.framework.errors import InputError, SolverError
 from handeye.framework.options import check_int
 from handeye.geometry.se3 import (
     make_pose,

@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 
 from handeye import Status
-from handeye.framework.errors import SolverError
+from handeye.base.errors import SolverError
 from handeye.plugins._sdp_backends import (
     CLARABEL_TIGHT,
     STATUSES,

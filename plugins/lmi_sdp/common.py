@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from handeye import Status
-from handeye.framework.errors import InputError, SolverError, shown
+from handeye.base.errors import InputError, SolverError, shown
 from handeye.framework.options import check_choice
 from handeye.geometry.se3 import gram_schmidt, project_to_so3
 from handeye.plugins._sdp_backends import (
@@ -132,7 +132,7 @@ POLISH_NOT_CERTIFIED = ("lmi-sdp: the Newton polish after the SDP did not reach 
 
 
 def polish_figures(polished: Any, r_sdp: np.ndarray) -> dict[str, Any]:
-    """The diagnostics of the Newton polish (`handeye.trust_region.refine_trust_region`'s result)
+    """The diagnostics of the Newton polish (`handeye.estimation.trust_region.refine_trust_region`'s result)
     that started from the SDP's r `r_sdp`; all None when there was none (polish=False)."""
     if polished is None:
         return dict.fromkeys(("polish_change", "polish_steps", "multiplier", "kkt_residual"))

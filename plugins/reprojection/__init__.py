@@ -12,9 +12,9 @@ poses taken as exact (``robot_noise="none"``; the default corrects each and esti
 robot's noise with the pixels': `robot_noise`, docs/solvers/reprojection.md), and corner j projects to
 pi(K, dist; T_cam_target,i P_j) (OpenCV's camera model, `handeye.vision.projection`). The solver
 minimises 1/2 sum_ij rho(|u_ij - pi(...)|^2) over X, Y (right perturbations on SE(3) x SE(3), as
-`handeye.nlls`) and, with ``refine_intrinsics``, fx, fy, cx, cy and the distortion coefficients
+`handeye.estimation.nlls`) and, with ``refine_intrinsics``, fx, fy, cx, cy and the distortion coefficients
 given, by Levenberg-Marquardt with Marquardt's scaling; rho is a robust loss of
-`handeye.robust` with its scale in pixels (``loss``, ``loss_scale``), applied per corner by
+`handeye.estimation.robust` with its scale in pixels (``loss``, ``loss_scale``), applied per corner by
 iteratively reweighted Gauss-Newton steps.
 
 Start: solver `auto` on the data's poses (the PnP poses B), or ``init_X`` / ``init_Y``. The
@@ -36,16 +36,16 @@ from typing import Any
 import numpy as np
 
 from handeye import hookimpl
-from handeye.checks.validation import float_array, pose_stack
+from handeye.base.errors import InputError, SolverError
 from handeye.estimation.robust import LOSSES
-from handeye.framework.errors import InputError, SolverError
 from handeye.framework.options import check_choice, check_int, check_positive
 from handeye.framework.solution import USABLE, Status, jsonable
 from handeye.framework.solver import SolverOutput, SolverSpec
 from handeye.geometry.se3 import rotation_angle
+from handeye.geometry.validation import float_array, pose_stack
 from handeye.plugins.reprojection import held_out, robot_noise
 from handeye.plugins.reprojection.corners import (
-    Cell,
+    StationChains,
     camera_with,
     covariance,
     levenberg_marquardt,
@@ -159,7 +159,7 @@ def run(data: AXYBData, options: Options, backend: str) -> SolverOutput:
     started = time.perf_counter()
     poses0, start_name, warnings = _start(data, options)
     start_seconds = time.perf_counter() - started
-    cell = Cell.of(data)
+    cell = StationChains.of(data)
     camera = data.images.camera
     r0, _ = residuals(cell, poses0, camera, False)
     fit = levenberg_marquardt(cell, poses0, camera, options.refine_intrinsics, options.loss, options.loss_scale,
@@ -346,13 +346,13 @@ def _compare_held_out(data: AXYBData, options: Options) -> dict[str, Any]:
             poses0 = {k: np.asarray(start.unknowns[k], dtype=float) for k in ("X", "Y")}
         else:
             poses0 = _start(train, plain)[0]
-        return levenberg_marquardt(fitted(train, "cell", Cell.of), poses0, train.images.camera,
+        return levenberg_marquardt(fitted(train, "cell", StationChains.of), poses0, train.images.camera,
                                    plain.refine_intrinsics, plain.loss, plain.loss_scale, plain.max_iter)
 
     def joint_fit(train: AXYBData) -> dict[str, np.ndarray]:
         """`run`'s joint fit with the robot's noise estimated, from the exact-robot fit."""
         fit = fitted(train, "exact_robot", exact_fit)
-        cell = fitted(train, "cell", Cell.of)
+        cell = fitted(train, "cell", StationChains.of)
         sigmas = _start_sigmas(train, cell, fit, pnp_rms(train))
         return robot_noise.fit(cell, fit.poses, train.images.camera, plain.refine_intrinsics, sigmas).poses
 
@@ -397,7 +397,7 @@ def focal_note(scan: Mapping[str, Any] | None) -> str | None:
             "from these images")
 
 
-def _start_sigmas(data: AXYBData, cell: Cell, fit: Any, pnp: float) -> tuple[float, float, float]:
+def _start_sigmas(data: AXYBData, cell: StationChains, fit: Any, pnp: float) -> tuple[float, float, float]:
     """The start of (s_px, s_r, s_t) for the joint fit: the pixels' from each image's own board
     pose (PnP, 6 parameters per image), the robot's from the board poses' misfit against the
     exact-robot fit, per axis, in the flange frame (rad, data units)."""

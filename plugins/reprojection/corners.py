@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
+from handeye.base.errors import SolverError
 from handeye.estimation.nlls import retract
 from handeye.estimation.robust import loss_terms
 from handeye.framework.caching import cached_property
-from handeye.framework.errors import SolverError
 from handeye.geometry.se3 import inverse, make_pose, so3_exp
 from handeye.problems.axyb import AXYBData
 
@@ -32,7 +32,7 @@ ROUNDING_PX = 1e-9
 
 
 @dataclasses.dataclass(frozen=True)
-class Cell:
+class StationChains:
     """What the projection of station i needs: the chain p = L^-1 M_i R P (L, R the unknowns in
     that order, `left`/`right` their names), the corners, and each corner's station."""
 
@@ -44,7 +44,7 @@ class Cell:
     eye_in_hand: bool
 
     @classmethod
-    def of(cls, data: AXYBData) -> Cell:
+    def of(cls, data: AXYBData) -> StationChains:
         images = data.images
         if images.setup == "eye-to-hand":  # T_cam_target = Y^-1 A X
             return cls("Y", "X", np.asarray(data.A), images.object_points, images.image_points, False)
@@ -77,13 +77,13 @@ def robot_poses(delta: np.ndarray) -> np.ndarray:
     return make_pose(so3_exp(delta[:, :3]), delta[:, 3:])
 
 
-def residuals(cell: Cell, poses: dict[str, np.ndarray], camera: Any, jacobian: bool,
+def residuals(cell: StationChains, poses: dict[str, np.ndarray], camera: Any, jacobian: bool,
               robot: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
     """Stacked pixel residuals (n, 2) (prediction - detection) and, if asked, their Jacobian
     (n, 2, 12 + ni [+ 6]) by right perturbations of X, Y (in that order), the intrinsics and,
     with `robot` (m, 6) corrections delta_i of the robot's poses (module docstring), by each
     corner's own station's delta. Every corner of every station at once: one projection, and
-    each corner's station's transforms gathered by `Cell.station`."""
+    each corner's station's transforms gathered by `StationChains.station`."""
     from handeye.vision.projection import project
 
     L, R = poses[cell.left], poses[cell.right]
@@ -115,7 +115,7 @@ def residuals(cell: Cell, poses: dict[str, np.ndarray], camera: Any, jacobian: b
     return r, np.concatenate(columns, axis=2)
 
 
-def _robot_jacobian(cell: Cell, Linv: np.ndarray, M: np.ndarray, R: np.ndarray, Jp: np.ndarray) -> np.ndarray:
+def _robot_jacobian(cell: StationChains, Linv: np.ndarray, M: np.ndarray, R: np.ndarray, Jp: np.ndarray) -> np.ndarray:
     """d pixel / d delta: (n, 2, 6) at the current corrections (M: the stations' corrected robot
     chains), Jp = d pixel / d p. Eye-to-hand p = L^-1 M exp(delta) R P: d p / d delta =
     G [-[w]_x | I] with G the rotation of L^-1 M and w = R P (the points in the flange frame);
@@ -181,7 +181,7 @@ def at_rounding(cost: float, corners: int) -> bool:
     return cost <= 0.5 * ROUNDING_PX**2 * corners
 
 
-def levenberg_marquardt(cell: Cell, poses: dict[str, np.ndarray], camera: Any, refine_intrinsics: bool,
+def levenberg_marquardt(cell: StationChains, poses: dict[str, np.ndarray], camera: Any, refine_intrinsics: bool,
                         loss: str, loss_scale: float, max_iter: int) -> Fit:
     """Levenberg-Marquardt (Marquardt's diagonal scaling, IRLS weights of the loss) over X, Y and,
     with refine_intrinsics, the intrinsics; the robot's poses exact."""

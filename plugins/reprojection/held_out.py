@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import HandEyeError
-from handeye.plugins.reprojection.corners import Cell, residuals
+from handeye.base.errors import HandEyeError
+from handeye.plugins.reprojection.corners import StationChains, residuals
 from handeye.problems.axyb import AXYBData
 from handeye.vision.observations import Camera
 
@@ -44,14 +44,14 @@ def predicted_rms(data: AXYBData, unknowns: Mapping[str, np.ndarray]) -> tuple[f
     """(sum of squared pixel errors, corners) of the data's corners predicted through X, Y and
     the robot's poses."""
     poses = {k: np.asarray(unknowns[k], dtype=float) for k in ("X", "Y")}
-    r, _ = residuals(Cell.of(data), poses, data.images.camera, False)
+    r, _ = residuals(StationChains.of(data), poses, data.images.camera, False)
     return float(np.sum(r * r)), len(r)
 
 
 def held_out(data: AXYBData, fitters: Mapping[str, Fitter], folds: int, seed: int = 0) -> dict[str, float | None]:
     """{name: held-out corner RMS (px)} of each contender over `folds` folds of the stations
     (module docstring); None for a contender that failed on some fold."""
-    from handeye.harness.crossval import make_folds
+    from handeye.estimation.folds import make_folds
 
     m = len(data.A)
     parts = make_folds(m, folds, seed)

@@ -37,11 +37,11 @@ from typing import Any
 import numpy as np
 from scipy.optimize import nnls
 
+from handeye.base.errors import SolverError
 from handeye.estimation.nlls import retract
-from handeye.framework.errors import SolverError
 from handeye.plugins.reprojection.corners import (
     TOL,
-    Cell,
+    StationChains,
     at_rounding,
     camera_with,
     intrinsics,
@@ -93,7 +93,7 @@ class _Sums:
     delta: np.ndarray
 
     @classmethod
-    def at(cls, cell: Cell, poses: dict[str, np.ndarray], camera: Any, delta: np.ndarray, free: int) -> _Sums:
+    def at(cls, cell: StationChains, poses: dict[str, np.ndarray], camera: Any, delta: np.ndarray, free: int) -> _Sums:
         r, J = residuals(cell, poses, camera, True, robot=delta)
         # [Jg | Jd | r]^T [Jg | Jd | r] station by station: every sum in one product each
         blocks = station_grams(np.concatenate([J[:, :, :free], J[:, :, -6:], r[:, :, None]], axis=2), cell.counts)
@@ -149,7 +149,7 @@ def _step(n: _Normal, lam: float) -> tuple[np.ndarray, np.ndarray, float]:
     return dg, dd, float(predicted)
 
 
-def _map_fit(cell: Cell, poses: dict[str, np.ndarray], theta: np.ndarray, camera: Any, delta: np.ndarray,
+def _map_fit(cell: StationChains, poses: dict[str, np.ndarray], theta: np.ndarray, camera: Any, delta: np.ndarray,
              free: int, sigmas: tuple[float, float, float], refine_intrinsics: bool, iterations: int = INNER_ITER,
              sums: _Sums | None = None) -> tuple[dict[str, np.ndarray], np.ndarray, Any, np.ndarray, _Normal]:
     """Levenberg-Marquardt on F at fixed variances, from (poses, theta, delta) (whose `sums`,
@@ -213,7 +213,7 @@ def _marginal(sums: _Sums, theta: np.ndarray, counts: np.ndarray) -> dict[str, A
 
 def _scoring(sums: _Sums, theta: np.ndarray, counts: np.ndarray, floors: np.ndarray) -> np.ndarray:
     """One Fisher-scoring step of the variances theta = (s_px^2, s_r^2, s_t^2) with theta >= floors
-    (non-negative least squares, as `handeye.noise_sources.variances`), or an EM-like halving
+    (non-negative least squares, as `handeye.estimation.noise_sources.variances`), or an EM-like halving
     back toward theta where it would lower the likelihood. F_kl = sum_i tr(V^-1 V_k V^-1 V_l),
     q_k = sum_i u^T V_k u, u = V^-1 rt, V_px = I, V_r = G_r G_r^T, V_t = G_t G_t^T (`_marginal`)."""
     px = theta[0]
@@ -242,7 +242,7 @@ def _scoring(sums: _Sums, theta: np.ndarray, counts: np.ndarray, floors: np.ndar
     return theta
 
 
-def fit(cell: Cell, poses: dict[str, np.ndarray], camera: Any, refine_intrinsics: bool,
+def fit(cell: StationChains, poses: dict[str, np.ndarray], camera: Any, refine_intrinsics: bool,
         start_sigmas: tuple[float, float, float]) -> RobotFit:
     """The joint fit from `poses` (X, Y) and the variances' start (s_px, s_r, s_t): rounds of the
     fit at fixed variances and their EM update (module docstring)."""

@@ -38,7 +38,7 @@ certificate's figures: ``certificate_path`` local / sdp, cost, lower bound, rela
 ``cost``, ``lower_bound``, ``duality_gap`` (sums over the components), ``relative_gap``,
 ``eigenvalue_ratio`` (their largest) and ``thresholds``; ``translation_scale``.
 
-Cameras known only up to their own scales (``camera_scale=[names]``, `handeye.camera_scales`):
+Cameras known only up to their own scales (``camera_scale=[names]``, `handeye.estimation.camera_scales`):
 the rotations from the data with every translation zero (certified as above: the rotation rows
 do not see the scales), then the translations and every camera's scale by one linear least
 squares; ``camera_scales`` and ``camera_scales_std`` (from that fit's residual, the rotations
@@ -180,7 +180,7 @@ def run(data: AXYBMultiData, options: Options, backend: str) -> SolverOutput:
 
 
 def _unknown_scales(data: AXYBMultiData, options: Options, backend: str) -> SolverOutput:
-    """Cameras known only up to their own scales (`handeye.camera_scales`): the rotations
+    """Cameras known only up to their own scales (`handeye.estimation.camera_scales`): the rotations
     certified on the rotation rows alone (every translation zero), then the translations and
     the cameras' scales by one linear least squares given them."""
     rotations = run(camera_scale.rotation_only(data), options, backend)

@@ -5,7 +5,7 @@ one pipeline (`solve_relaxation`, also used by `handeye.plugins.so3_sdp.multi`).
 
 Formulation (docs/solvers/so3-sdp.md has the details and the measurements):
 
-1. Cost (`handeye.rotation_cost`): the translations are minimised out in closed form,
+1. Cost (`handeye.estimation.rotation_cost`): the translations are minimised out in closed form,
    |H beta - w|^2 = |T t + U r - u|^2 + |S r - s|^2 + rest with r = [vec R_1; ...; vec R_k], so
    for given rotations t(r) = T^-1 (u - U r) are the translations' least squares (for ``axyb``
    eqs. 20-21) and the cost is y^T M y + rest with y = [r; 1]. ``axyb``: from the reduced system
@@ -14,7 +14,7 @@ Formulation (docs/solvers/so3-sdp.md has the details and the measurements):
    rows are homogeneous) although the SO(3) problem is not; ``axxb``: from the normal
    equations (`RotationCost.from_normal_equations`), since its H may be rank deficient (a camera
    rotating about its own centre: docs/solvers/kron-lstsq.md) while the SO(3) problem is not.
-2. QCQP / relaxation (`handeye.so3_relaxation`, shared for any number k of rotations):
+2. QCQP / relaxation (`handeye.estimation.so3_relaxation`, shared for any number k of rotations):
    R^T R = h^2 I, R R^T = h^2 I (redundant), c_i x c_j = h c_k for the columns (cyclic; fixes
    det = +1), h^2 = 1. The Shor relaxation: minimise <M, Z> over Z (9k+1 square) PSD with
    <A_j, Z> = b_j. `redundant=False` keeps only R^T R = I and h^2 = 1 (a weaker relaxation, for
@@ -34,7 +34,7 @@ Formulation (docs/solvers/so3-sdp.md has the details and the measurements):
    <M, Z> >= b^T nu + (3k + 1) min(0, lambda_min(S)), a lower bound on the global minimum that
    does not rely on the SDP solver's accuracy. The answer is `optimal` only when the eigenvalue
    ratio lambda_2 / lambda_1 of Z and the relative gap between the answer's cost and that bound
-   are both below the thresholds of `handeye.so3_relaxation`; otherwise it is `uncertified`, with
+   are both below the thresholds of `handeye.estimation.so3_relaxation`; otherwise it is `uncertified`, with
    the same numbers. Whichever SDP solver ran (a less accurate one such as SCS included), the
    status is decided by these numbers, never by the solver's own claim.
 
@@ -52,6 +52,7 @@ from typing import Any
 import numpy as np
 
 from handeye import SolverOutput, SolverSpec, Status
+from handeye.base.errors import DegenerateDataError, InputError, SolverError, shown
 from handeye.estimation import camera_scale
 from handeye.estimation.rotation_cost import (
     RotationCost,
@@ -71,7 +72,6 @@ from handeye.estimation.so3_relaxation import (
     local_minimum,
     polish,
 )
-from handeye.framework.errors import DegenerateDataError, InputError, SolverError, shown
 from handeye.geometry.linalg import frobenius_norm
 from handeye.geometry.se3 import make_pose, rotation_angle
 from handeye.plugins._sdp_backends import (
@@ -322,7 +322,7 @@ def solve_relaxation(cost: RotationCost, options: Options, backend: str, sdp_ski
 
 def _local(cost: RotationCost, norm: float) -> tuple[list[np.ndarray], dict[str, Any]]:
     """The local minimum of the QCQP and its certificate from the first-order conditions
-    (`handeye.so3_relaxation.local_minimum`, `local_certificate`): (rotations, diagnostics with
+    (`handeye.estimation.so3_relaxation.local_minimum`, `local_certificate`): (rotations, diagnostics with
     "certified"). A local solve that fails numerically is reported as not certified."""
     root = np.sqrt(norm)  # the cost divided by |M| (as the SDP's): entries of M may pass 1e154
     try:
@@ -386,7 +386,7 @@ def run_axxb(data: AXXBData, options: Options, backend: str) -> SolverOutput:
 
 
 def _unknown_scale(data: Any, options: Options, backend: str, solve: Any) -> SolverOutput:
-    """Camera translations known only up to scale (`handeye.camera_scale`): the rotations
+    """Camera translations known only up to scale (`handeye.estimation.camera_scale`): the rotations
     certified on the rotation rows alone (the data with every translation zero), then the
     translations and the camera's scale by linear least squares given them."""
     rotations = solve(camera_scale.rotation_only(data), options, backend)

@@ -2,7 +2,7 @@
 method that exploits the sparsity of its constraints (the fallback of ``axyb-multi`` above
 `handeye.plugins.so3_sdp.multi.SDP_MAX_ROTATIONS`; docs/solvers/so3-sdp.md).
 
-Why. The relaxation (`handeye.so3_relaxation`: minimise <M, Z> over Z (n = 9k + 1 square) PSD
+Why. The relaxation (`handeye.estimation.so3_relaxation`: minimise <M, Z> over Z (n = 9k + 1 square) PSD
 with <A_j, Z> = b_j, K = 20k + 1 constraints) has one dense cone, M being dense once the
 translations are eliminated. Clarabel factors a KKT system in which the cone's scaling is a
 dense block of size n(n + 1)/2 (23653 for k = 24): memory ~k^4, time ~k^6. But every A_j
@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from handeye import Status
+from handeye.base.errors import SolverError
 from handeye.estimation.rotation_cost import RotationCost, rotations_vector
 from handeye.estimation.so3_relaxation import (
     constraint_matrices,
@@ -41,7 +42,6 @@ from handeye.estimation.so3_relaxation import (
     polish,
     trace_z,
 )
-from handeye.framework.errors import SolverError
 from handeye.framework.threads import one_blas_thread
 from handeye.geometry.linalg import frobenius_norm
 from handeye.geometry.se3 import rotation_angle
@@ -240,7 +240,7 @@ def _solve_sdp(C: np.ndarray, rotations: int, tolerance: float, max_iterations: 
 
 
 def certificate(M: np.ndarray, y: np.ndarray, nu: np.ndarray) -> dict[str, float]:
-    """`handeye.so3_relaxation.certificate` (redundant constraints) with the structured
+    """`handeye.estimation.so3_relaxation.certificate` (redundant constraints) with the structured
     constraints: the same lower bound, without the (K, n, n) stack."""
     k = (len(y) - 1) // 9
     A = Constraints(k)

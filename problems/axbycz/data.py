@@ -13,7 +13,7 @@ Data: A, B, C: (m, 4, 4). Unknowns: X, Y, Z (4x4). In the dual-arm cell of Wu et
 and both sides are T_base1_marker (docs/conventions.md, with the single-robot cell).
 
 Residuals per triple: the rotation angle and translation distance between A_i X B_i and
-Y C_i Z (`handeye.problem.pose_discrepancy`), as eqs. 32-33 are for A X = Y B.
+Y C_i Z (`handeye.framework.problem.pose_discrepancy`), as eqs. 32-33 are for A X = Y B.
 
 What the data determine (docs/conventions.md, "Problem axbycz"). Each data stack ties two
 unknowns together: the same data are also solved by (X', Y', Z') with, for a pose G,
@@ -37,8 +37,8 @@ gives X (AX=XB); robot 1 still, (C_j^-1 C_i) Z = Z (B_j^-1 B_i) gives Z; then an
 Y. `AXBYCZData.still_groups` finds those phases (`handeye.problems.axbycz.geometry` uses their conjugate motions, whose
 rotation angles must agree, for the host's self-check), `diagnose` reports the figures.
 
-The simulator (`AXBYCZ.simulate`) puts two arms of the paper's kind (`handeye.kinematics`)
-facing each other, noise (`handeye.noise.NoiseModel`) on A, B and C, and either free motion
+The simulator (`AXBYCZ.simulate`) puts two arms of the paper's kind (`handeye.geometry.kinematics`)
+facing each other, noise (`handeye.estimation.noise.NoiseModel`) on A, B and C, and either free motion
 (both arms move at every triple) or the phase protocol of the two-step methods (the first half
 of the triples with robot 2 holding still, the second half with robot 1 holding still).
 """
@@ -99,7 +99,7 @@ class AXBYCZData:
 
     @classmethod
     def validated(cls, problem: str, data: Mapping[str, Any], min_pairs: int) -> AXBYCZData:
-        """The data object from the raw fields {"A", "B", "C"} (`handeye.kronecker.validated_stacks`);
+        """The data object from the raw fields {"A", "B", "C"} (`handeye.estimation.kronecker.validated_stacks`);
         `AXBYCZ.validate` adds the degeneracy checks."""
         return cls(*validated_stacks(problem, data, FIELDS, min_pairs))
 

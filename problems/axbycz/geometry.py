@@ -1,6 +1,6 @@
-"""The geometric model of A_i X B_i = Y C_i Z for the least-squares engine (`handeye.nlls`):
+"""The geometric model of A_i X B_i = Y C_i Z for the least-squares engine (`handeye.estimation.nlls`):
 residuals and analytic Jacobians on SE(3) x SE(3) x SE(3), and the hooks of the host's
-self-check (`handeye.self_check`).
+self-check (`handeye.checks.self_check`).
 
 One 6-vector per triple (the per-triple quantities of `AXBYCZ.residuals`, as vectors):
 
@@ -24,7 +24,7 @@ and the translation discrepancy, with R exp([w]_x) p = R p + R (w x p) to first 
     d t / d omega_Y = R_Y [R_C t_Z + t_C]_x     d t / d v_Y = -R_Y
     d t / d omega_Z = 0                         d t / d v_Z = -R_Y R_C R_Z
 
-(Jl^-1, Jr^-1 = (Jl^-1)^T: the inverse left / right Jacobians of SO(3), `handeye.so3_fast`).
+(Jl^-1, Jr^-1 = (Jl^-1)^T: the inverse left / right Jacobians of SO(3), `handeye.geometry.so3_fast`).
 Checked against central differences in tests/test_axbycz_problem.py. From `SUMS_MIN_PAIRS`
 triples on, the normal equations for per-group sigmas are summed in closed form
 (`AXBYCZModel.normal_equations`, equal to the Jacobian's to rounding: tests/test_axbycz_speed.py)
@@ -134,7 +134,7 @@ class AXBYCZModel(PoseModel):
         v_X, omega_Y, v_Y, v_Z; p = R_C t_Z + t_C): F_a^T F_b reduce to [t_B]_x^T [t_B]_x, [t_B]_x,
         G = R_AX^T R_Y and their products with [p]_x and R_C R_Z (`_translation_terms`). Equal to
         the Jacobian's to rounding for rotations orthonormal to rounding (tests/test_axbycz_speed.py;
-        the data's are orthonormal to `handeye.se3.ORTHONORMALITY_TOL`, and Hw to that order, while
+        the data's are orthonormal to `handeye.geometry.se3.ORTHONORMALITY_TOL`, and Hw to that order, while
         the gradient uses no orthonormality); faster from `SUMS_MIN_PAIRS` on.
         """
         X, Y, Z = poses

@@ -57,9 +57,9 @@ from collections.abc import Callable
 
 import numpy as np
 
+from handeye.base.errors import DegenerateDataError, SolverError
 from handeye.estimation.kronecker import overflow_error
 from handeye.estimation.trust_region import TrustRegionSolution, solve_trust_region
-from handeye.framework.errors import DegenerateDataError, SolverError
 from handeye.geometry.se3 import project_to_so3
 from handeye.problems.axbycz.data import AXBYCZData
 
@@ -280,7 +280,7 @@ def weak_rotations(gap: float, solver: str) -> list[str]:
 
 
 def sphere_least_squares(cost: LiftedCost) -> TrustRegionSolution:
-    """The r minimising the cost on |r|^2 = 12, exactly (`handeye.trust_region`)."""
+    """The r minimising the cost on |r|^2 = 12, exactly (`handeye.estimation.trust_region`)."""
     return solve_trust_region(cost.P, cost.p, float(np.sqrt(SPHERE)))
 
 

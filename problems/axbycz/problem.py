@@ -11,12 +11,12 @@ from typing import Any
 import numpy as np
 
 from handeye import hookimpl
-from handeye.checks.validation import pose_stack
+from handeye.base.errors import DegenerateDataError, InputError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.framework.problem import BenchSettings, Problem, pose_discrepancy
 from handeye.geometry.kinematics import random_flange_poses
 from handeye.geometry.se3 import inverse
+from handeye.geometry.validation import pose_stack
 from handeye.problems.axbycz.data import (
     DEFAULT_X,
     DEFAULT_Y,

@@ -10,7 +10,7 @@ Shared by the solvers here (the analogue of the paper's eq. 8 for AX=XB):
 - `AXXBData.kronecker(scale)`: with beta = [vec(R_X); t_X] (column-major vec), each motion gives
   (R_Bi kron R_Ai - I9) vec(R_X) = 0                          (rotation rows, homogeneous)
   (t_Bi^T kron I3) vec(R_X) + (I3 - R_Ai) t_X = t_Ai           (translation rows)
-  reduced in O(m) to its 12x12 triangular factor (`handeye.kronecker`), translations divided by
+  reduced in O(m) to its 12x12 triangular factor (`handeye.estimation.kronecker`), translations divided by
   `scale`. The rotation rows alone admit beta = 0; what makes a solver's problem well posed is
   its own business (docs/solvers/kron-lstsq.md states the constraint used there).
 - `solve_translation`: t_X by least squares given R_X, (I - R_Ai) t_X = t_Ai - R_X t_Bi.
@@ -28,20 +28,19 @@ from typing import Any
 
 import numpy as np
 
-from handeye.checks.validation import (
+from handeye.base.errors import DegenerateDataError, InputError
+from handeye.base.vocabulary import SETUPS
+from handeye.estimation.kronecker import PosePairs
+from handeye.geometry import so3_fast
+from handeye.geometry.motions import relative_motions
+from handeye.geometry.se3 import inverse
+from handeye.geometry.validation import (
     agreeing_motions,
     agreeing_share,
     pose_stack,
     same_length,
 )
-from handeye.estimation.kronecker import PosePairs
-from handeye.framework.errors import DegenerateDataError, InputError
-from handeye.geometry import so3_fast
-from handeye.geometry.motions import relative_motions
-from handeye.geometry.se3 import inverse
 from handeye.problems import planar as planar_mode
-
-SETUPS = ("eye-in-hand", "eye-to-hand")
 
 #: A motion rotating by less than this (rad) has no usable rotation axis.
 MIN_MOTION_ANGLE = 1e-6
@@ -51,7 +50,7 @@ DEGENERATE_AXIS_SPREAD = 1e-6
 #: Below this motion angle (rad, 5.7 deg) a motion's axis, hence its screw pitch, is too
 #: uncertain to compare between A and B. (Whether the motions determine X well enough is not
 #: judged from the data alone: the host's self-check states the 1-sigma of the answer at the
-#: noise the data show, `handeye.self_check`.)
+#: noise the data show, `handeye.checks.self_check`.)
 WEAK_ROTATION = 0.1
 #: A motion is listed as likely mismatched when |angle(A_i) - angle(B_i)| exceeds both this
 #: floor (rad, 1 deg) and MISMATCH_SIGMAS robust standard deviations of those differences over
@@ -71,7 +70,7 @@ MISMATCH_SIGMAS = 5.0
 @dataclasses.dataclass(frozen=True)
 class AXXBData(PosePairs):
     """Validated data of A_i X = X B_i: read-only float64 stacks A, B of shape (m, 4, 4), with the
-    sums over the motions taken once (`handeye.kronecker.PosePairs`).
+    sums over the motions taken once (`handeye.estimation.kronecker.PosePairs`).
 
     planar: for motions that all rotate about one axis b (X's parent frame), the translation
     ``tz_X`` = t_X . b the user gave, which the data cannot determine
@@ -79,7 +78,7 @@ class AXXBData(PosePairs):
     """
 
     planar: planar_mode.Planar | None = None
-    #: the camera's translations are known only up to scale (`handeye.camera_scale`)
+    #: the camera's translations are known only up to scale (`handeye.estimation.camera_scale`)
     camera_scale_unknown: bool = False
 
     def scaled(self, s: float) -> AXXBData:
@@ -97,14 +96,14 @@ class AXXBData(PosePairs):
     @functools.cached_property
     def _quaternions(self) -> np.ndarray:
         """Unit quaternions (scalar first, >= 0) of R_A1 .. R_Am, R_B1 .. R_Bm: (2m, 4), from one
-        vectorised Shepperd pass over both stacks (`handeye.so3_fast.quat`)."""
+        vectorised Shepperd pass over both stacks (`handeye.geometry.so3_fast.quat`)."""
         R = np.concatenate([self.A[:, :3, :3], self.B[:, :3, :3]])
         return so3_fast.quat(R)
 
     @functools.cached_property
     def quaternions(self) -> tuple[np.ndarray, np.ndarray]:
         """Unit quaternions (q0, qx, qy, qz) of R_Ai and R_Bi with q0 >= 0: two (m, 4) (the
-        convention of `handeye.dualquat`; shared by the quaternion solvers and the logs)."""
+        convention of `handeye.geometry.dualquat`; shared by the quaternion solvers and the logs)."""
         q = self._quaternions
         return q[:self.m], q[self.m:]
 
@@ -116,7 +115,7 @@ class AXXBData(PosePairs):
     @functools.cached_property
     def rotation_vectors(self) -> tuple[np.ndarray, np.ndarray]:
         """Rotation vectors (axis times angle, rad) of A_i and B_i: two (m, 3) (scipy's
-        ``as_rotvec`` to rounding, from the quaternions: `handeye.so3_fast.log_from_quat`)."""
+        ``as_rotvec`` to rounding, from the quaternions: `handeye.geometry.so3_fast.log_from_quat`)."""
         phi = self._logs[0]
         return phi[:self.m], phi[self.m:]
 
@@ -147,7 +146,7 @@ class AXXBData(PosePairs):
     @functools.cached_property
     def agreeing_share(self) -> float:
         """The share of the data that agree with each other: of the stations the motions were
-        made from, when they are every pair of stations (`handeye.validation.agreeing_share`: a
+        made from, when they are every pair of stations (`handeye.geometry.validation.agreeing_share`: a
         gross station spoils all its motions), else of the motions (`agreeing_motions`). At one
         half or below no consistent majority exists."""
         stations = self.stations
@@ -156,7 +155,7 @@ class AXXBData(PosePairs):
     @functools.cached_property
     def agreeing_group(self) -> np.ndarray:
         """(m,) bool: the motions whose robot and camera rotation angles agree
-        (`handeye.validation.agreeing_motions`), a robust start."""
+        (`handeye.geometry.validation.agreeing_motions`), a robust start."""
         return agreeing_motions(*self.angles)
 
     def normal_equations(self, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:

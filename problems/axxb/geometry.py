@@ -1,4 +1,4 @@
-"""The geometric model of A_i X = X B_i for the least-squares engine (`handeye.nlls`): residuals
+"""The geometric model of A_i X = X B_i for the least-squares engine (`handeye.estimation.nlls`): residuals
 and Jacobians on SE(3).
 
 One 6-vector per motion:

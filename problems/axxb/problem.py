@@ -13,13 +13,11 @@ from typing import Any
 import numpy as np
 
 from handeye import hookimpl
-from handeye.checks.validation import (
-    check_motion_beyond_noise,
-)
+from handeye.base.errors import DegenerateDataError, InputError
+from handeye.base.vocabulary import SETUPS
 from handeye.estimation import camera_scale
 from handeye.estimation.noise import NoiseModel
 from handeye.estimation.robust import MAD_TO_SIGMA
-from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.framework.problem import (
     BenchSettings,
     Frame,
@@ -30,6 +28,9 @@ from handeye.framework.problem import (
 )
 from handeye.geometry.motions import PAIRINGS
 from handeye.geometry.se3 import inverse
+from handeye.geometry.validation import (
+    check_motion_beyond_noise,
+)
 from handeye.problems import opencv_reference
 from handeye.problems import planar as planar_mode
 from handeye.problems.axxb.data import (
@@ -74,7 +75,7 @@ class AXXB(Problem):
     data_type = AXXBData
     equation = "A_i X = X B_i"
     item = "motion"
-    setups = ("eye-in-hand", "eye-to-hand")
+    setups = SETUPS
     #: so3-sdp certifies its answer; kron-lstsq and park are closed forms
     starts = ("so3-sdp", "kron-lstsq", "park")
     certifiable_starts = ("so3-sdp",)
@@ -119,7 +120,7 @@ class AXXB(Problem):
     def validate(self, **data: Any) -> AXXBData:
         """The validated motions; ``tz_X`` (data units) for motions that all rotate about one axis
         (`handeye.problems.planar`: required then, refused otherwise); ``camera_scale="unknown"``
-        for camera translations known only up to scale (`handeye.camera_scale`)."""
+        for camera translations known only up to scale (`handeye.estimation.camera_scale`)."""
         facts = planar_mode.take_facts(data, ("tz_X",))
         unknown_scale = camera_scale.take(data)
         out = AXXBData.validated(self.name, data, self.min_pairs)

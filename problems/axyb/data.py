@@ -21,34 +21,35 @@ from typing import Any
 
 import numpy as np
 
-from handeye.checks.validation import (
-    AGREEMENT_STATIONS,
-    agreeing_group,
-    agreement_angles,
-    pose_stack,
-)
+from handeye.base.errors import DegenerateDataError, InputError
+from handeye.base.vocabulary import SETUPS
 from handeye.estimation.kronecker import (
     KroneckerSystem,
     PosePairs,
     reduce_normal_equations,
 )
 from handeye.framework.caching import cached_property
-from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.geometry.kinematics import PAPER_X, PAPER_Y  # noqa: F401 (re-exported: the paper's truth)
 from handeye.geometry.linalg import singular_values
 from handeye.geometry.se3 import inverse
+from handeye.geometry.validation import (
+    AGREEMENT_STATIONS,
+    agreeing_group,
+    agreement_angles,
+    pose_stack,
+)
 from handeye.problems import planar as planar_mode
 
 #: Relative rotation excitation (see `AXYBData.rotation_excitation`) below which the rotations
 #: are undetermined. (How well stronger data determine X and Y at their noise is the host's
-#: self-check, `handeye.self_check`, not a threshold on the data alone.)
+#: self-check, `handeye.checks.self_check`, not a threshold on the data alone.)
 DEGENERATE_EXCITATION = 1e-10
 
 
 @dataclasses.dataclass(frozen=True)
 class AXYBData(PosePairs):
     """Validated data of A_i X = Y B_i: read-only float64 stacks A, B of shape (m, 4, 4), with the
-    sums over the pairs behind eq. 8 taken once (`handeye.kronecker.PosePairs`).
+    sums over the pairs behind eq. 8 taken once (`handeye.estimation.kronecker.PosePairs`).
 
     planar: for a robot whose rotations share one axis, the translation along it that the user
     gave (``tz_X`` = t_X . b, b the axis in the flange frame, or ``tz_Y`` = t_Y . a, a the axis
@@ -59,7 +60,7 @@ class AXYBData(PosePairs):
     #: the board's image observations behind B (`handeye.vision.observations.BoardObservations`),
     #: for solvers that fit the images themselves (`reprojection`); None for pose data
     images: Any = None
-    #: the camera's translations are known only up to scale (`handeye.camera_scale`)
+    #: the camera's translations are known only up to scale (`handeye.estimation.camera_scale`)
     camera_scale_unknown: bool = False
 
     def scaled(self, s: float) -> AXYBData:
@@ -78,7 +79,7 @@ class AXYBData(PosePairs):
         m -+ sigma_j(S). Noise-free data make sigma_1(S) = m (the solution); sigma_2(S) = m means a
         second null direction, i.e. undetermined rotations (all equal, or all about one axis).
         """
-        sigma = singular_values(self.rotation_sum)  # LAPACK directly (`handeye.linalg`: numpy's numbers)
+        sigma = singular_values(self.rotation_sum)  # LAPACK directly (`handeye.geometry.linalg`: numpy's numbers)
         return float(max(0.0, 1.0 - sigma[1] / self.m))
 
     @cached_property
@@ -106,12 +107,12 @@ class AXYBData(PosePairs):
     @cached_property
     def agreeing_group(self) -> np.ndarray:
         """(m,) bool: the largest group of pairs that agree with each other, without X or Y
-        (`handeye.validation.agreeing_group`): a robust start, and a majority or not."""
+        (`handeye.geometry.validation.agreeing_group`): a robust start, and a majority or not."""
         return agreeing_group(self.A, self.B, self._agreement_angles)
 
     @cached_property
     def _agreement_angles(self) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-        """`handeye.validation.agreement_angles` of the stations, once: the validation's motion
+        """`handeye.geometry.validation.agreement_angles` of the stations, once: the validation's motion
         check and `agreeing_group` both read them."""
         return agreement_angles(self.A, self.B)
 
@@ -130,7 +131,7 @@ class AXYBData(PosePairs):
     @property
     def agreeing_share(self) -> float:
         """The share of the pairs in `agreeing_group` (of those it looked at): at one half or
-        below no consistent majority exists (`handeye.validation.agreeing_share`)."""
+        below no consistent majority exists (`handeye.geometry.validation.agreeing_share`)."""
         return float(self.agreeing_group.sum()) / min(self.m, AGREEMENT_STATIONS)
 
     def normal_equations(self, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, float]:
@@ -251,7 +252,6 @@ def station_angles(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 
-SETUPS = ("eye-in-hand", "eye-to-hand")
 
 
 def pairs_from_stations(robot_poses: Any, camera_poses: Any, setup: str = "eye-in-hand",

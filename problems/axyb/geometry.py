@@ -1,4 +1,4 @@
-"""The geometric model of A_i X = Y B_i for the least-squares engine (`handeye.nlls`): residuals,
+"""The geometric model of A_i X = Y B_i for the least-squares engine (`handeye.estimation.nlls`): residuals,
 Jacobians and closed-form normal equations on SE(3) x SE(3).
 
 One 6-vector per pair (the per-pair quantities of the paper's eqs. 32-33, as vectors):
@@ -139,7 +139,7 @@ class AXYBModel(PoseModel):
 
     def camera_direction(self, poses: Poses) -> np.ndarray:
         """d e / d s when the camera translations are s t_B (an unknown camera scale,
-        `handeye.camera_scale`): (m, 6) = [0; -R_Y t_B]; e is linear in s, so this is exact."""
+        `handeye.estimation.camera_scale`): (m, 6) = [0; -R_Y t_B]; e is linear in s, so this is exact."""
         g = np.zeros((self.m, 6))
         g[:, 3:] = -self.tB @ poses[1][:3, :3].T
         return g

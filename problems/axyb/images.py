@@ -15,8 +15,9 @@ from typing import Any
 
 import numpy as np
 
+from handeye.base.errors import InputError
+from handeye.base.vocabulary import SETUPS
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError
 from handeye.framework.options import check_choice, check_positive
 from handeye.geometry.se3 import inverse, make_pose, so3_exp
 
@@ -67,7 +68,7 @@ def simulate(pairs: int, rng: np.random.Generator, noise: NoiseModel, X: np.ndar
     if unknown:
         raise InputError(f"unknown images option(s) {unknown}; known: {', '.join(KEYS)}")
     setup = options.get("setup", "eye-in-hand")
-    check_choice("images setup", setup, ("eye-in-hand", "eye-to-hand"))
+    check_choice("images setup", setup, SETUPS)
     pixel_noise = options.get("pixel_noise", 0.3)
     check_positive("images pixel_noise", pixel_noise, allow_zero=True)
     pixel_noise = float(pixel_noise)

@@ -1,4 +1,4 @@
-"""Where the noise of A_i X = Y B_i lives: the noise sources of `handeye.noise_sources` for one
+"""Where the noise of A_i X = Y B_i lives: the noise sources of `handeye.estimation.noise_sources` for one
 camera and one target.
 
 Real noise enters through the measured poses, each in its own frame: a camera's rotation error in
@@ -91,5 +91,5 @@ def factors(A: np.ndarray, B: np.ndarray, X: np.ndarray, Y: np.ndarray) -> np.nd
 
 
 def sources(A: np.ndarray, B: np.ndarray, X: np.ndarray, Y: np.ndarray) -> Sources:
-    """The noise sources of A_i X = Y B_i at (X, Y) (`SOURCES`), for `handeye.noise_sources`."""
+    """The noise sources of A_i X = Y B_i at (X, Y) (`SOURCES`), for `handeye.estimation.noise_sources`."""
     return Sources.side_by_side(factors(A, B, X, Y), WIDTHS, SOURCES, translation=[False] * 4 + [True] * 4)

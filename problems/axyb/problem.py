@@ -13,13 +13,9 @@ from typing import Any
 import numpy as np
 
 from handeye import hookimpl
-from handeye.checks.validation import (
-    check_motion_beyond_noise,
-    pose_stack,
-)
+from handeye.base.errors import DegenerateDataError, InputError
 from handeye.estimation import camera_scale
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import DegenerateDataError, InputError
 from handeye.framework.problem import (
     BenchSettings,
     BenchTarget,
@@ -30,6 +26,10 @@ from handeye.framework.problem import (
     pose_discrepancy,
 )
 from handeye.geometry.kinematics import simulate_stations
+from handeye.geometry.validation import (
+    check_motion_beyond_noise,
+    pose_stack,
+)
 from handeye.problems import opencv_reference
 from handeye.problems import planar as planar_mode
 from handeye.problems.axyb.data import (
@@ -183,7 +183,7 @@ class AXYB(Problem):
                  X: np.ndarray | None = None, Y: np.ndarray | None = None,
                  **options: Any) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
         """Sec. IV-A: A_i = forward kinematics of an LR Mate 200iD-like arm at random joints (mm),
-        B_i = Y^-1 A_i X, then noise (`handeye.noise.NoiseModel`) on A and/or B.
+        B_i = Y^-1 A_i X, then noise (`handeye.estimation.noise.NoiseModel`) on A and/or B.
 
         images: a mapping (``setup``, ``pixel_noise``) to simulate board images instead
         (`handeye.problems.axyb.images`): data A, B and ``images``, B the PnP poses of the corners.

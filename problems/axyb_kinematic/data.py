@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from handeye.checks.validation import float_array
-from handeye.framework.errors import DegenerateDataError, InputError
+from handeye.base.errors import DegenerateDataError, InputError
 from handeye.geometry.kinematics import DHArm
 from handeye.geometry.se3 import rotation_angle
+from handeye.geometry.validation import float_array
 from handeye.problems.axyb import AXYBData
 from handeye.problems.axyb_kinematic import model
 

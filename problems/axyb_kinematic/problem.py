@@ -26,9 +26,8 @@ from typing import Any
 import numpy as np
 
 from handeye import hookimpl
-from handeye.checks.validation import pose_stack
+from handeye.base.errors import InputError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError
 from handeye.framework.problem import (
     BenchSettings,
     Frame,
@@ -39,6 +38,7 @@ from handeye.framework.problem import (
 )
 from handeye.geometry.kinematics import LR_MATE_200ID, LR_MATE_SIM_JOINTS, DHArm
 from handeye.geometry.se3 import inverse, make_pose
+from handeye.geometry.validation import pose_stack
 from handeye.problems.axyb import PAPER_X, PAPER_Y, SETUPS
 from handeye.problems.axyb import problem as axyb_problem
 from handeye.problems.axyb_kinematic import model

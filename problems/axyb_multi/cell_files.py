@@ -16,11 +16,10 @@ import re
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
+from handeye.base.vocabulary import SETUPS
 from handeye.framework.problem import ObservationData, Observations
 from handeye.geometry.se3 import inverse
-
-SETUPS = ("eye-in-hand", "eye-to-hand")
 
 
 def natural_key(text: str) -> tuple:

@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
+from handeye.base.errors import InputError
 from handeye.estimation.kronecker import translation_rms, validated_stacks
-from handeye.framework.errors import InputError
 
 #: the data stacks and the index fields
 STACKS = ("A", "B")
@@ -52,7 +52,7 @@ class AXYBMultiData:
     x_names: tuple[str, ...]
     y_names: tuple[str, ...]
     #: some cameras' translations are known only up to scale, each camera's own
-    #: (`handeye.camera_scales`): those of the X's `scaled_x` and the Y's `scaled_y` (indices),
+    #: (`handeye.estimation.camera_scales`): those of the X's `scaled_x` and the Y's `scaled_y` (indices),
     #: the data's ``camera_scale`` list of names (docs/camera-scale.md, "Several cameras")
     camera_scale_unknown: bool = False
     scaled_x: tuple[int, ...] = ()
@@ -101,8 +101,8 @@ class AXYBMultiData:
         return _frozen(groups), names
 
     def scaled_cameras_model(self, model: Any) -> Any:
-        """`model` with each unknown camera scale profiled out (`handeye.camera_scales`), for
-        `handeye.camera_scale.model_for`."""
+        """`model` with each unknown camera scale profiled out (`handeye.estimation.camera_scales`), for
+        `handeye.estimation.camera_scale.model_for`."""
         from handeye.estimation.camera_scales import ScaledCamerasModel
 
         return ScaledCamerasModel(model, *self.camera_scale_groups)
@@ -155,7 +155,7 @@ class AXYBMultiData:
     @property
     def names(self) -> tuple[str, ...]:
         """The names of the X's then the Y's, in the order of the model's unknowns
-        (`handeye.problem.flat_names`: X[0], ..., Y[0], ...)."""
+        (`handeye.framework.problem.flat_names`: X[0], ..., Y[0], ...)."""
         return self.x_names + self.y_names
 
     @functools.cached_property

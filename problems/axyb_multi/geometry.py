@@ -1,4 +1,4 @@
-"""The geometric model of A_i X_{x_i} = Y_{y_i} B_i for the least-squares engine (`handeye.nlls`):
+"""The geometric model of A_i X_{x_i} = Y_{y_i} B_i for the least-squares engine (`handeye.estimation.nlls`):
 residuals, Jacobians and normal equations on SE(3)^(nX + nY), and what the host's self-check
 needs (its model, the noise the data show, the robot's rotation axes).
 
@@ -10,7 +10,7 @@ One 6-vector per observation i, with j = x_i and k = y_i: the residual of A_i X 
     t_i = R_Ai t_Xj + t_Ai - R_Yk t_Bi - t_Yk        t(A_i X_j) - t(Y_k B_i)          [data units]
 
 The unknowns are the poses X[0], ..., X[nX-1], Y[0], ..., Y[nY-1] (the order of
-`handeye.problem.flat_names`), each perturbed on the right, T <- T exp(xi), xi = (omega, v). An
+`handeye.framework.problem.flat_names`), each perturbed on the right, T <- T exp(xi), xi = (omega, v). An
 observation depends on two of them only; its 6 x 12 block on (xi_Xj, xi_Yk) is AXYBModel's
 (derivation in docs/solvers/refine.md):
 
@@ -160,7 +160,7 @@ class AXYBMultiModel(PoseModel):
     # ------------------------------------------------------------------ the camera's scale
 
     def camera_direction(self, poses: Poses) -> np.ndarray:
-        """d e / d s when every camera translation is s t_B (`handeye.camera_scale`, the host's
+        """d e / d s when every camera translation is s t_B (`handeye.estimation.camera_scale`, the host's
         check of the length units): (m, 6) = [0; -R_Yk t_B]; e is linear in s, so this is exact."""
         _, _, RY, _ = self._split(poses)
         g = np.zeros((self.m, 6))
@@ -190,7 +190,7 @@ class AXYBMultiModel(PoseModel):
 
     def with_camera_scale(self, s: float | np.ndarray) -> AXYBMultiModel:
         """This model with the camera translations t_B multiplied by s (the rest shared): one
-        factor, or (m,) one per observation (each camera's own, `handeye.camera_scales`)."""
+        factor, or (m,) one per observation (each camera's own, `handeye.estimation.camera_scales`)."""
         out = copy.copy(self)
         s = np.asarray(s, dtype=float)
         if s.ndim:

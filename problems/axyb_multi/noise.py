@@ -1,5 +1,5 @@
 """Where the noise of a multi-camera cell lives: a noise level for every camera and every target
-(`handeye.noise_sources`, the sources of `handeye.problems.axyb.noise` per pose).
+(`handeye.estimation.noise_sources`, the sources of `handeye.problems.axyb.noise` per pose).
 
 The cameras of a cell differ: one has a longer lens or a lower resolution, one target is smaller
 or seen from farther. With one noise level for every observation, least squares weighs a noisy

@@ -43,9 +43,9 @@ from typing import Any
 
 import numpy as np
 
-from handeye.checks.validation import check_motion_beyond_noise
-from handeye.framework.errors import DegenerateDataError
+from handeye.base.errors import DegenerateDataError
 from handeye.geometry import so3_fast
+from handeye.geometry.validation import check_motion_beyond_noise
 from handeye.problems.planar import PLANAR_AXIS_SPREAD, main_axis
 
 #: a component's excitation (module docstring) below which it is undetermined: structural null

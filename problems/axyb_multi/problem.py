@@ -16,10 +16,10 @@ from typing import Any
 import numpy as np
 
 from handeye import hookimpl
+from handeye.base.errors import InputError
 from handeye.estimation.noise import NoiseModel
 from handeye.estimation.robust import OUTLIER_CHI2
 from handeye.estimation.whitening import estimate_sigmas
-from handeye.framework.errors import InputError
 from handeye.framework.problem import (
     BenchSettings,
     BenchTarget,
@@ -142,7 +142,7 @@ class AXYBMulti(Problem):
                 for i in far[np.argsort(-s[far])]]
 
     def errors(self, unknowns: Mapping[str, np.ndarray], truth: Mapping[str, np.ndarray]) -> ErrorTable:
-        """Per unknown the worst of its poses' errors (`handeye.problem.pose_errors`); pose by pose
+        """Per unknown the worst of its poses' errors (`handeye.framework.problem.pose_errors`); pose by pose
         in `errors_per_pose`."""
         return super().errors(unknowns, truth)
 

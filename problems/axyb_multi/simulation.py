@@ -11,13 +11,13 @@ from typing import Any
 
 import numpy as np
 
-from handeye.checks.validation import pose_stack
+from handeye.base.errors import InputError
+from handeye.base.vocabulary import SETUPS
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.errors import InputError
 from handeye.geometry.kinematics import random_flange_poses
 from handeye.geometry.se3 import inverse, make_pose, random_rotations, so3_exp
+from handeye.geometry.validation import pose_stack
 
-SETUPS = ("eye-in-hand", "eye-to-hand")
 #: the simulated cell per setup: (cameras, markers, visible markers per camera per station). Eye
 #: to hand, fixed cameras (the Y's) watch markers on the flange (the X's); eye in hand, cameras
 #: on the wrist (the X's) watch boards in the cell (the Y's, "markers" in the options)

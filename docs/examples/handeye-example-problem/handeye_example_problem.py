@@ -30,12 +30,12 @@ from typing import Any
 import numpy as np
 
 import handeye
-from handeye.checks.validation import pose_stack
 from handeye.estimation.nlls import PoseModel
 from handeye.framework.problem import Frame, StationReader, pose_discrepancy
 from handeye.geometry import so3_fast
 from handeye.geometry.kinematics import random_flange_poses
 from handeye.geometry.se3 import inverse, make_pose
+from handeye.geometry.validation import pose_stack
 
 NAME = "registration"
 SOLVER = "registration-mean"

@@ -3,7 +3,7 @@
 KinHEC's leaderboard ranks solvers but neither pairs ``handeye:auto`` with KinHEC's best AX=YB
 method sequence by sequence nor knows handeye's statuses. From the rows KinHEC's
 ``run_benchmark`` returns (one per sequence, synchronisation mode and solver, with the
-``handeye_*`` columns that handeye.cli._kinhec adds), this module makes (docs/kinhec.md):
+``handeye_*`` columns that handeye.harness.kinhec adds), this module makes (docs/kinhec.md):
 
 - `head_to_head`: ``handeye:auto`` against ``shah+lm`` per sequence, with auto's status;
 - `track_summary`: every solver per track: success rate (KinHEC's: a finite answer), share of
@@ -15,7 +15,7 @@ method sequence by sequence nor knows handeye's statuses. From the rows KinHEC's
 
 Plain Python, so that KinHEC's pandas is not needed for them. The KinHEC names of handeye's
 solvers (`AXYB_PREFIX`, `AXXB_PREFIX`, `AUTO`) and of the reference (`REFERENCE`) live here, the
-module with no dependency on its siblings; handeye.cli._kinhec registers the solvers under them.
+module with no dependency on its siblings; handeye.harness.kinhec registers the solvers under them.
 """
 
 from __future__ import annotations

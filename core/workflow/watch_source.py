@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
 from handeye.geometry.se3 import inverse
 from handeye.io.pose_readers import TEXT_EXTENSIONS, PoseStack
 from handeye.workflow.cell_parts import SETUPS, CameraStream, PoseStream

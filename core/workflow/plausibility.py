@@ -25,7 +25,7 @@ The statistic (docs/calibrate.md, "Plausibility checks"), two parts:
 2. **A better explanation.** Every usual mistake is undone on the raw streams and solved with a
    cheap closed form (the problem's `Problem.quick_solver`, kron-lstsq for the built-ins, else its
    first start); the as-given data is solved the same way. A problem says which of the mistakes
-   (`handeye.problem.MISTAKES`) may be tried on its stations (`Problem.mistakes`).
+   (`handeye.framework.problem.MISTAKES`) may be tried on its stations (`Problem.mistakes`).
    A hypothesis *explains* the data when its score (the larger of the two RMS, each divided by
    its limit) is below 1 (plausible) and at least `EXPLAIN_FACTOR` (4) times lower than the
    as-given data's. Noise cannot do that: a wrong model never fits noisy data better than the
@@ -41,7 +41,7 @@ The statistic (docs/calibrate.md, "Plausibility checks"), two parts:
 The fit is unreliable when part 1 fails or part 2 finds an explanation. Nothing is switched:
 the caller keeps the user's answer and reports `Status.UNRELIABLE` with the message.
 
-Also: duplicated stations (two robot poses within `DUPLICATE_DEG` and `DUPLICATE_FRACTION` of the
+Also (`handeye.checks.stations`): duplicated stations (two robot poses within `DUPLICATE_DEG` and `DUPLICATE_FRACTION` of the
 cell size) and fewer than `MIN_STATIONS_FOR_SIGMA` stations (the 1-sigma from the covariance of
 the fit is not meaningful) are warnings that do not change the status.
 """
@@ -56,8 +56,9 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import DegenerateDataError, HandEyeError
-from handeye.geometry.se3 import inverse, rotation_angle
+from handeye.base.errors import DegenerateDataError, HandEyeError
+from handeye.checks.stations import cell_size, station_warnings
+from handeye.geometry.se3 import inverse
 
 #: residual rotation RMS (deg) no calibrated cell reaches
 ROT_LIMIT_DEG = 6.0
@@ -70,14 +71,6 @@ EXPLAIN_FACTOR = 4.0
 #: an axxb cell fits both its camera poses inverted and the other setup); a wrong hypothesis
 #: scores >= ~10 on the simulator
 ALTERNATIVE_FACTOR = 10.0
-#: two stations are duplicates when their robot poses differ by less than this angle (deg) and
-#: this fraction of the cell size
-DUPLICATE_DEG = 0.1
-DUPLICATE_FRACTION = 1e-3
-#: the duplicated stations a warning lists (then "...")
-DUPLICATES_LISTED = 5
-#: below this many stations the covariance-based 1-sigma is not meaningful
-MIN_STATIONS_FOR_SIGMA = 5
 #: camera-to-board distances (m, median over the stations) a calibration can have: a unit
 #: hypothesis outside them is not tried
 VIEW_DISTANCE_M = (0.02, 50.0)
@@ -177,23 +170,6 @@ class Report:
         }
 
 
-def cell_size(robot: np.ndarray, camera: np.ndarray | None = None) -> float:
-    """The cell's lever arm (robot unit): the largest of the RMS distance of the flange positions
-    robot[:, :3, 3] from their centroid, their RMS distance from the robot base, and the RMS
-    camera-to-board distance. Rotation noise turns into translation residuals through these
-    arms, and which one dominates depends on the frame the residuals live in (the flange spread
-    for eye-in-hand motions; the base-to-camera distance, up to base-to-flange plus
-    camera-to-board, for eye-to-hand motions, whose residuals are in the base frame). The
-    camera arm counts up to twice the base-to-flange one, so that a camera file in the wrong unit
-    (1000x) cannot widen the limit with it."""
-    t = np.asarray(robot, dtype=float)[:, :3, 3]
-    arms = [np.sqrt(np.mean(np.sum((t - t.mean(axis=0)) ** 2, axis=1))), np.sqrt(np.mean(np.sum(t * t, axis=1)))]
-    if camera is not None:
-        c = np.asarray(camera, dtype=float)[:, :3, 3]
-        arms.append(min(np.sqrt(np.mean(np.sum(c * c, axis=1))), 2.0 * arms[1]))
-    return float(max(arms))
-
-
 #: share of the smallest residuals the RMS is taken over (module docstring)
 TRIM_KEEP = 0.8
 
@@ -212,9 +188,9 @@ def _fit(streams: Streams, robot: np.ndarray, camera: np.ndarray, setup: str) ->
     are validated once and solved without the host's self-check (`run_registered`): only the
     answer's residuals are wanted, and the self-check and a second validation cost as much as
     the fit (the answer is the same as `handeye.solve`'s)."""
-    from handeye.framework.api import run_registered
-    from handeye.framework.registry import get_registry
     from handeye.framework.threads import one_blas_thread
+    from handeye.host.api import run_registered
+    from handeye.host.registry import get_registry
     from handeye.io.data_files import from_poses
 
     try:
@@ -252,7 +228,7 @@ def _camera_can_see(camera: np.ndarray, unit: str) -> bool:
 def _hypotheses(s: Streams) -> list[tuple[str, str, np.ndarray, np.ndarray, str]]:
     """(description, suggestion, robot, camera, setup) of each usual mistake undone that the
     problem lets the check try (`Problem.mistakes`)."""
-    from handeye.framework.registry import get_registry
+    from handeye.host.registry import get_registry
 
     tried = set(get_registry().problem(s.problem).mistakes)
     other = "eye-to-hand" if s.setup == "eye-in-hand" else "eye-in-hand"
@@ -440,55 +416,3 @@ def _scored_hypotheses(streams: Streams, score: Callable[[float, float], float],
             out.append(Hypothesis(text, sugg, fit[0], fit[1], s, base_score / max(s, 1e-300),
                                   None if isinstance(full, slice) else len(full)))
     return out
-
-
-def station_warnings(robot: np.ndarray, unit: str) -> list[str]:
-    """Duplicated stations (robot poses within DUPLICATE_DEG and DUPLICATE_FRACTION of the cell
-    size) and too few stations for a meaningful 1-sigma."""
-    robot = np.asarray(robot, dtype=float)
-    n = len(robot)
-    out = []
-    size = cell_size(robot)
-    dup = duplicate_stations(robot, DUPLICATE_FRACTION * max(size, 1e-12), math.radians(DUPLICATE_DEG),
-                             limit=DUPLICATES_LISTED + 1)
-    if dup:
-        rows = ", ".join(f"{i + 1} and {j + 1}" for i, j in dup[:DUPLICATES_LISTED])
-        more = " ..." if len(dup) > DUPLICATES_LISTED else ""
-        out.append(f"duplicated stations: the robot poses of rows {rows}{more} are "
-                   f"nearly the same (< {DUPLICATE_DEG:g} deg, < {DUPLICATE_FRACTION * size:.2g} {unit}); a "
-                   "repeated station adds no information and makes the 1-sigma too small: move the robot "
-                   "between stations")
-    if n < MIN_STATIONS_FOR_SIGMA:
-        out.append(f"only {n} stations: the reported 1-sigma is not meaningful (the noise is estimated from "
-                   f"the residuals, which needs at least {MIN_STATIONS_FOR_SIGMA} stations; 10-20 are usual)")
-    return out
-
-
-def duplicate_stations(poses: np.ndarray, distance: float, angle: float, limit: int) -> list[tuple[int, int]]:
-    """The first `limit` pairs (i, j), i < j in row order (i, then j), of poses (n, 4, 4) whose
-    positions are within `distance` and whose rotations differ by less than `angle` (rad).
-
-    Memory and time grow with n (not n^2, which 15,000 stations of a recording matched by time
-    would make 9.8 GB): a k-d tree on the positions proposes the neighbours of each station
-    within `distance`, the rotation angle decides, and the search stops at `limit` pairs."""
-    from scipy.spatial import cKDTree
-
-    n = len(poses)
-    if n < 2:
-        return []
-    t = poses[:, :3, 3]
-    tree = cKDTree(t)
-    crowded = np.flatnonzero(tree.query_ball_point(t, distance, return_length=True) > 1)  # counts only: O(n) memory
-    found: list[tuple[int, int]] = []
-    for i in crowded:
-        near = tree.query_ball_point(t[i], distance, return_sorted=True)
-        near = np.asarray(near, dtype=np.intp)
-        near = near[near > i]
-        if not len(near):
-            continue
-        turn = rotation_angle(poses[i, :3, :3].T @ poses[near, :3, :3])
-        for j in near[turn < angle][: limit - len(found)]:
-            found.append((int(i), int(j)))
-        if len(found) >= limit:
-            break
-    return found

@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from handeye.cli._kinhec import import_kinhec
-from handeye.cli._kinhec_report import REFERENCE
-from handeye.framework.errors import InputError
+from handeye.base.errors import InputError
+from handeye.harness.kinhec import import_kinhec
+from handeye.harness.kinhec_report import REFERENCE
 
 
 def export_fixture(data_dir: str | Path, sequence_id: str, path: str | Path, sync: str = "oracle",
@@ -34,7 +34,7 @@ def export_fixture(data_dir: str | Path, sequence_id: str, path: str | Path, syn
     at the one KinHEC estimates from them (``estimated``, its ``estimate_time_offset``), as the
     protocol's two modes; a synchronous sequence is paired row by row either way. Uses
     ``kinhec.benchmark._keyframe_data``: KinHEC's own keyframe selection, so the fixture holds
-    exactly what `handeye.cli._kinhec.adaptor` gets.
+    exactly what `handeye.harness.kinhec.adaptor` gets.
     """
     benchmark = import_kinhec()
     from kinhec.io import load_sequence

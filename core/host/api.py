@@ -12,8 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.checks.self_check import assess
-from handeye.framework.errors import (
+from handeye.base.errors import (
     BackendUnavailableError,
     HandEyeError,
     InputError,
@@ -21,9 +20,9 @@ from handeye.framework.errors import (
     UnknownPluginError,
     shown,
 )
+from handeye.checks.self_check import assess
 from handeye.framework.isolation import call_with_time_limit
 from handeye.framework.options import parse_options
-from handeye.framework.registry import get_registry
 from handeye.framework.solution import (
     USABLE,
     Solution,
@@ -33,6 +32,7 @@ from handeye.framework.solution import (
 )
 from handeye.framework.threads import one_blas_thread
 from handeye.geometry.se3 import orthonormality_error
+from handeye.host.registry import get_registry
 
 DEFAULT_SOLVER = "auto"
 #: largest |R^T R - I|, and largest deviation of the last row from [0, 0, 0, 1], accepted in an
@@ -52,7 +52,7 @@ def solve(problem: str, *, solver: str | None = None, backend: str | None = None
         registered.
     backend : one of the solver's backends; default the solver's own default.
     time_limit : seconds the solver may take, or None (default: no limit). The solver then runs
-        in a forked worker process that is killed at the limit (`handeye.isolation`), which a
+        in a forked worker process that is killed at the limit (`handeye.framework.isolation`), which a
         plugin cannot catch or outlast; the fork costs a few milliseconds. POSIX only.
     **data_and_options : the problem's data fields (for ``axyb``: absolute poses ``A``, ``B``;
         for ``axxb``: relative motions ``A``, ``B``, e.g. from `handeye.problems.axxb.motions`;
@@ -106,7 +106,7 @@ def run_registered(solver: str, data: Any, *, problem: str, backend: str | None 
     host's checks that `solve` applies: the solver's capabilities against the data (planar mode,
     unknown camera scale), its options parsed, its faults and answer checked (one-line errors, a
     third party's named, an answer that is not SE(3) refused). `self_check`: also the self-check
-    of every answer (`handeye.self_check`), as `solve` runs it; off by default, since the caller
+    of every answer (`handeye.checks.self_check`), as `solve` runs it; off by default, since the caller
     checks its own final answer and a start's check would cost as much as the start.
 
     Returns a `Solution`; raises as `solve` does."""
@@ -199,7 +199,7 @@ def _host(registry: Any, problem: str, solver: str, spec: Any, backend: str, dat
         weak = spec_problem.diagnose(data)
     warnings = list(weak.pop("warnings", [])) + list(diagnostics.get("warnings", []))
     # an answer that comes with the camera's scale (auto estimates it where the data demand it)
-    # is judged with that scale free, as its solver fitted it (handeye.camera_scale)
+    # is judged with that scale free, as its solver fitted it (handeye.estimation.camera_scale)
     check_data = data
     if "camera_scale" in diagnostics and getattr(data, "camera_scale_unknown", True) is False:
         check_data = dataclasses.replace(data, camera_scale_unknown=True)

@@ -32,13 +32,13 @@ from typing import Any
 
 import pluggy
 
-from handeye.framework import hookspecs
-from handeye.framework.errors import (
+from handeye.base.errors import (
     InputError,
     PluginLoadWarning,
     PluginRegistrationError,
     UnknownPluginError,
 )
+from handeye.framework import hookspecs
 from handeye.framework.problem import Problem
 from handeye.framework.solver import SolverSpec
 

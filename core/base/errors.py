@@ -34,7 +34,7 @@ class SolverError(HandEyeError):
 
 
 class SolverTimeoutError(SolverError):
-    """A solver gave no answer within its time limit and was stopped (`handeye.isolation`)."""
+    """A solver gave no answer within its time limit and was stopped (`handeye.framework.isolation`)."""
 
 
 class UnknownPluginError(HandEyeError):

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.errors import DegenerateDataError, InputError
+from handeye.base.errors import DegenerateDataError, InputError
 from handeye.geometry.linalg import det, einsum, median
 from handeye.geometry.se3 import ORTHONORMALITY_TOL, orthonormality_error
 
