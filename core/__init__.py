@@ -38,9 +38,10 @@ from handeye.base.errors import (
     SolverTimeoutError,
     UnknownPluginError,
 )
+from handeye.estimation.pose_model import PoseModel
 from handeye.framework.hookspecs import hookimpl
 from handeye.framework.options import NoOptions
-from handeye.framework.problem import Problem
+from handeye.framework.problem import Frame, Problem, StationReader, pose_discrepancy
 from handeye.framework.solution import Solution, SolverOutput, Status
 from handeye.framework.solver import SolverSpec
 from handeye.host.api import run_registered, solve
@@ -124,17 +125,20 @@ __all__ = [
     "CalibrationResult",
     "Cell",
     "DegenerateDataError",
+    "Frame",
     "HandEyeError",
     "InputError",
     "NoOptions",
     "PluginLoadWarning",
     "PluginRegistrationError",
+    "PoseModel",
     "Problem",
     "Solution",
     "SolverError",
     "SolverOutput",
     "SolverSpec",
     "SolverTimeoutError",
+    "StationReader",
     "Status",
     "UnknownPluginError",
     "calibrate",
@@ -145,6 +149,7 @@ __all__ = [
     "io",
     "list_problems",
     "list_solvers",
+    "pose_discrepancy",
     "problems",
     "run_registered",
     "solve",

@@ -17,16 +17,16 @@ from handeye.checks.self_check import MAJORITY
 from handeye.estimation import lm_objective, nlls
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
 from handeye.estimation.whitening import Whitening, estimate_sigmas
-from handeye.framework.problem import item_listing
+from handeye.framework.problem import Problem, item_listing
 from handeye.geometry.linalg import einsum
 from handeye.plugins import refine as _refine
 
 
-def kept(data: Any, inliers: np.ndarray) -> Any:
+def kept(problem: Problem, data: Any, inliers: np.ndarray) -> Any:
     """The validated data restricted to the pairs (triples) `inliers` (keeps the planar mode)."""
     if inliers.all():  # the data themselves, whose model and factors are built already
         return data
-    stacks = _refine.problem_for(data).data_fields
+    stacks = problem.data_fields
     return dataclasses.replace(data, **{f: getattr(data, f)[inliers] for f in stacks})
 
 
@@ -69,7 +69,7 @@ def _group_variances(q: np.ndarray, groups: dict[str, np.ndarray]) -> np.ndarray
     return np.where(out > 0, out, 1.0)
 
 
-def reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
+def reject_outliers(problem: Problem, data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
                      ropts: _refine.Options, what: str
                      ) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any], list[dict[str, Any]], str | None]:
     """Find pairs far off the others and refit least squares without them.
@@ -90,7 +90,7 @@ def reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, di
     Returns (poses, status, refine's diagnostics, [{"index", "rotation_deg", "translation"}] at
     the final answer, warning or None).
     """
-    model = _refine.model_of(data)
+    model = _refine.model_of(problem, data)
     settings = _refine.settings_of(ropts, data.m)
     disagreeing = MAJORITY < getattr(data, "agreeing_share", 1.0) < 1.0  # pairs outside the largest agreeing majority
     if not disagreeing and not _beyond(model.residuals(poses), settings.W, model.scale).any():
@@ -100,7 +100,7 @@ def reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, di
         fit, _, _ = nlls.refine(model, poses, robust)
     except DegenerateDataError:
         return poses, status, diag, [], None
-    fit = _better_robust_fit(data, model, fit, robust)
+    fit = _better_robust_fit(problem, data, model, fit, robust)
     flagged = _beyond(model.residuals(fit), settings.W, model.scale, data)
     k, m = int(flagged.sum()), data.m
     if k == 0:
@@ -124,10 +124,10 @@ def reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, di
     sub_settings = settings
     if W is not None and W.L is not None and W.L.ndim == 3:
         sub_settings = dataclasses.replace(settings, W=Whitening(L=W.L[inliers]))
-    subset = kept(data, inliers)
+    subset = kept(problem, data, inliers)
     try:
         # refine's fit (its noise model, the camera's scale) on the pairs that are left
-        new_poses, new_status, new_diag = _refine.fit(_refine.model_of(subset), subset, fit, sub_settings, ropts.noise)
+        new_poses, new_status, new_diag = _refine.fit(_refine.model_of(problem, subset), subset, fit, sub_settings, ropts.noise)
     except DegenerateDataError:
         return poses, status, diag, [], (
             f"{what} {item_listing(np.flatnonzero(flagged), data)} are far off the others, but the rest do not determine "
@@ -152,7 +152,7 @@ def reject_outliers(data: Any, poses: tuple[np.ndarray, ...], status: Status, di
     return new_poses, new_status, new_diag, outliers, note
 
 
-def _better_robust_fit(data: Any, model: Any, fit: tuple[np.ndarray, ...], robust: nlls.Settings
+def _better_robust_fit(problem: Problem, data: Any, model: Any, fit: tuple[np.ndarray, ...], robust: nlls.Settings
                        ) -> tuple[np.ndarray, ...]:
     """The robust fit from the least-squares answer (`fit`), or the one from the data's largest
     group of pairs that agree with each other without X or Y (`data.agreeing_group`, where the
@@ -163,13 +163,13 @@ def _better_robust_fit(data: Any, model: Any, fit: tuple[np.ndarray, ...], robus
     group = getattr(data, "agreeing_group", None)
     if group is None or getattr(data, "agreeing_share", 1.0) >= 1.0 or group.sum() < max(model.profile_min_pairs, 3):
         return fit
-    subset = kept(data, group)
+    subset = kept(problem, data, group)
     try:
-        _, start, _, _, _ = _refine.start(subset, None)
+        _, start, _, _, _ = _refine.start(problem, subset, None)
         other, _, _ = nlls.refine(model, start, robust)
     except HandEyeError:
         return fit
-    W = estimate_sigmas(_refine.model_of(subset).residuals(other), model.scale, robust=True)
+    W = estimate_sigmas(_refine.model_of(problem, subset).residuals(other), model.scale, robust=True)
     cost = [lm_objective.cost_of(model, poses, W, "cauchy", DEFAULT_LOSS_SCALE) for poses in (fit, other)]
     return other if cost[1] < cost[0] else fit
 

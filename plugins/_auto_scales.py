@@ -53,27 +53,25 @@ def applies(data: Any, options: Any) -> bool:
             and options.init is None and options.covariance is None and data.station_count >= MIN_STATIONS)
 
 
-def scales_if_held_out_agrees(data: Any, options: Any, backend: str, output: SolverOutput,
+def scales_if_held_out_agrees(problem: Any, data: Any, options: Any, backend: str, output: SolverOutput,
                               solve: Any) -> tuple[Any, SolverOutput]:
     """(data, output) as they are, with the held-out figures in the diagnostics where they were
     computed, or with the chosen groups' scales unknown and auto's pipeline run again (`solve`:
-    (data, options, backend) -> SolverOutput), with a warning naming the factors and the gain."""
+    (problem, data, options, backend) -> SolverOutput), with a warning naming the factors and the gain."""
     from handeye.checks.scale_checks import camera_scales_named
-    from handeye.host.registry import get_registry
 
-    problem = get_registry().problem(_refine.problem_of(data))
     named = camera_scales_named(problem, data, output.unknowns)
     if not named:
         return data, output
     candidates = {"named": tuple(named), "every_x": data.x_names, "every_y": data.y_names}
-    figures = held_out(data, output, candidates)
+    figures = held_out(problem, data, output, candidates)
     if figures is None:
         return data, output
     chosen = figures["chosen"]
     if chosen == "none":
         return data, _with(output, {"camera_scales_held_out": figures})
     scaled = data.with_scales_unknown(candidates[chosen])
-    again = solve(scaled, options, backend)
+    again = solve(problem, scaled, options, backend)
     factors = again.diagnostics.get("camera_scales", {})
     best, plain = figures["models"][chosen], figures["models"]["none"]
     listed = ", ".join(f"{name!r} {s:.4g}" for name, s in factors.items())
@@ -88,7 +86,7 @@ def scales_if_held_out_agrees(data: Any, options: Any, backend: str, output: Sol
     return scaled, SolverOutput(unknowns=again.unknowns, status=again.status, diagnostics=diagnostics)
 
 
-def held_out(data: Any, output: SolverOutput, candidates: Mapping[str, Sequence[str]]) -> dict[str, Any] | None:
+def held_out(problem: Any, data: Any, output: SolverOutput, candidates: Mapping[str, Sequence[str]]) -> dict[str, Any] | None:
     """The held-out figures of no factor and of each of `candidates` ({label: names of the X's and
     Y's given a factor}): {"blocks", "observations", "models": {label: {"names", "translation",
     "rotation_deg"}}, "chosen"}, the medians over every left-out observation a fit can predict
@@ -104,7 +102,6 @@ def held_out(data: Any, output: SolverOutput, candidates: Mapping[str, Sequence[
     station = np.asarray(data.station_index)
     blocks = np.array_split(np.arange(data.station_count), HELD_OUT_BLOCKS)
     start = {name: pose for name, pose in zip(data.x_names + data.y_names, _poses(output))}
-    problem = _refine.problem_of(data)
     models = {"none": ()} | {label: tuple(names) for label, names in candidates.items()}
     errors: dict[str, list[np.ndarray]] = {label: [] for label in models}
     for block in blocks:
@@ -115,7 +112,7 @@ def held_out(data: Any, output: SolverOutput, candidates: Mapping[str, Sequence[
             init = {"init_X": np.stack([start[n] for n in sub.x_names]),
                     "init_Y": np.stack([start[n] for n in sub.y_names])}
             try:
-                fit = run_registered("refine", sub, problem=problem, options=init)
+                fit = run_registered("refine", sub, problem=problem.name, options=init)
             except (HandEyeError, np.linalg.LinAlgError, ValueError):
                 return None
             errors[label].append(_prediction(data, np.flatnonzero(test), sub, fit))

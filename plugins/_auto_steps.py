@@ -39,19 +39,19 @@ DRIFT_MIN_PAIRS = 20
 #: have more than doubled the held-out error)
 DRIFT_FOLDS = 5
 DRIFT_TOLERANCE = 1.5
-#: auto's pipeline: (data, options, backend) -> SolverOutput
-Solve = Callable[[Any, Any, str], SolverOutput]
+#: auto's pipeline: (problem, data, options, backend) -> SolverOutput
+Solve = Callable[[Any, Any, Any, str], SolverOutput]
 
 
-def residuals_at(data: Any, output: SolverOutput) -> tuple[Any, np.ndarray] | None:
+def residuals_at(problem: Any, data: Any, output: SolverOutput) -> tuple[Any, np.ndarray] | None:
     """(model, residuals) of A X = Y B at auto's answer, or None for other problems."""
-    if _refine.problem_of(data) != "axyb" or _refine.is_planar(data):
+    if problem.name != "axyb" or _refine.is_planar(data):
         return None
-    model = _refine.model_of(data)
+    model = _refine.model_of(problem, data)
     return model, model.residuals((output.unknowns["X"], output.unknowns["Y"]))
 
 
-def estimate_scale_if_needed(data: Any, options: Any, backend: str, output: SolverOutput,
+def estimate_scale_if_needed(problem: Any, data: Any, options: Any, backend: str, output: SolverOutput,
                              at: tuple[Any, np.ndarray] | None, solve: Solve) -> tuple[Any, SolverOutput]:
     """(data, output) as they are, or with the camera's scale unknown and solved again when check
     5 fails on `output` (auto's `run`)."""
@@ -70,11 +70,11 @@ def estimate_scale_if_needed(data: Any, options: Any, backend: str, output: Solv
                                      np.asarray(fitted["covariance_XY"], dtype=float))
         if screen is None or not scale_suspect(*screen):
             return data, output
-    verdict = camera_scale_verdict(_refine.problem_for(data), data, output.unknowns)
+    verdict = camera_scale_verdict(problem, data, output.unknowns)
     if verdict is None or verdict["verdict"] != "fail":
         return data, output
     data = dataclasses.replace(data, camera_scale_unknown=True)
-    scaled = solve(data, dataclasses.replace(options, noise="groups"), backend)  # the scale is fitted per group
+    scaled = solve(problem, data, dataclasses.replace(options, noise="groups"), backend)  # the scale is fitted per group
     s, std = scaled.diagnostics.get("camera_scale", verdict["scale"]), scaled.diagnostics.get("camera_scale_std")
     sigma = "" if std is None else f" (1-sigma {std:.2g})"
     note = (f"auto: the camera's translations fit the robot's only when multiplied by {verdict['scale']:.4g} (the "
@@ -87,7 +87,7 @@ def estimate_scale_if_needed(data: Any, options: Any, backend: str, output: Solv
     return data, SolverOutput(unknowns=scaled.unknowns, status=scaled.status, diagnostics=diagnostics)
 
 
-def drift(data: Any, options: Any, backend: str, output: SolverOutput,
+def drift(problem: Any, data: Any, options: Any, backend: str, output: SolverOutput,
           at: tuple[Any, np.ndarray] | None, solve: Solve) -> SolverOutput:
     """A X = Y B whose camera poses drift (visual odometry, SLAM: each pose's error carries the
     earlier ones'): the residuals of A_k X = Y B_k at the answer are correlated from one station
@@ -97,7 +97,7 @@ def drift(data: Any, options: Any, backend: str, output: SolverOutput,
     X B_k+1^-1 B_k (`relative_motions`, consecutive; `auto` for A X = X B on those motions) and
     Y is the fit of the stations to it (`fitted_Y`: the average over the drift), with a warning; the A X = Y B answer is kept in
     the diagnostics. Anything else: `output` as it is, with the autocorrelation reported."""
-    if (_refine.problem_of(data) != "axyb" or data.m < DRIFT_MIN_PAIRS or _refine.is_planar(data)
+    if (problem.name != "axyb" or data.m < DRIFT_MIN_PAIRS or _refine.is_planar(data)
             or options.init is not None or options.covariance is not None):
         return output
     from handeye.problems.axxb import PROBLEM as AXXB
@@ -105,7 +105,7 @@ def drift(data: Any, options: Any, backend: str, output: SolverOutput,
     from handeye.problems.axyb.geometry import fitted_Y
 
     scale_unknown = bool(data.camera_scale_unknown)
-    e = (at or residuals_at(data, output))[1][:, 3:]
+    e = (at or residuals_at(problem, data, output))[1][:, 3:]
     e = e - e.mean(axis=0)
     acf = float(np.sum(e[1:] * e[:-1]) / max(float(np.sum(e * e)), 1e-300))
     if acf <= max(DRIFT_AUTOCORRELATION, 3.0 / np.sqrt(data.m)):
@@ -115,11 +115,11 @@ def drift(data: Any, options: Any, backend: str, output: SolverOutput,
         Am, Bm = relative_motions(A, B, "consecutive")
         motions = AXXB.validate(A=Am, B=Bm,
                                 camera_scale="unknown" if scale_unknown else "known")
-        sub = solve(motions, options, backend)
+        sub = solve(AXXB, motions, options, backend)
     except (DegenerateDataError, InputError):
         return SolverOutput(output.unknowns, output.status, {**output.diagnostics, "drift_autocorrelation": acf})
     X = sub.unknowns["X"]
-    held_out = drift_held_out(data, output, X)
+    held_out = drift_held_out(problem, data, output, X)
     if held_out is not None and not held_out["drift_agrees"]:
         kept = {**output.diagnostics, "drift_autocorrelation": acf, "drift_held_out": held_out}
         kept["warnings"] = [*output.diagnostics.get("warnings", []), (
@@ -147,7 +147,7 @@ def drift(data: Any, options: Any, backend: str, output: SolverOutput,
     return SolverOutput({"X": X, "Y": fitted_Y(A, metric_B, X)}, sub.status, diagnostics)
 
 
-def drift_held_out(data: Any, output: SolverOutput, X_drift: np.ndarray) -> dict[str, Any] | None:
+def drift_held_out(problem: Any, data: Any, output: SolverOutput, X_drift: np.ndarray) -> dict[str, Any] | None:
     """The drift switch judged by held-out prediction (DRIFT_FOLDS contiguous blocks of stations:
     drift is a matter of the order): per block left out, ``refine`` of A X = Y B on the other
     stations from auto's answer, and of A X = X B on the consecutive motions within each run of
@@ -166,7 +166,7 @@ def drift_held_out(data: Any, output: SolverOutput, X_drift: np.ndarray) -> dict
     from handeye.problems.axyb.geometry import fitted_Y
 
     A, B, m = np.asarray(data.A), np.asarray(data.B), data.m
-    axyb, axxb = _refine.problem_for(data), get_registry().problem("axxb")
+    axyb, axxb = problem, get_registry().problem("axxb")
     scale = {"camera_scale": "unknown"} if data.camera_scale_unknown else {}  # a monocular camera: each fit's own
 
     def scaled(fit: Any) -> np.ndarray:  # the camera's poses at a fit's camera scale
@@ -200,7 +200,7 @@ def drift_held_out(data: Any, output: SolverOutput, X_drift: np.ndarray) -> dict
             "drift_agrees": bool(med["drift"][1] <= DRIFT_TOLERANCE * med["axyb"][1])}
 
 
-def scale_may_be_estimated(data: Any, options: Any) -> bool:
+def scale_may_be_estimated(problem: Any, data: Any, options: Any) -> bool:
     """auto may estimate the camera's scale where the data demand it: a problem whose data may
     leave the camera's scale unknown (``camera_scale`` among its `Problem.optional_fields`: A X =
     Y B, A X = X B), the scale not already unknown, not planar (unsupported there), no start and
@@ -208,7 +208,7 @@ def scale_may_be_estimated(data: Any, options: Any) -> bool:
     # a cell of several cameras (data with `camera_scale_groups`): which of them are monocular is
     # the user's to say (camera_scale=[names]); one scale fitted for all would be wrong for a mix
     # of metric and monocular cameras, so auto leaves it to the self-check's check 5 to report
-    return ("camera_scale" in _refine.problem_for(data).optional_fields
+    return ("camera_scale" in problem.optional_fields
             and not hasattr(data, "camera_scale_groups")
             and not getattr(data, "camera_scale_unknown", False)
             and not _refine.is_planar(data) and options.init is None and options.covariance is None)

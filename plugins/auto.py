@@ -175,37 +175,36 @@ def _passed_on(cls: type) -> tuple[str, ...]:
     return tuple(f.name for f in dataclasses.fields(cls) if f.name != "outliers")
 
 
-def run(data: Any, options: Options, backend: str) -> SolverOutput:
+def run(data: Any, options: Options, backend: str, problem: Problem) -> SolverOutput:
     """The pipeline of the module docstring; then, where the camera's translations fit the
     robot's only at another scale (the host's check 5, `handeye.checks.self_check`: a factor beyond 1.5
     that explains the translation misfit), the pipeline again with that scale unknown
     (`handeye.estimation.camera_scale`), with a warning; for a cell of several cameras and targets, a factor
     for some of them where held-out stations are predicted better (`_auto_scales`); then, for A X = Y B whose camera poses drift, X
     from the consecutive motions (`handeye.plugins._auto_steps`)."""
-    output = _run(data, options, backend)
-    at = steps.residuals_at(data, output)  # (model, residuals) at the answer, shared by the two steps
-    if steps.scale_may_be_estimated(data, options):
-        data, scaled = steps.estimate_scale_if_needed(data, options, backend, output, at, _run)
+    output = _run(problem, data, options, backend)
+    at = steps.residuals_at(problem, data, output)  # (model, residuals) at the answer, shared by the two steps
+    if steps.scale_may_be_estimated(problem, data, options):
+        data, scaled = steps.estimate_scale_if_needed(problem, data, options, backend, output, at, _run)
         at, output = (at if scaled is output else None), scaled
     elif cell_scales.applies(data, options):
-        data, output = cell_scales.scales_if_held_out_agrees(data, options, backend, output, _run)
-    return steps.drift(data, options, backend, output, at, _run)
+        data, output = cell_scales.scales_if_held_out_agrees(problem, data, options, backend, output, _run)
+    return steps.drift(problem, data, options, backend, output, at, _run)
 
 
-def _run(data: Any, options: Options, backend: str, stations: bool = False) -> SolverOutput:
-    """The pipeline of the module docstring on `data` (`stations`: A X = X B's stations rebuilt
-    from its motions, where step 5 does not apply)."""
-    problem = _refine.problem_for(data)
+def _run(problem: Problem, data: Any, options: Options, backend: str, stations: bool = False) -> SolverOutput:
+    """The pipeline of the module docstring on `problem`'s `data` (`stations`: A X = X B's stations
+    rebuilt from its motions, where step 5 does not apply)."""
     if getattr(data, "stations", None) is not None and _weights_are_estimated(options):
-        return _run_on_stations(data, options, backend)
-    start, poses, init_status, init_diag, warnings = _refine.start(data, options.init)
+        return _run_on_stations(problem, data, options, backend)
+    start, poses, init_status, init_diag, warnings = _refine.start(problem, data, options.init)
     warnings = [f"auto: {w}" for w in warnings]
     if _refine.is_planar(data):
         warnings.insert(0, data.planar.warning())
     certified = _certified(init_status, init_diag)
     pipeline = [start, "refine"]
     ropts = options.refine_options(problem)
-    poses, status, diag = _refine.refine(data, poses, ropts)
+    poses, status, diag = _refine.refine(problem, data, poses, ropts)
     starts = [{"init": start, "init_status": str(init_status), "final_cost": diag["final_cost"]}]
 
     # the safeguard applies to a certifiable start that did not certify its answer, and always
@@ -217,7 +216,7 @@ def _run(data: Any, options: Options, backend: str, stations: bool = False) -> S
     if second is not None:
         other, poses1, status1 = second
         try:
-            poses_b, status_b, diag_b = _refine.refine(data, poses1, ropts)
+            poses_b, status_b, diag_b = _refine.refine(problem, data, poses1, ropts)
         except DegenerateDataError:  # singular at the second start's end point: the first answer stands
             second = None
     if second is not None:
@@ -225,7 +224,7 @@ def _run(data: Any, options: Options, backend: str, stations: bool = False) -> S
         # (estimated weights, least squares) do not depend on the start; robust losses with
         # estimated scales are compared under common weights (those of the first run)
         settings = _refine.settings_of(ropts, data.m)
-        model = _refine.model_of(data)
+        model = _refine.model_of(problem, data)
         if lm_objective.mode_of(settings.W, settings.loss, data.m, settings.estimate, model.profile_min_pairs) in ("irls", "initial"):
             W = Whitening(diag["sigma_rot"], diag["sigma_trans"])
             cost_a = lm_objective.cost_of(model, poses, W, settings.loss, settings.loss_scale)
@@ -241,8 +240,8 @@ def _run(data: Any, options: Options, backend: str, stations: bool = False) -> S
             diag["init"] = other
 
     what = f"{problem.item}s"
-    poses, status, diag, report = _outlier_step(data, poses, status, diag, ropts, options, what)
-    poses, status, diag = _noise_step(data, poses, status, diag, ropts, options, report, stations)
+    poses, status, diag, report = _outlier_step(problem, data, poses, status, diag, ropts, options, what)
+    poses, status, diag = _noise_step(problem, data, poses, status, diag, ropts, options, report, stations)
     diagnostics = _diagnostics(pipeline, start, init_status, init_diag, starts, diag, warnings)
     diagnostics.update(report)
     if _refine.is_planar(data):
@@ -257,21 +256,21 @@ def _second_start(problem: Problem, start: str, data: Any) -> tuple[str, tuple[n
     name = _refine.fallback_init(problem.name, start)
     while name is not None:
         try:
-            poses, status, _ = _refine.run_init(name, data)
+            poses, status, _ = _refine.run_init(problem, name, data)
             return name, poses, status
         except (SolverError, BackendUnavailableError, *problem.start_refusals):
             name = _refine.fallback_init(problem.name, name)
     return None
 
 
-def _outlier_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
+def _outlier_step(problem: Problem, data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
                   ropts: _refine.Options, options: Options, what: str) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any], dict[str, Any]]:
     """`_auto_outliers.reject_outliers` when option outliers="reject" and the loss is least squares: the
     (possibly refitted) poses, status, refine's diagnostics, and auto's diagnostics to add
     ("outliers", "outlier_test"; the warning goes into refine's)."""
     if options.outliers != "reject" or ropts.loss != "linear":
         return poses, status, diag, {}
-    poses, status, diag, outliers, note = far_off.reject_outliers(data, poses, status, diag, ropts, what)
+    poses, status, diag, outliers, note = far_off.reject_outliers(problem, data, poses, status, diag, ropts, what)
     report: dict[str, Any] = {
         "outliers": outliers,
         "outlier_test": (f"whitened residual norm > {OUTLIER_CHI2 ** 0.5:.3g} at a Cauchy fit, "
@@ -284,7 +283,7 @@ def _outlier_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag
     return poses, status, diag, report
 
 
-def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
+def _noise_step(problem: Problem, data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: dict[str, Any],
                 ropts: _refine.Options, options: Options, report: dict[str, Any], stations: bool = False
                 ) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """Pipeline step 5: the noise-source model (`handeye.estimation.noise_sources`) fitted from the answer
@@ -298,12 +297,12 @@ def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: 
         return poses, status, diag
     flagged = np.zeros(data.m, dtype=bool)
     flagged[[o["index"] for o in report.get("outliers", [])]] = True
-    kept = far_off.kept(data, ~flagged)
+    kept = far_off.kept(problem, data, ~flagged)
     if options.noise is None and kept.m < SOURCES_MIN_PAIRS:
         return poses, status, diag
-    reason = _sources_skipped(data, status, ropts, report, stations)
+    reason = _sources_skipped(problem, data, status, ropts, report, stations)
     if reason is None:
-        model = _refine.model_of(kept)
+        model = _refine.model_of(problem, kept)
         factors = model.noise_factors(kept, poses)  # poses: the per-group fit of the pairs kept
         count = factors.count
         if options.noise is None and 6 * kept.m < RESIDUALS_PER_VARIANCE * count:
@@ -325,7 +324,7 @@ def _noise_step(data: Any, poses: tuple[np.ndarray, ...], status: Status, diag: 
     return new, new_status, {**new_diag, **carried, **({"warnings": warnings} if warnings else {})}
 
 
-def _sources_skipped(data: Any, status: Status, ropts: _refine.Options, report: dict[str, Any],
+def _sources_skipped(problem: Problem, data: Any, status: Status, ropts: _refine.Options, report: dict[str, Any],
                      stations: bool) -> str | None:
     """Why the noise sources do not apply here, in the user's words, or None."""
     if stations:
@@ -337,7 +336,7 @@ def _sources_skipped(data: Any, status: Status, ropts: _refine.Options, report: 
         return f"the per-group fit ended {status.value}"
     if report.get("outliers_left_in"):
         return "far-off pairs had to be kept, and no noise model describes them"
-    if not _refine.sources_apply(data, ropts):
+    if not _refine.sources_apply(problem, data, ropts):
         return ("they take A_i X = Y B_i data with the camera's scale known, the noise estimated and "
                 "loss='linear'")
     return None
@@ -375,7 +374,7 @@ def _weights_are_estimated(options: Options) -> bool:
     return options.init is None and options.sigma_rot is None and options.covariance is None
 
 
-def _run_on_stations(data: Any, options: Options, backend: str) -> SolverOutput:
+def _run_on_stations(problem: Problem, data: Any, options: Options, backend: str) -> SolverOutput:
     """A_i X = X B_i whose motions are every pair of n stations (`AXXBData.stations`): solved as
     A_k X = Y B_k on the stations, the maximum-likelihood answer for independent noise on each
     station. The motions share the stations' noise, which the per-motion model of `refine`
@@ -403,19 +402,19 @@ def _run_on_stations(data: Any, options: Options, backend: str) -> SolverOutput:
         start, poses, init_status, init_diag, warnings = None, None, None, {}, []
     else:
         stations = AXYB.validate(A=A_abs, B=B_abs, camera_scale="unknown" if data.camera_scale_unknown else "known")
-        start, poses, init_status, init_diag, warnings = _refine.start(data, None)
+        start, poses, init_status, init_diag, warnings = _refine.start(problem, data, None)
     if start is not None and _certified(init_status, init_diag):
         ropts = options.refine_options(AXYB)
-        fitted, status, diag = _refine.refine(stations, (poses[0], poses[0]), ropts)
+        fitted, status, diag = _refine.refine(AXYB, stations, (poses[0], poses[0]), ropts)
         starts = [{"init": f"{start} (motions)", "init_status": str(init_status), "final_cost": diag["final_cost"]}]
-        fitted, status, diag, report = _outlier_step(stations, fitted, status, diag, ropts, options, "stations")
-        (X, _), status, diag = _noise_step(stations, fitted, status, diag, ropts, options, report, stations=True)
+        fitted, status, diag, report = _outlier_step(AXYB, stations, fitted, status, diag, ropts, options, "stations")
+        (X, _), status, diag = _noise_step(AXYB, stations, fitted, status, diag, ropts, options, report, stations=True)
         diagnostics = _diagnostics([f"{start} (motions)", "refine"], start, init_status, init_diag, starts, diag,
                                    [f"auto: {w}" for w in warnings])
         diagnostics.update(report)
         output = SolverOutput(unknowns={"X": X}, status=status, diagnostics=diagnostics)
     else:
-        output = _run(stations, options, backend, stations=True)
+        output = _run(AXYB, stations, options, backend, stations=True)
     diagnostics = dict(output.diagnostics)
     diagnostics["formulation"] = (f"A_k X = Y B_k on the {len(A_abs)} stations the {data.m} motions were made "
                                   "from (maximum likelihood for independent noise on each station)")
@@ -429,7 +428,7 @@ def spec_for(problem: Problem) -> SolverSpec:
     return SolverSpec(
         name="auto",
         problems=(problem.name,),
-        run=run,
+        run=functools.partial(run, problem=problem),
         options=Options,
         summary=f"default for {problem.equation or problem.name}: {starts} start, then maximum-likelihood refine",
         citation="Pan et al., IEEE T-ASE 2022 (eq. 8); see docs/solvers/auto.md",

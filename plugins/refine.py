@@ -50,6 +50,7 @@ poses is moved onto the constraint first.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
@@ -209,25 +210,9 @@ def _pose_options(values: list[Any], names: list[str]) -> list[np.ndarray]:
 
 # --------------------------------------------------------------------------- start
 
-def problem_for(data: Any) -> Problem:
-    """The registered problem whose validated data `data` are (`Registry.problem_of`), with
-    the model refine needs; InputError otherwise."""
-    problem = get_registry().problem_of(data)
-    if not problem.refinable:
-        raise InputError(f"refine does not solve problem {problem.name!r}: it gives no least-squares model "
-                         "(Problem.pose_model)")
-    return problem
-
-
-def problem_of(data: Any) -> str:
-    """The name of the problem whose validated data `data` are."""
-    return problem_for(data).name
-
-
-def model_of(data: Any) -> nlls.PoseModel:
-    """The engine's model of the problem on these validated data (the camera's scale profiled out
+def model_of(problem: Problem, data: Any) -> nlls.PoseModel:
+    """The engine's model of `problem` on these validated data (the camera's scale profiled out
     when the data say it is unknown, `handeye.estimation.camera_scale`)."""
-    problem = problem_for(data)
     model = problem.pose_model(data)
     if model is None:
         raise InputError(f"problem {problem.name!r} gives no least-squares model of these data; refine cannot "
@@ -269,7 +254,8 @@ def is_planar(data: Any) -> bool:
     return getattr(data, "planar", None) is not None
 
 
-def start(data: Any, requested: str | None) -> tuple[str, tuple[np.ndarray, ...], Status, dict[str, Any], list[str]]:
+def start(problem: Problem, data: Any, requested: str | None
+          ) -> tuple[str, tuple[np.ndarray, ...], Status, dict[str, Any], list[str]]:
     """The starting poses (`flat_names` order): (solver name, poses, its status, its
     diagnostics, warnings).
 
@@ -280,7 +266,7 @@ def start(data: Any, requested: str | None) -> tuple[str, tuple[np.ndarray, ...]
     name is never replaced: its failure raises. Without any start registered and available, or
     when every start refused the data, the error asks for the start poses.
     """
-    problem, planar = problem_for(data), is_planar(data)
+    planar = is_planar(data)
     name_ = problem.name
     fields = options_for(problem).INIT_FIELDS
     poses_hint = f"give the start poses ({', '.join(fields)}) or init=<a registered solver>"
@@ -293,7 +279,7 @@ def start(data: Any, requested: str | None) -> tuple[str, tuple[np.ndarray, ...]
     passes = (SolverError, BackendUnavailableError, *problem.start_refusals)
     while True:
         try:
-            return (name, *run_init(name, data), warnings)
+            return (name, *run_init(problem, name, data), warnings)
         except passes as exc:
             failures.append((name, exc))
             fallback = (None if requested is not None else
@@ -308,12 +294,11 @@ def start(data: Any, requested: str | None) -> tuple[str, tuple[np.ndarray, ...]
             name = fallback
 
 
-def run_init(name: str, data: Any) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
+def run_init(problem: Problem, name: str, data: Any) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """Run registered solver `name` (default backend and options) on validated data through the
     host (`handeye.run_registered`): (poses in `flat_names` order, status, diagnostics)."""
     if name in RECURSIVE:
         raise InputError(f"init solver {name!r} would call refine recursively")
-    problem = problem_for(data)
     spec = get_registry().solver(name, problem.name)  # UnknownPluginError listing the solvers
     if is_planar(data) and not spec.planar_mode:
         raise InputError(f"init solver {name!r} has no planar (4-DOF) mode for data whose robot rotates about one "
@@ -337,16 +322,17 @@ def settings_of(options: Options, m: int) -> nlls.Settings:
                          int(options.max_iter), options.tol)
 
 
-def refine(data: Any, poses0: tuple[np.ndarray, ...], options: Options) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
+def refine(problem: Problem, data: Any, poses0: tuple[np.ndarray, ...], options: Options
+           ) -> tuple[tuple[np.ndarray, ...], Status, dict[str, Any]]:
     """Refine the poses poses0 (in the problem's order of unknowns) on validated `data` with
     `options` (the init options are not used here): (poses, status, diagnostics); with the
     camera's scale unknown also that scale and its standard deviation (`handeye.estimation.camera_scale`)."""
-    model = model_of(data)
+    model = model_of(problem, data)
     settings = settings_of(options, data.m)
     if isinstance(model, camera_scale.ScaledCameraModel) and settings.W is not None and settings.W.L is not None:
         raise InputError("with camera_scale='unknown' give the noise as sigma_rot/sigma_trans (or let it be estimated), "
                          "not as a covariance: the camera's scale is fitted under one sigma per residual group")
-    if options.noise == "sources" and not sources_apply(data, options):
+    if options.noise == "sources" and not sources_apply(problem, data, options):
         raise InputError("noise='sources' takes A_i X = Y B_i data with the camera's scale known, the noise "
                              "estimated (no sigma_rot, sigma_trans or covariance) and loss='linear'; use noise='groups'")
     return fit(model, data, poses0, settings, options.noise)
@@ -369,17 +355,17 @@ def fit(model: nlls.PoseModel, data: Any, poses0: tuple[np.ndarray, ...], settin
     return poses, status, diagnostics
 
 
-def sources_apply(data: Any, options: Options) -> bool:
+def sources_apply(problem: Problem, data: Any, options: Options) -> bool:
     """Whether the noise-source model (`handeye.estimation.noise_sources`) applies: a model whose residuals
     it describes (`PoseModel.noise_sources`: A_i X = Y B_i), the camera's scale known, the noise
     estimated, least squares."""
-    return (getattr(problem_for(data).pose_model(data), "noise_sources", False)
+    return (getattr(problem.pose_model(data), "noise_sources", False)
             and not getattr(data, "camera_scale_unknown", False)
             and options.sigma_rot is None and options.covariance is None and options.loss == "linear")
 
 
-def run(data: Any, options: Options, backend: str) -> SolverOutput:
-    problem = problem_for(data)
+def run(data: Any, options: Options, backend: str, problem: Problem) -> SolverOutput:
+    """refine on `problem`'s validated data (`spec_for` hands each problem's spec its problem)."""
     given = options.start_poses()
     if given is not None:
         init_name, init_status, init_diag, warnings = "given", None, {}, []
@@ -387,8 +373,8 @@ def run(data: Any, options: Options, backend: str) -> SolverOutput:
         if is_planar(data):
             poses0 = data.planar.constrain(options.UNKNOWNS, poses0)
     else:
-        init_name, poses0, init_status, init_diag, warnings = start(data, options.init)
-    poses, status, diagnostics = refine(data, poses0, options)
+        init_name, poses0, init_status, init_diag, warnings = start(problem, data, options.init)
+    poses, status, diagnostics = refine(problem, data, poses0, options)
     if is_planar(data):
         warnings.insert(0, data.planar.warning())
         diagnostics["planar"] = data.planar.figures()
@@ -431,7 +417,7 @@ def spec_for(problem: Problem) -> SolverSpec:
     return SolverSpec(
         name="refine",
         problems=(problem.name,),
-        run=run,
+        run=functools.partial(run, problem=problem),
         options=options_for(problem),
         summary=f"maximum-likelihood refinement of {problem.equation or problem.name} on SE(3)^k "
                 "(Levenberg-Marquardt, robust losses)",

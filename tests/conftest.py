@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 import shutil
 import tomllib
 from collections.abc import Callable, Iterator
@@ -27,6 +28,10 @@ from typing import Any
 import numpy as np
 import pytest
 from hypothesis import settings
+
+#: the suite never reads or writes the user's detection cache (~/.cache/handeye); a test that wants
+#: a cache removes this and sets HANDEYE_CACHE_DIR to a temporary folder
+os.environ["HANDEYE_NO_CACHE"] = "1"
 
 import handeye
 from handeye import SolverOutput, hookimpl

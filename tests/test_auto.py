@@ -76,17 +76,17 @@ def test_uncertified_start_triggers_a_second_start(noisy, monkeypatch):
     real_init, real_refine = refine.run_init, refine.refine
     from handeye.geometry.se3 import make_pose, so3_exp
 
-    def uncertified(name, d):
-        (X, Y), status, diag = real_init(name, d)
+    def uncertified(problem, name, d):
+        (X, Y), status, diag = real_init(problem, name, d)
         if name == "so3-sdp":
             X = make_pose(X[:3, :3] @ so3_exp([2.5, 0.0, 0.0]), X[:3, 3] + 500.0)
             return (X, Y), Status.UNCERTIFIED, {**diag, "certified": False}
         return (X, Y), status, diag
 
-    def truncated(d, poses0, options):
+    def truncated(problem, d, poses0, options):
         if np.abs(poses0[0][:3, 3] - truth["X"][:3, 3]).max() > 100.0:  # the faked far start
             options = dataclasses.replace(options, max_iter=1)
-        return real_refine(d, poses0, options)
+        return real_refine(problem, d, poses0, options)
 
     monkeypatch.setattr(refine, "run_init", uncertified)
     monkeypatch.setattr(refine, "refine", truncated)
@@ -128,10 +128,10 @@ def test_a_failing_default_start_falls_back_to_kron_lstsq(noisy, monkeypatch, so
     data, _ = noisy
     real = refine.run_init
 
-    def failing(name, d):
+    def failing(problem, name, d):
         if name == "so3-sdp":
             raise SolverError("so3-sdp: Clarabel returned status 'infeasible' for the relaxation")
-        return real(name, d)
+        return real(problem, name, d)
 
     monkeypatch.setattr(refine, "run_init", failing)
     monkeypatch.setattr(refine, "default_init", lambda problem: "so3-sdp")
@@ -199,8 +199,8 @@ def test_auto_axxb_uncertified_start_triggers_a_second_start(monkeypatch):
     data, truth = AXXB.simulate(pairs=17, seed=18, noise=AXXB_NOISE, pairing="consecutive")
     real_init = refine.run_init
 
-    def uncertified(name, d):
-        poses, status, diag = real_init(name, d)
+    def uncertified(problem, name, d):
+        poses, status, diag = real_init(problem, name, d)
         if name == start:
             return poses, Status.UNCERTIFIED, {**diag, "certified": False}
         return poses, status, diag
@@ -251,9 +251,9 @@ def test_auto_axxb_stations_without_a_certified_start_run_the_axyb_pipeline(monk
     data = motions(stations["A"], inverse(stations["B"]))
     real_init = refine.run_init
 
-    def uncertified_on_motions(name, d):
-        poses, status, diag = real_init(name, d)
-        if refine.problem_of(d) == "axxb":
+    def uncertified_on_motions(problem, name, d):
+        poses, status, diag = real_init(problem, name, d)
+        if problem.name == "axxb":
             return poses, Status.UNCERTIFIED, {**diag, "certified": False}
         return poses, status, diag
 

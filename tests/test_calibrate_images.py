@@ -141,6 +141,7 @@ def test_no_cache_leaves_the_cache_empty_and_workers_change_nothing(eye_to_hand,
     folder, _ = eye_to_hand
     cache = tmp_path / "cache"
     monkeypatch.setenv("HANDEYE_CACHE_DIR", str(cache))
+    monkeypatch.delenv("HANDEYE_NO_CACHE", raising=False)
     argv = ["calibrate", "--images", folder / "images", "--board", BOARD_SPEC, "--intrinsics", folder / "camera.yaml",
             "--robot", folder / "robot.csv", "--robot-format", "matrix", "--robot-unit", "mm", "--setup",
             "eye-to-hand", "--json"]

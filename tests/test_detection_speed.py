@@ -136,11 +136,14 @@ def test_a_cache_hit_is_identical_and_a_changed_image_or_board_misses(tmp_path, 
     assert not off.exists()
 
 
-def test_under_pytest_the_users_cache_is_never_used(monkeypatch):
+def test_the_cache_is_the_users_own_folder_unless_switched_off(monkeypatch, tmp_path):
     from handeye.vision.detection_cache import default_dir
 
     monkeypatch.delenv("HANDEYE_CACHE_DIR", raising=False)
     monkeypatch.delenv("HANDEYE_NO_CACHE", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert default_dir() == tmp_path / "handeye"
+    monkeypatch.setenv("HANDEYE_NO_CACHE", "1")  # as the suite runs (tests/conftest.py)
     assert default_dir() is None and DetectionCache.resolve(None) is None
     assert DetectionCache.resolve(False) is None
 

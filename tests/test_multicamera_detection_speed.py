@@ -102,6 +102,7 @@ def test_a_rerun_reads_every_detection_from_the_cache_and_gives_the_same_answer(
     cache and one on two threads."""
     cache = tmp_path / "cache"
     monkeypatch.setenv("HANDEYE_CACHE_DIR", str(cache))
+    monkeypatch.delenv("HANDEYE_NO_CACHE", raising=False)
     cell = Cell.from_file(charuco_cell)
     first = answer(handeye.calibrate(cell, workers=2))
     assert sum(counted) == 2 * STATIONS * 2
@@ -122,6 +123,7 @@ def test_no_cache_writes_nothing_and_a_folder_given_is_used(charuco_cell, tmp_pa
     fills that folder."""
     cache = tmp_path / "cache"
     monkeypatch.setenv("HANDEYE_CACHE_DIR", str(cache))
+    monkeypatch.delenv("HANDEYE_NO_CACHE", raising=False)
     cell = Cell.from_file(charuco_cell)
     robot = PoseStack(np.tile(np.eye(4), (STATIONS, 1, 1)), "mm", "matrix", tuple(f"{i:02d}" for i in range(STATIONS)),
                       None, None, "robot")
@@ -168,6 +170,7 @@ def test_cli_workers_and_no_cache_on_a_cell_of_several_cameras(charuco_cell, tmp
     answers are the same; ``--workers 0`` is one line, exit 2, before anything is read."""
     cache = tmp_path / "cache"
     monkeypatch.setenv("HANDEYE_CACHE_DIR", str(cache))
+    monkeypatch.delenv("HANDEYE_NO_CACHE", raising=False)
     argv = ["calibrate", "--config", str(charuco_cell), "--json"]
     assert main([*argv, "--no-cache", "--workers", "1"]) == 0
     uncached = json.loads(capsys.readouterr().out)

@@ -463,7 +463,7 @@ def test_axbycz_is_served_with_three_start_poses():
 
     data, truth = AXBYCZ.simulate(pairs=8, seed=4, noise=NoiseModel.on(("A", "B", "C"), 0.002, 0.2))
     d = AXBYCZ.validate(**data)
-    assert R.problem_of(d) == "axbycz" and R.options_for(handeye.get_registry().problem("axbycz")).UNKNOWNS == ("X", "Y", "Z")
+    assert handeye.get_registry().problem_of(d).name == "axbycz" and R.options_for(handeye.get_registry().problem("axbycz")).UNKNOWNS == ("X", "Y", "Z")
     assert R.default_init("axbycz") == "wang"
     a = handeye.solve("axbycz", solver="refine", init=truth, **data)
     b = handeye.solve("axbycz", solver="refine", init_X=truth["X"], init_Y=truth["Y"], init_Z=truth["Z"], **data)

@@ -164,10 +164,10 @@ def test_compiled_problem_reused():
     assert so3_sdp.cvxpy_problem(True, "CLARABEL") is problem
     # backend clarabel: its constant data built once per (constraint set, rotations)
     handeye.solve("axyb", solver="so3-sdp", **SDP, **data)
-    builds, sdp = so3_sdp.clarabel_builds, so3_sdp.clarabel_problem(True, 2)
+    builds, sdp = so3_sdp.CLARABEL_CACHE.builds, so3_sdp.clarabel_problem(True, 2)
     sol = handeye.solve("axyb", solver="so3-sdp", **SDP, backend="clarabel", **simulate(9, seed=6)[0])
     assert sol.backend == "clarabel" and sol.diagnostics["compile_seconds"] == 0.0
-    assert so3_sdp.clarabel_builds == builds and so3_sdp.clarabel_problem(True, 2) is sdp
+    assert so3_sdp.CLARABEL_CACHE.builds == builds and so3_sdp.clarabel_problem(True, 2) is sdp
     assert so3_sdp.clarabel_problem(True, 1) is not sdp and so3_sdp.clarabel_problem(False, 2) is not sdp
 
 

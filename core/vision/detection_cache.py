@@ -11,8 +11,8 @@ or whose header names another key, is a miss (and removed). Unreadable image fil
 
 Where: `HANDEYE_CACHE_DIR` if set, else the user's cache folder (``$XDG_CACHE_HOME/handeye`` or
 ``~/.cache/handeye``; ``~/Library/Caches/handeye`` on macOS, ``%LOCALAPPDATA%/handeye/cache`` on
-Windows). Off with `HANDEYE_NO_CACHE=1` (or ``cache=False`` in the library call). Under pytest the
-user's folder is never used: a test that wants a cache sets `HANDEYE_CACHE_DIR` to a temporary dir.
+Windows). Off with `HANDEYE_NO_CACHE=1` (or ``cache=False`` in the library call); the test suite
+switches it off (tests/conftest.py), and a test that wants a cache gives a temporary folder.
 """
 
 from __future__ import annotations
@@ -49,8 +49,6 @@ def default_dir() -> Path | None:
         return None
     if os.environ.get(DIR_VARIABLE):
         return Path(os.environ[DIR_VARIABLE])
-    if "PYTEST_CURRENT_TEST" in os.environ:  # tests never write into the user's own cache
-        return None
     if sys.platform == "win32" and os.environ.get("LOCALAPPDATA"):
         return Path(os.environ["LOCALAPPDATA"]) / "handeye" / "cache"
     if sys.platform == "darwin":

@@ -56,12 +56,6 @@ SPEC_MULTI = multi.SPEC
 run_multi = multi.run
 
 
-def __getattr__(name: str) -> Any:
-    """``clarabel_builds``: read live from `single` (a counter, which a re-export would freeze)."""
-    if name == "clarabel_builds":
-        return single.clarabel_builds
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
 
 @hookimpl
 def register_solvers(register: Any, problems: Mapping[str, Any]) -> None:

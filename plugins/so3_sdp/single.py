@@ -137,11 +137,6 @@ class Options:
 # SDP backends: each returns (Z, nu, info) with nu such that S(nu) = M - sum_j nu_j A_j is the
 # dual slack (PSD at the dual optimum) and b^T nu the dual objective.
 
-#: How many times the Clarabel data were built (once per constraint set and number of rotations
-#: per process).
-clarabel_builds = 0
-
-
 def clarabel_problem(redundant: bool, rotations: int = 2) -> DualSDP:
     """The relaxation's Lagrangian dual for `rotations` rotations (2: ``axyb``, 1: ``axxb``) in
     Clarabel's form (`handeye.plugins._sdp_backends.DualSDP`): everything but M, built once per
@@ -150,8 +145,6 @@ def clarabel_problem(redundant: bool, rotations: int = 2) -> DualSDP:
 
 
 def _build_clarabel_problem(redundant: bool, rotations: int) -> DualSDP:
-    global clarabel_builds
-    clarabel_builds += 1  # under the cache's lock
     return DualSDP.build(*constraint_matrices(rotations, redundant))
 
 

@@ -30,12 +30,8 @@ from typing import Any
 import numpy as np
 
 import handeye
-from handeye.estimation.nlls import PoseModel
-from handeye.framework.problem import Frame, StationReader, pose_discrepancy
-from handeye.geometry import so3_fast
-from handeye.geometry.kinematics import random_flange_poses
-from handeye.geometry.se3 import inverse, make_pose
-from handeye.geometry.validation import pose_stack
+from handeye import Frame, PoseModel, StationReader, pose_discrepancy
+from handeye.geometry import inverse, make_pose, pose_stack, random_flange_poses, so3_fast
 
 NAME = "registration"
 SOLVER = "registration-mean"
