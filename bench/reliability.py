@@ -16,7 +16,7 @@ uncertainty when `auto` happened to land unusually close). The silent wrong solv
 given in units of `auto`'s 1-sigma.
 
 Prints one row per kind and problem and the totals; exit status 1 when a silent wrong solve is
-found. A benchmark, not a test (tests/test_properties.py runs a small seeded part of it).
+found. A benchmark, not a test (tests/host/test_properties.py runs a small seeded part of it).
 """
 
 from __future__ import annotations

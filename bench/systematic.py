@@ -10,7 +10,7 @@ of the joint readings, the true flange poses those of the arm with DH errors), i
 (offsets and twists 0.1-0.5 deg, a and d 0.2-1 mm, random signs) times a factor, joint noise
 0.005 deg, camera noise 0.002 rad / 0.5 mm; solved as `axyb` by `auto`, the warning read from the
 answer's self-check. False alarms: `axyb`'s simulator with plain noise, robot and camera noise,
-a camera's rotation noise in the board's frame (a lever arm of ~1 m: tests/test_noise_sources.py),
+a camera's rotation noise in the board's frame (a lever arm of ~1 m: tests/estimation/test_noise_sources.py),
 a robot's rotation noise in the base frame (lever arm: the flange's distance from the base) and
 heavy noise, at 8 to 60 stations.
 """

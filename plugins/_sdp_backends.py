@@ -35,7 +35,7 @@ relaxation). A primal-dual interior-point method returns both from one solve.
 svec (Clarabel's convention, `PSDTriangleConeT`): the upper triangle stacked column by column,
 (0,0), (0,1), (1,1), (0,2), (1,2), (2,2), ..., off-diagonal entries multiplied by sqrt(2), so that
 svec(X) . svec(Y) = <X, Y> = trace(X Y) for symmetric X, Y. `unsvec` inverts it. Tested against
-an SDP with a known answer (tests/test_so3_sdp.py).
+an SDP with a known answer (tests/plugins/test_so3_sdp.py).
 
 Everything that does not depend on C (A as a CSC matrix, q, the cone, the svec indices) is built
 once (`DualSDP.build`); a solve forms svec C and one `clarabel.DefaultSolver`. A `DualSDP` is

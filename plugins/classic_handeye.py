@@ -5,7 +5,7 @@ Each takes relative motions A, B: (m, 4, 4) with A_i X = X B_i (problem ``axxb``
 absolute poses by `handeye.problems.axxb.motions`) and returns X: (4, 4), exactly in SE(3). Each
 follows its paper's equations and, where the paper leaves a choice open, the choice OpenCV 4.14
 makes (read in modules/calib3d/src/calibration_handeye.cpp), so that on the same motions our X
-equals OpenCV's to ~1e-13 (tests/test_classic_handeye.py checks 1e-9). OpenCV itself does not take motions: it takes n absolute poses G_k = T_base_gripper,
+equals OpenCV's to ~1e-13 (tests/plugins/test_classic_handeye.py checks 1e-9). OpenCV itself does not take motions: it takes n absolute poses G_k = T_base_gripper,
 C_k = T_cam_target and forms EVERY pair i < j (i outer, j inner), A = inv(G_j) G_i,
 B = C_j inv(C_i), the motions of ``motions(..., pairing="all")``. The steps OpenCV adds to the
 papers, reproduced here:

@@ -42,7 +42,7 @@ the skew part of P, and tr([w] P) = -2 w . vee(P), [a]^T G [b] traced = a^T (tr 
 
 (No orthogonality of the data's R_A, R_B is assumed, only of the iterate.) So an iteration costs
 O(1) whatever m; only the rotation cost C reported in the diagnostics is evaluated pair by pair.
-tests/test_iterative.py checks these forms against the explicit stacked F~ of eq. 17.
+tests/plugins/test_iterative.py checks these forms against the explicit stacked F~ of eq. 17.
 
 Initial value (`init`): ``"kron-lstsq"`` (default) starts from the closed-form least-squares
 rotations of eq. 8 (normalised translations, SVD projection, as the `kron-lstsq` solver), from

@@ -30,7 +30,7 @@ re-solved), as in the method.
 Option ``normalize`` (default True): translations divided by the data's RMS translation before
 the system is built, translations of the answer multiplied back: unit invariant. With
 ``normalize=False`` this is exactly OpenCV's CALIB_ROBOT_WORLD_HAND_EYE_LI (which does not
-normalise; tests/test_shah_li.py checks equality to 1e-9). Without normalisation, data in mm give
+normalise; tests/plugins/test_shah_li.py checks equality to 1e-9). Without normalisation, data in mm give
 the translation rows ~10^3 times the weight of the rotation rows.
 """
 

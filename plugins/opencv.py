@@ -6,14 +6,14 @@ in these slots and the answers come back from these (docs/conventions.md):
     A_i -> R_world2cam, t_world2cam        B_i -> R_base2gripper, t_base2gripper
     X   <- R_base2world, t_base2world      Y   <- R_gripper2cam, t_gripper2cam
 
-(checked by tests/test_opencv.py: noise-free data are recovered to ~1e-12).
+(checked by tests/plugins/test_opencv.py: noise-free data are recovered to ~1e-12).
 
 Option ``method``: ``"shah"`` (default; CALIB_ROBOT_WORLD_HAND_EYE_SHAH, Shah 2013: rotations from
 the SVD of sum_i R_Bi kron R_Ai, then translations by least squares) or ``"li"``
 (CALIB_ROBOT_WORLD_HAND_EYE_LI, Li, Wang, Wu 2010: rotations and translations together by least
 squares on the Kronecker system, which is the paper's eq. 8 without normalisation). The method is
 always passed to OpenCV by keyword. handeye's own NumPy `shah` and `li` plugins implement the same
-methods (tests/test_shah_li.py checks equality to 1e-9 through this plugin).
+methods (tests/plugins/test_shah_li.py checks equality to 1e-9 through this plugin).
 
 Unit invariance is declared for method "shah" only: SHAH's rotations use the rotations only and
 its translations enter linearly (measured with translations scaled by 1e-3 and 1e3: rotations
@@ -34,7 +34,7 @@ takes absolute poses G_k = T_base_gripper (gripper2base) and C_k = T_cam_target 
 forms every pair i < j itself, A = inv(G_j) G_i and B = C_j inv(C_i), and returns X =
 T_gripper_cam (cam2gripper). Given motions, `stations` rebuilds absolute poses whose pairs are
 those motions, so that the answer equals OpenCV's on the user's own poses (measured <= 1e-13;
-tests/test_classic_handeye.py checks 1e-9):
+tests/plugins/test_classic_handeye.py checks 1e-9):
 - motions of every pair of n stations in OpenCV's order (``motions(..., pairing="all")``, the
   default): the stations rebuilt by `AXXBData.stations` (G_0 = H_0 = I, G_j = inv(A_(0,j)),
   H_j = B_(0,j) from the first n - 1 motions, checked against all of them);

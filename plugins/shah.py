@@ -15,7 +15,7 @@ common sign of the singular pair, as det(-M) = -det(M) -- and taking the orthogo
 paper's eqs. 20-21): [R_Ai, -I] [t_X; t_Y] = R_Y t_Bi - t_Ai.
 
 This is the method OpenCV implements as CALIB_ROBOT_WORLD_HAND_EYE_SHAH
-(`cv2.calibrateRobotWorldHandEye`); tests/test_shah_li.py checks equality to 1e-9.
+(`cv2.calibrateRobotWorldHandEye`); tests/plugins/test_shah_li.py checks equality to 1e-9.
 Rotations depend on rotations only and translations enter linearly, so the solver is unit
 invariant.
 """

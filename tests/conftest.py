@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import shutil
+import sys
 import tomllib
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -32,6 +33,12 @@ from hypothesis import settings
 #: the suite never reads or writes the user's detection cache (~/.cache/handeye); a test that wants
 #: a cache removes this and sets HANDEYE_CACHE_DIR to a temporary folder
 os.environ["HANDEYE_NO_CACHE"] = "1"
+
+#: the tests mirror the layers (tests/<layer>/, tests/problems/<name>/) and share helpers by module
+#: name (`from test_streams import cell`): every folder of tests/ is importable from any test
+for _folder in sorted({path.parent for path in Path(__file__).parent.rglob("test_*.py")}, reverse=True):
+    if str(_folder) not in sys.path:
+        sys.path.insert(0, str(_folder))
 
 import handeye
 from handeye import SolverOutput, hookimpl

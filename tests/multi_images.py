@@ -2,7 +2,7 @@
 ChArUco boards (disjoint marker ids) on the flange, eye-to-hand, rendered at a few robot stations
 (`handeye.vision.render.render_boards`), with the robot's pose file, the cameras' intrinsics and a
 cell file; the truth (X per board = T_flange_board, Y per camera = T_base_cam) returned with it.
-Shared by tests/test_axyb_multi_images.py.
+Shared by tests/problems/axyb_multi/test_axyb_multi_images.py.
 """
 
 from __future__ import annotations

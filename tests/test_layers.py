@@ -77,3 +77,20 @@ def test_the_example_problem_imports_only_the_public_face():
             imported.update(alias.name for alias in node.names)
     handeye_modules = {m for m in imported if m.split(".")[0] == "handeye"}
     assert handeye_modules == {"handeye", "handeye.geometry"}, handeye_modules
+
+
+def test_the_tests_mirror_the_layers():
+    """Each test lives in the folder of the layer it tests (tests/<layer>/, tests/problems/<name>/);
+    only the house's own tests (this file, the user-facing text) stay at the top."""
+    import tomllib
+
+    layers = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["layers"]["order"])
+    problems = {p.name for p in (ROOT / "problems").iterdir() if (p / "__init__.py").is_file()}
+    misplaced = []
+    for path in (ROOT / "tests").rglob("test_*.py"):
+        parts = path.relative_to(ROOT / "tests").parts[:-1]
+        if not (parts == () and path.name in ("test_layers.py", "test_user_text.py")
+                or len(parts) == 1 and parts[0] in layers
+                or len(parts) == 2 and parts[0] == "problems" and parts[1] in problems):
+            misplaced.append(str(path.relative_to(ROOT)))
+    assert not misplaced, misplaced

@@ -84,7 +84,7 @@ def test_axyb_rotations_about_one_axis(solver):
     with pytest.raises(DegenerateDataError) as info:
         handeye.solve("axyb", A=A, B=B, solver=solver)
     # one axis, translations across it: a planar robot, whose one undetermined translation the
-    # user can give (tests/test_planar.py)
+    # user can give (tests/problems/test_planar.py)
     _assert_plain(str(info.value), "translations of X and Y along that axis cannot be determined", "tz_X=",
                   "record poses that rotate about at least two different axes")
 

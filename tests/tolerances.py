@@ -1,4 +1,4 @@
-"""Tolerances of the shared solver suite (tests/test_solvers.py), keyed by (problem, solver, regime).
+"""Tolerances of the shared solver suite (tests/plugins/test_solvers.py), keyed by (problem, solver, regime).
 
 Regimes:
 - "noise_free": random X, Y (`random_truth`), exact simulated data; rotation error [rad] and

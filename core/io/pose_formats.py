@@ -12,7 +12,7 @@ cameras") states each preset's convention and the source it was checked against.
 Why a table of formats: the conventions differ in one letter case (``'xyz'`` extrinsic vs
 ``'XYZ'`` intrinsic) and mixing them up gives rotations that look plausible and are wrong, so
 each convention is written once, here, and tested against an explicit product of elementary
-rotations (tests/test_pose_readers.py).
+rotations (tests/io/test_pose_readers.py).
 
 Reading files (CSV, JSON, YAML, NPZ), column selection, units and orthonormalisation live in
 `handeye.io.pose_readers`.

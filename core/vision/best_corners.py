@@ -57,7 +57,7 @@ AGREE_PX = 1.0
 ROUNDS = 3
 #: an image leaves the set's preferred detector for another only when that one's residual is this
 #: much (fraction) smaller: the RMS of one image's few dozen points scatters by ~10 %, so smaller
-#: differences are noise (measured: tests/test_vision_best_corners.py, docs/boards.md)
+#: differences are noise (measured: tests/vision/test_vision_best_corners.py, docs/boards.md)
 SWITCH = 0.2
 
 

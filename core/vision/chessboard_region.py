@@ -50,7 +50,7 @@ differently. Measured (OpenCV 4.14), crop against full image:
   kept, before or after: the kept corners, K and dist bit-identical.
 
 The cornerSubPix candidate refined from SB's corners moves by 0.0003 px at most.
-tests/test_detection_speed.py checks the agreement, the truth and the fall-backs on renders.
+tests/vision/test_detection_speed.py checks the agreement, the truth and the fall-backs on renders.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@ machine's cores: detecting a board is nearly all of the time an image set takes,
 independent of each other.
 
 `run(items, workers=...)` returns one `Outcome` per item, in the items' order whatever order they
-finish in, the same to the last bit as a serial run (tests/test_detection_speed.py).
+finish in, the same to the last bit as a serial run (tests/vision/test_detection_speed.py).
 
 Threads, not processes: OpenCV's detectors release Python's global lock while they run, so
 `workers` threads detect on as many cores. Measured on 30 rendered 1.3 MP chessboard images on

@@ -30,7 +30,7 @@ u - rest >= |R1 beta - q1|^2. Its optimum is therefore u* = rest and beta* = R1^
 ordinary least-squares solution of eq. 8 (the same beta as `kron-lstsq`, and as OpenCV's
 CALIB_ROBOT_WORLD_HAND_EYE_LI before its rotation normalisation). The SDP adds no information;
 the method differs from `kron-lstsq` only in the Gram-Schmidt step and in keeping the
-translations of beta. tests/test_lmi_sdp.py checks beta of every SDP backend against
+translations of beta. tests/plugins/test_lmi_sdp.py checks beta of every SDP backend against
 `KroneckerSystem.least_squares`.
 
 Numerics (the feasible set and the optimum are unchanged; docs/solvers/lmi-sdp.md has numbers):

@@ -25,9 +25,9 @@ and the translation discrepancy, with R exp([w]_x) p = R p + R (w x p) to first 
     d t / d omega_Z = 0                         d t / d v_Z = -R_Y R_C R_Z
 
 (Jl^-1, Jr^-1 = (Jl^-1)^T: the inverse left / right Jacobians of SO(3), `handeye.geometry.so3_fast`).
-Checked against central differences in tests/test_axbycz_problem.py. From `SUMS_MIN_PAIRS`
+Checked against central differences in tests/problems/axbycz/test_axbycz_problem.py. From `SUMS_MIN_PAIRS`
 triples on, the normal equations for per-group sigmas are summed in closed form
-(`AXBYCZModel.normal_equations`, equal to the Jacobian's to rounding: tests/test_axbycz_speed.py)
+(`AXBYCZModel.normal_equations`, equal to the Jacobian's to rounding: tests/problems/axbycz/test_axbycz_speed.py)
 instead of from the (m, 6, 18) Jacobian.
 """
 
@@ -133,7 +133,7 @@ class AXBYCZModel(PoseModel):
         N = R_Y R_C R_Z. Translation rows (F = -R_AX [t_B]_x, R_AX, R_Y [p]_x, -R_Y, -N on omega_X,
         v_X, omega_Y, v_Y, v_Z; p = R_C t_Z + t_C): F_a^T F_b reduce to [t_B]_x^T [t_B]_x, [t_B]_x,
         G = R_AX^T R_Y and their products with [p]_x and R_C R_Z (`_translation_terms`). Equal to
-        the Jacobian's to rounding for rotations orthonormal to rounding (tests/test_axbycz_speed.py;
+        the Jacobian's to rounding for rotations orthonormal to rounding (tests/problems/axbycz/test_axbycz_speed.py;
         the data's are orthonormal to `handeye.geometry.se3.ORTHONORMALITY_TOL`, and Hw to that order, while
         the gradient uses no orthonormality); faster from `SUMS_MIN_PAIRS` on.
         """

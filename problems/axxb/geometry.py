@@ -11,7 +11,7 @@ built: `AXXBModel` shares `AXYBModel`'s arrangement of the data and its residual
 (X, X)). X is perturbed on the right, X <- X exp(xi), xi = (omega, v). With
 Q_i = R_A R_X R_B^T R_X^T = exp([r_i]_x), X exp(omega) changes Q to
 exp([R_A R_X omega]_x) Q exp(-[R_X omega]_x) to first order, so (derivation in
-docs/solvers/refine.md, checked against central differences in tests/test_refine.py)
+docs/solvers/refine.md, checked against central differences in tests/plugins/test_refine.py)
 
     d r / d omega = Jl^-1(r) R_A R_X - Jr^-1(r) R_X      d r / d v = 0
     d t / d omega = R_X [t_B]_x                          d t / d v = (R_A - I) R_X

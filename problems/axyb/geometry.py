@@ -8,7 +8,7 @@ One 6-vector per pair (the per-pair quantities of the paper's eqs. 32-33, as vec
 
 Unknowns are perturbed on the right, X <- X exp(xi_X), xi = (omega, v) (engine's `retract`).
 With Q_i = R_A R_X R_B^T R_Y^T = exp([r_i]_x) (derivation in docs/solvers/refine.md, checked
-against central differences in tests/test_refine.py):
+against central differences in tests/plugins/test_refine.py):
 
     d r / d omega_X = Jl^-1(r) R_A R_X        d r / d omega_Y = -Jr^-1(r) R_Y
     d t / d v_X     = R_A R_X                 d t / d omega_Y = R_Y [t_B]_x

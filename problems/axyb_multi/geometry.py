@@ -42,7 +42,7 @@ from handeye.geometry import so3_fast
 #: instead of from the (m, 6, 6n) Jacobian from SUMS_WORK / n observations on (n = nX + nY): the
 #: Jacobian route costs ~m (6n)^2, the sums ~m 12^2 plus a fixed ~0.2 ms. Measured (one evaluation
 #: of g and H): break-even near m = 240 for n = 5, 130 for n = 9, 50 for n = 24; at m = 3000,
-#: n = 24: 3 ms against 30 ms (tests/test_axyb_multi_problem.py checks that both agree to rounding).
+#: n = 24: 3 ms against 30 ms (tests/problems/axyb_multi/test_axyb_multi_problem.py checks that both agree to rounding).
 SUMS_WORK = 1200
 
 
