@@ -66,7 +66,8 @@ def render_chessboard_set(folder: Path) -> Path:
     from scipy.spatial.transform import Rotation
 
     from handeye.geometry.se3 import inverse, make_pose
-    from handeye.io.pose_readers import PoseStack, write_poses
+    from handeye.io.pose_readers import PoseStack
+    from handeye.io.pose_writers import write_poses
     from handeye.vision.boards import parse_board
     from handeye.vision.observations import Camera
     from handeye.vision.render import render

@@ -42,7 +42,7 @@ def write_cell(folder: Path, stations: int, mistake: str, seed: int) -> list[str
     """Robot and camera files of a simulated cell with `mistake`; the calibrate arguments that read them."""
     from handeye.estimation.noise import NoiseModel
     from handeye.geometry.se3 import inverse
-    from handeye.io.pose_readers import write_poses
+    from handeye.io.pose_writers import write_poses
     from handeye.problems.axxb import simulate_stations
 
     noise = NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)})

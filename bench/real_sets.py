@@ -38,7 +38,7 @@ from handeye.geometry.motions import relative_motions
 from handeye.geometry.se3 import rotation_angle
 from handeye.host.api import run_registered
 from handeye.host.registry import get_registry
-from handeye.io.pose_readers import write_poses
+from handeye.io.pose_writers import write_poses
 from handeye.plugins.reprojection import held_out
 from handeye.problems.axyb.geometry import fitted_Y
 from handeye.workflow.cell import Cell, Images, Matching, PoseStream

@@ -41,7 +41,8 @@ from handeye.base.errors import (
 from handeye.estimation.pose_model import PoseModel
 from handeye.framework.hookspecs import hookimpl
 from handeye.framework.options import NoOptions
-from handeye.framework.problem import Frame, Problem, StationReader, pose_discrepancy
+from handeye.framework.problem import Problem, pose_discrepancy
+from handeye.framework.problem_cell import Frame, StationReader
 from handeye.framework.solution import Solution, SolverOutput, Status
 from handeye.framework.solver import SolverSpec
 from handeye.host.api import run_registered, solve

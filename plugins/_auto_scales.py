@@ -32,7 +32,6 @@ import numpy as np
 
 from handeye import SolverOutput
 from handeye.base.errors import HandEyeError
-from handeye.plugins import refine as _refine
 
 #: contiguous blocks of the stations held out in turn
 HELD_OUT_BLOCKS = 5

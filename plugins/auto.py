@@ -66,7 +66,8 @@ from handeye.estimation import lm_objective, noise_sources
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, OUTLIER_CHI2
 from handeye.estimation.whitening import Whitening
 from handeye.framework.options import check_choice
-from handeye.framework.problem import Problem, unflatten
+from handeye.framework.problem import Problem
+from handeye.framework.problem_engine import unflatten
 from handeye.framework.solution import jsonable
 from handeye.plugins import _auto_outliers as far_off
 from handeye.plugins import _auto_scales as cell_scales

@@ -67,7 +67,8 @@ from handeye.estimation import camera_scale, nlls, noise_sources
 from handeye.estimation.robust import DEFAULT_LOSS_SCALE, LOSSES
 from handeye.estimation.whitening import covariance_factor, stated
 from handeye.framework.options import check_choice, check_int, check_positive
-from handeye.framework.problem import Problem, flatten, unflatten
+from handeye.framework.problem import Problem
+from handeye.framework.problem_engine import flatten, unflatten
 from handeye.framework.solution import jsonable
 from handeye.geometry.validation import float_array, pose_stack
 from handeye.host.registry import get_registry
@@ -249,6 +250,15 @@ def fallback_init(problem: str, after: str, planar: bool = False) -> str | None:
     return next((name for name in later if _available(name, problem, planar)), None)
 
 
+def able_start(problem: str, data: Any) -> str:
+    """The first of the starts of `problem` that is registered, available here and able to solve
+    validated `data` (`SolverSpec.cannot_solve`); else the last of them."""
+    starts = starts_of(problem)
+    solvers = get_registry().solvers
+    return next((name for name in starts if _available(name, problem)
+                 and solvers[name][problem].cannot_solve(data) is None), starts[-1])
+
+
 def is_planar(data: Any) -> bool:
     """Whether validated data are in the planar mode (`handeye.problems.planar`)."""
     return getattr(data, "planar", None) is not None
@@ -300,12 +310,9 @@ def run_init(problem: Problem, name: str, data: Any) -> tuple[tuple[np.ndarray, 
     if name in RECURSIVE:
         raise InputError(f"init solver {name!r} would call refine recursively")
     spec = get_registry().solver(name, problem.name)  # UnknownPluginError listing the solvers
-    if is_planar(data) and not spec.planar_mode:
-        raise InputError(f"init solver {name!r} has no planar (4-DOF) mode for data whose robot rotates about one "
-                         f"axis; use init='{default_init(problem.name, planar=True)}'")
-    if getattr(data, "camera_scale_unknown", False) and not spec.camera_scale_mode:
-        raise InputError(f"init solver {name!r} takes the camera's translations as metric; for "
-                         "camera_scale='unknown' use init='so3-sdp'")
+    unable = spec.cannot_solve(data)
+    if unable:
+        raise InputError(f"init solver {name!r} {unable}; use init='{able_start(problem.name, data)}'")
     reason = spec.unavailable_reason(spec.default_backend)
     if reason:
         raise BackendUnavailableError(f"init solver {name!r} is unavailable: {reason}")

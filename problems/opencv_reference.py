@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.framework.problem import BenchRow
+from handeye.framework.problem_studies import BenchRow
 
 #: what `direct_rows` calls the function with: the inputs -> the two pose stacks (m, 4, 4) whose
 #: rotation and translation lists are its four positional arguments

@@ -5,6 +5,7 @@ studies of systematic errors (bench/systematic.py)."""
 
 from __future__ import annotations
 
+import contextlib
 from typing import Any
 
 import numpy as np
@@ -23,12 +24,6 @@ MAX_ITER = 50
 FIT_TOL = 1e-3
 
 
-#: the last best fit: (model, key of the poses and `disagreeing`, result). `auto` asks check 5
-#: alone at its answer (`scale_checks.camera_scale_verdict`) and the host's self-check then asks
-#: the same fit of the same model at the same answer: at m = 1e5 that is a second fit of ~0.2 s.
-_last: list[tuple[Any, bytes, tuple[Any, ...]]] = []
-
-
 def best_fit(model: Any, poses: tuple[np.ndarray, ...], disagreeing: bool = False
               ) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray, Any, np.ndarray, float]:
     """The best fit near the answer `poses`: (fit, its covariance (6k, 6k), the pairs flagged far
@@ -37,16 +32,19 @@ def best_fit(model: Any, poses: tuple[np.ndarray, ...], disagreeing: bool = Fals
     refine's engine, to FIT_TOL), and when pairs are far off at it, or some pairs disagree with
     the others (`disagreeing`: many gross pairs can pull the fit so far that none looks far off
     at it), a robust (Cauchy) one: from that fit and from the answer, the lower Cauchy cost kept
-    (`robust_fit`). The result of the last call is kept and given again for the same model
-    object, poses (to the bit) and `disagreeing`; its arrays are read-only."""
+    (`robust_fit`). The result is kept on the model (`PoseModel.best_fit_memo`) and given again
+    for the same poses (to the bit) and `disagreeing`, its arrays read-only: `auto` asks check 5
+    alone at its answer (`scale_checks.camera_scale_verdict`) and the host's self-check then asks
+    the same fit of the same model at the same answer (at m = 1e5 a second fit of ~0.2 s)."""
     key = b"".join(np.ascontiguousarray(p, dtype=float).tobytes() for p in poses) + bytes([disagreeing])
-    last = _last[0] if _last else None
-    if last is not None and last[0] is model and last[1] == key:
-        return last[2]
+    memo = getattr(model, "best_fit_memo", None)
+    if memo is not None and memo[0] == key:
+        return memo[1]
     out = _fit(model, poses, disagreeing)
     for array in (out[1], out[2], out[4]):
         array.setflags(write=False)
-    _last[:] = [(model, key, out)]
+    with contextlib.suppress(AttributeError):  # a model that takes no attributes (slots, frozen) fits again
+        model.best_fit_memo = (key, out)
     return out
 
 

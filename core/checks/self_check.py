@@ -83,7 +83,7 @@ from handeye.checks.scale_checks import (
 from handeye.estimation.robust import MAD_TO_SIGMA
 from handeye.estimation.whitening import CHI3_MEDIAN
 from handeye.framework.problem import item_listing
-from handeye.framework.solution import standard_deviations
+from handeye.framework.reported import Reported
 from handeye.geometry import so3_fast
 from handeye.geometry.linalg import eigh_stack, einsum, median, row_norms, solve
 from handeye.geometry.validation import AGREEMENT_ANGLE
@@ -209,12 +209,13 @@ def assess(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], diagnost
     failures: list[str] = []
     warnings: list[str] = []
     figures: dict[str, Any] = {}
+    reported = Reported.of(diagnostics)
     spec = problem.check_model(data, unknowns)
     rotation = None
     if spec is not None:
-        rotation = _local_fit(problem, data, spec, diagnostics, failures, warnings, figures, solver)
-    _rotation_residual(problem, data, unknowns, failures, figures, rotation, held_out_best(diagnostics), warnings)
-    _rotation_blocks(diagnostics, failures, figures)
+        rotation = _local_fit(problem, data, spec, reported, failures, warnings, figures, solver)
+    _rotation_residual(problem, data, unknowns, failures, figures, rotation, reported.held_out_best, warnings)
+    _rotation_blocks(reported, failures, figures)
     failures.sort(key=lambda f: not f.startswith("the answer leaves"))  # check 1 first: it says the most
     _majority(data, failures, figures)  # first of all when it fails: no answer can be right
     return Assessment(not failures, tuple(failures), tuple(warnings), figures)
@@ -235,20 +236,12 @@ def _majority(data: Any, failures: list[str], figures: dict[str, Any]) -> None:
                            "from a wrong one: check the pairing and the detections, and record more stations")
 
 
-def held_out_best(diagnostics: Mapping[str, Any]) -> Mapping[str, Any] | None:
-    """The solver's held-out evidence (``diagnostics["held_out"]``) when it says that the answer
-    predicts measurements of stations it was not fitted to at least as well as every alternative
-    the solver compared (``best``, with ``answer_px`` and ``others_px``), else None."""
-    evidence = diagnostics.get("held_out")
-    return evidence if isinstance(evidence, Mapping) and evidence.get("best") is True else None
-
-
 def _rotation_residual(problem: Any, data: Any, unknowns: Mapping[str, np.ndarray], failures: list[str],
                        figures: dict[str, Any], rotation: np.ndarray | None = None,
                        best: Mapping[str, Any] | None = None, warnings: list[str] | None = None) -> None:
     """Check 1 (`expected_from_invariants`); `rotation`: the pairs' rotation residuals at the
     answer when the local fit already has them (the angle of the rotation residual of its model
-    is the problem's residual rotation), else they are computed. With `best` (`held_out_best`:
+    is the problem's residual rotation), else they are computed. With `best` (`Reported.held_out_best`:
     the answer predicts held-out stations at least as well as every alternative compared) the
     residuals above the noise are systematic (a real robot's kinematics), not a broken answer:
     a warning in `warnings`, not a failure; the solver widens the 1-sigma for them."""
@@ -275,9 +268,9 @@ def _rotation_residual(problem: Any, data: Any, unknowns: Mapping[str, np.ndarra
                         "kinematics), not a broken answer, and it is in the stated 1-sigma")
 
 
-def _rotation_blocks(diagnostics: Mapping[str, Any], failures: list[str], figures: dict[str, Any]) -> None:
+def _rotation_blocks(reported: Reported, failures: list[str], figures: dict[str, Any]) -> None:
     """Check 4."""
-    blocks = diagnostics.get("rotation_blocks") or {}
+    blocks = reported.rotation_blocks
     for name, block in blocks.items():
         s = np.asarray(block.get("singular_values", []), dtype=float)
         det = float(block.get("det", 1.0))
@@ -291,7 +284,7 @@ def _rotation_blocks(diagnostics: Mapping[str, Any], failures: list[str], figure
 
 
 def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...], tuple[str, ...]],
-               diagnostics: Mapping[str, Any], failures: list[str], warnings: list[str],
+               reported: Reported, failures: list[str], warnings: list[str],
                figures: dict[str, Any], solver: str | None = None) -> np.ndarray | None:
     """Checks 2, 3 and 5, and the observability warnings; returns the rotation residuals of the
     data's pairs at the answer (for check 1) when the model is on those pairs, else None."""
@@ -305,17 +298,17 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
     # a cell's cameras one by one first (a monocular camera's observations may all be far off, so
     # whether or not some are); one scale for every camera where that names none
     before = len(failures) + len(warnings)
-    camera_scales_check(model, res, cov, failures, warnings, figures, diagnostics.get("camera_scales_held_out"))
+    camera_scales_check(model, res, cov, failures, warnings, figures, reported.camera_scales_held_out)
     if not flagged.any() and len(failures) + len(warnings) == before:
         camera_scale_check(model, res, cov, failures, warnings, figures)
     camera_scale_noise(model, res, factor, failures, warnings, figures)
     configurations = getattr(problem, "configurations", None)
     systematic.assess_configuration(configurations(data) if configurations else None, model, res, flagged,
-                                    warnings, figures, covered=diagnostics.get("sigma_from") == "stations",
+                                    warnings, figures, covered=reported.sigma_from == "stations",
                                     # the spread of this pose-level fit speaks for answers fitted to the poses;
                                     # one fitted to other measurements (corners) states its own
-                                    cov=cov if diagnostics.get("fitted_to", "poses") == "poses" else None,
-                                    stated=bool(standard_deviations(diagnostics)))
+                                    cov=cov if reported.fitted_to == "poses" else None,
+                                    stated=bool(reported.std))
     names = model.unknowns
     delta = _difference(poses, fit)
     chosen = [j for j, n in enumerate(names) if n in interest]
@@ -334,7 +327,7 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
             f"{names[j]} differs by {math.degrees(float(np.linalg.norm(omega))):.2g} deg / "
             f"{float(np.linalg.norm(poses[j][:3, 3] - fit[j][:3, 3])):.3g}"
             for j, omega in zip(chosen, delta.reshape(-1, 6)[:, :3])) + ", translations in the data's length unit"
-    left_out = {int(o["index"]) for o in diagnostics.get("outliers", []) if isinstance(o, Mapping) and "index" in o}
+    left_out = reported.left_out
     used = [int(i) for i in np.flatnonzero(flagged) if int(i) not in left_out]
     figures["far_off_pairs"] = np.flatnonzero(flagged).tolist()
     why = ""
@@ -346,7 +339,7 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
                "this solver used them")
     if d > DISTANCE_FAIL:
         failures.append(f"the answer is {d:.3g} standard deviations from the best fit of these data ({gap_text()}){why}")
-    elif d > DISTANCE_WARN and not _own_model(diagnostics):
+    elif d > DISTANCE_WARN and not _own_model(reported):
         figures["better_fit"] = True  # the host makes an `optimal` status `suboptimal`: they must agree
         advice = "" if solver == "auto" else "; solver 'auto' returns the best fit"
         warnings.append(f"self-check: the answer is {d:.3g} standard deviations from the best fit of these data "
@@ -357,18 +350,16 @@ def _local_fit(problem: Any, data: Any, spec: tuple[Any, tuple[np.ndarray, ...],
     return row_norms(at_answer[:, :3]) if model.m == problem_pairs(data) else None
 
 
-def _own_model(diagnostics: Mapping[str, Any]) -> bool:
+def _own_model(reported: Reported) -> bool:
     """Whether the answer was fitted under another model than this check's best fit (one noise
     level per residual group, on the poses): to other observations (the board's corners,
     ``fitted_to``) or with the noise of each pose, camera and marker estimated (``noise_model``
     "sources"). Its distance from that fit is then a figure, not a warning (a gross disagreement,
     beyond DISTANCE_FAIL, still fails it): a camera four times noisier than the rest moves the
     weighted answer several of the one-level fit's sigmas, rightly."""
-    refine = diagnostics.get("refine")
-    model = diagnostics.get("noise_model") or (refine.get("noise_model") if isinstance(refine, Mapping) else None)
-    drift = diagnostics.get("drift_held_out")  # auto's X from the consecutive motions, held-out stations agreeing
-    return (diagnostics.get("fitted_to", "poses") != "poses" or model == "sources"
-            or (isinstance(drift, Mapping) and drift.get("drift_agrees") is True and "formulation" in diagnostics))
+    # drift_agrees: auto's X from the consecutive motions, held-out stations agreeing
+    return (reported.fitted_to != "poses" or reported.noise_model == "sources"
+            or (reported.drift_agrees and reported.on_stations))
 
 
 def _disagreeing(data: Any) -> bool:

@@ -1,10 +1,13 @@
 """The stations' own figures, before any fit: the cell's lever arm (`cell_size`), repeated
 stations (`duplicate_stations`) and the warnings they give (`station_warnings`). Used by the
 plausibility check of a calibration's files (`handeye.workflow.plausibility`) and by planning a
-session (`handeye.planning.session`), which must agree on what a repeated station is."""
+session (`handeye.planning.session`), which must agree on what a repeated station is; and the
+record of a pose or image left out of the stations (`Dropped`), which the image readers and the
+workflow both give."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -19,6 +22,27 @@ DUPLICATE_FRACTION = 1e-3
 DUPLICATES_LISTED = 5
 #: below this many stations the covariance-based 1-sigma is not meaningful
 MIN_STATIONS_FOR_SIGMA = 5
+
+
+@dataclasses.dataclass(frozen=True)
+class Dropped:
+    """A pose or image left out of the stations, and why.
+
+    kind: ``"image"``, ``"camera"`` (a camera pose) or ``"robot"`` (a robot pose); name: the
+    image's file stem, the pose's name, else its row in its file as ``"row N"`` (1-based); robot:
+    the robot pose dropped together with an image (its name), if any; reason: in words.
+    """
+
+    kind: str
+    name: str
+    reason: str
+    robot: str | None = None
+
+    def describe(self) -> str:
+        """One line, e.g. ``image 4 with robot pose 4: board not found: ...``."""
+        what = {"image": "image", "camera": "camera pose", "robot": "robot pose"}[self.kind]
+        partner = f" with robot pose {self.robot}" if self.robot is not None else ""
+        return f"{what} {self.name}{partner}: {self.reason}"
 
 
 def cell_size(robot: np.ndarray, camera: np.ndarray | None = None) -> float:

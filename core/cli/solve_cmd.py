@@ -51,6 +51,7 @@ from handeye.cli._common import (
     spread_note,
     time_limit,
 )
+from handeye.framework.reported import Reported
 from handeye.framework.solution import Status, standard_deviations
 from handeye.geometry.se3 import inverse
 from handeye.host.api import solve
@@ -80,7 +81,6 @@ from handeye.workflow.quality_report import (
     write_report,
 )
 from handeye.workflow.solving import (  # noqa: F401
-    DEFAULT_SOLVERS,
     UNUSABLE,
     default_solver,
     measured_data,
@@ -273,17 +273,18 @@ def _text(r: dict[str, Any], frames: dict[str, tuple[str, str]]) -> str:
                          f"translation {_value('translation', std['translation'], unit)}")
             if note := spread_note(diagnostics, name):
                 lines[-1] += f" ({note.removeprefix(', ')})"
-    if "camera_scale" in diagnostics:
-        std = diagnostics.get("camera_scale_std")
+    reported = Reported.of(diagnostics)
+    if reported.camera_scale is not None:
+        std = reported.camera_scale_std
         sigma = "" if std is None else f" (1-sigma {std:.2g})"
-        lines += ["", (f"camera scale s = {diagnostics['camera_scale']:.6g}{sigma}: the camera's translations times s "
+        lines += ["", (f"camera scale s = {reported.camera_scale:.6g}{sigma}: the camera's translations times s "
                        "are in the robot's unit (the residuals below use them)")]
-    if diagnostics.get("camera_scales"):  # a cell's monocular cameras, each its own scale
-        stds = diagnostics.get("camera_scales_std") or {}
+    if reported.camera_scales:  # a cell's monocular cameras, each its own scale
+        stds = reported.camera_scales_std
         lines += ["", "camera scales (each monocular camera's translations times its s are in the robot's unit; the "
                       "residuals below use them):"]
         lines += [f"  {name:<14} s = {s:.6g}" + ("" if stds.get(name) is None else f" (1-sigma {stds[name]:.2g})")
-                  for name, s in diagnostics["camera_scales"].items()]
+                  for name, s in reported.camera_scales.items()]
     if not frames:
         lines += ["", ("(no setup given: docs/conventions.md says which frames the unknowns are for "
                        "eye-in-hand and eye-to-hand data)")]

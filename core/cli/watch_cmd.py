@@ -289,7 +289,8 @@ def _show(args: argparse.Namespace, update: Update, station: Station, source: Po
     unit = station.unit
     robot_format = source.robot_format
     if args.next_out and update.suggestions is not None:
-        from handeye.io.pose_readers import PoseStack, write_poses
+        from handeye.io.pose_readers import PoseStack
+        from handeye.io.pose_writers import write_poses
 
         names = tuple(f"next{i + 1}" for i in range(len(update.suggestions.A)))
         write_poses(args.next_out, PoseStack(update.suggestions.A, unit=unit, format=robot_format, names=names),

@@ -38,6 +38,9 @@ class PoseModel(abc.ABC):
     #: the model states where its residuals' noise comes from (`noise_factors`), for
     #: `handeye.estimation.noise_sources`
     noise_sources: bool = False
+    #: the self-check's last local fit near an answer, kept with the model it fitted
+    #: (`handeye.checks.best_fit`): (key of the poses, the fit); None: none yet
+    best_fit_memo: tuple[bytes, Any] | None = None
 
     @abc.abstractmethod
     def residuals(self, poses: Poses) -> np.ndarray:

@@ -113,8 +113,10 @@ class Solution:
 def standard_deviations(diagnostics: Mapping[str, Any]) -> dict[str, dict[str, float]]:
     """The 1-sigma of each unknown a solver reported, {name: {"rotation": rad, "translation":
     data unit}} (root of the sum of the three axes' variances), from its covariance: refine's
-    ``diagnostics["std"]``, or auto's ``diagnostics["refine"]["std"]``; empty when it gave none."""
-    std = diagnostics.get("std") or (diagnostics.get("refine") or {}).get("std") or {}
+    ``std``, or auto's under ``refine`` (`Reported.std`); empty when it gave none."""
+    from handeye.framework.reported import Reported
+
+    std = Reported.of(diagnostics).std
     return {name: {"rotation": float(s["rotation"]), "translation": float(s["translation"])}
             for name, s in std.items()}
 

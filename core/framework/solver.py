@@ -51,6 +51,10 @@ class SolverSpec:
     camera_scale_mode: True when the solver honours data whose camera translations are known
         only up to scale (``camera_scale="unknown"``, `handeye.estimation.camera_scale`); the host refuses
         such data for the other solvers.
+    fits_images: True when the solver fits the board images themselves (the corners' pixels,
+        the data's ``images``) rather than the poses PnP gives: where a cell's stations come from
+        images, ``handeye calibrate`` prefers it (`handeye.workflow.solving.image_solver`), and the
+        default studies on pose data leave it out. Its `simulate_options` make data with images.
     variants: (option, values) when one option selects between different methods (OpenCV's
         five hand-eye methods behind ``method``): default studies compare one entry per value,
         labelled ``name (value)``; None: the solver enters once.
@@ -70,6 +74,7 @@ class SolverSpec:
     planar_mode: bool = False
     camera_scale_mode: bool = False
     simulate_options: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    fits_images: bool = False
     variants: tuple[str, tuple[Any, ...]] | None = None
 
     def __post_init__(self) -> None:
@@ -105,6 +110,16 @@ class SolverSpec:
                 return f"backend {backend!r} of solver {self.name!r} needs the Python module {module!r}; install it (pip install {_PIP_NAMES.get(module, module)})"
         if self.check is not None:
             return self.check(backend)
+        return None
+
+    def cannot_solve(self, data: Any) -> str | None:
+        """Why this solver cannot solve validated `data` (a mode of the data it does not honour),
+        worded to follow the solver's name; None when it can. The one capability check: the host
+        refuses such data with it, and refine a start solver that cannot solve them."""
+        if getattr(data, "planar", None) is not None and not self.planar_mode:
+            return "has no planar (4-DOF) mode for data whose robot rotates about one axis"
+        if getattr(data, "camera_scale_unknown", False) and not self.camera_scale_mode:
+            return "takes the camera's translations as metric, and these data have camera_scale='unknown'"
         return None
 
     def option_names(self) -> list[str]:

@@ -32,7 +32,6 @@ import json
 import os
 import platform
 import statistics
-import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
@@ -42,7 +41,9 @@ import numpy as np
 from handeye import __version__
 from handeye.base.errors import InputError, UnknownPluginError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.problem import BenchRow, BenchSettings, Problem
+from handeye.framework.problem import Problem
+from handeye.framework.problem_studies import BenchRow, BenchSettings
+from handeye.framework.progress import progress_bar
 from handeye.host.api import solve
 from handeye.host.registry import get_registry
 
@@ -272,10 +273,10 @@ def make_timer(problem: str, row: Row, data: Mapping[str, Any],
 def measure(problem: str, rows: Sequence[Row], pairs: Sequence[int], repeats: int, budget: float,
             noise: NoiseModel, seed: int, progress: bool = False) -> TimingTable:
     """Time every row at every m: warm-up, then `repeats` solves round-robin over the rows; a
-    progress bar on stderr when `progress` (and tqdm is installed)."""
+    progress bar on stderr when `progress` (on a terminal)."""
     cells: TimingTable = {}
     over_budget: dict[str, float] = {}  # row label -> the m at which one solve exceeded the budget
-    bar = _progress(len(rows) * len(pairs) * (1 + repeats), enabled=progress)
+    bar = progress_bar(len(rows) * len(pairs) * (1 + repeats), None, "solve", progress)
     registry = get_registry()
     for m in pairs:
         data, inputs = bench_data(problem, m, noise, seed)
@@ -371,14 +372,3 @@ def _error_text(exc: BaseException) -> str:
     return " ".join(f"{type(exc).__name__}: {exc}".split())
 
 
-def _progress(total: int, enabled: bool) -> Any:
-    try:
-        from tqdm import tqdm
-    except ImportError:  # tqdm is optional: no bar
-        enabled = False
-    if not enabled:
-        class _NoBar:
-            def update(self, n: int = 1) -> None: ...
-            def close(self) -> None: ...
-        return _NoBar()
-    return tqdm(total=total, file=sys.stderr, unit="solve", leave=False, disable=None)

@@ -37,9 +37,10 @@ import numpy as np
 
 from handeye.base.errors import HandEyeError, InputError
 from handeye.estimation.folds import make_folds  # noqa: F401 (the harness's folds, named here too)
-from handeye.framework.problem import StationReader
+from handeye.framework.problem_cell import StationReader
+from handeye.framework.progress import progress_bar
 from handeye.framework.solution import Status
-from handeye.harness.runner import SolveTimeout, _progress, limited_solve
+from handeye.harness.runner import SolveTimeout, limited_solve
 from handeye.harness.study import Spec
 from handeye.host.registry import get_registry
 
@@ -214,7 +215,7 @@ def run_crossval(cv: CrossValData, specs: Sequence[Spec], *, folds: int = 5, see
     to_mm = cv.to_mm or 1.0
     full_rows, fold_rows, pair_rows = [], [], []
     start = time.perf_counter()
-    bar = _progress(len(specs) * (folds + 1), "held-out", progress)
+    bar = progress_bar(len(specs) * (folds + 1), "held-out", "fit", progress, in_logs=True)
     try:
         for spec in specs:
             sol, error = _fit(cv.problem, spec, cv.data, timeout)

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from handeye.base.errors import HandEyeError
+from handeye.base.errors import HandEyeError, InputError
 from handeye.estimation.folds import make_folds
 from handeye.framework.solution import USABLE
 from handeye.harness.runner import SolveTimeout, limited_solve
@@ -56,14 +56,16 @@ def image_specs(problem: str, solvers: Sequence[Spec] | None = None) -> tuple[Sp
     (default: every registered solver with its default backend and OpenCV's methods one by one,
     `default_specs`, and the solvers that fit the corners themselves), after ``default`` (what
     ``handeye calibrate`` answers)."""
-    from handeye.workflow.solving import REPROJECTION_SOLVER
+    from handeye.workflow.solving import image_solver
 
+    registry = get_registry()
     if solvers is None:
-        registry = get_registry()
-        corner_fits = [Spec(name) for name in registry.solver_names(problem)
-                       if "images" in registry.solver(name, problem).simulate_options]
+        corner_fits = [Spec(name) for name in registry.solver_names(problem) if registry.solver(name, problem).fits_images]
         solvers = (*default_specs(problem), *corner_fits)
-    return (Spec(REPROJECTION_SOLVER, label=DEFAULT_LABEL), *solvers)
+    default = image_solver(problem)
+    if default is None:
+        raise InputError(f"no solver of problem {problem!r} fits board images; install one (e.g. handeye's reprojection)")
+    return (Spec(default, label=DEFAULT_LABEL), *solvers)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -164,7 +166,7 @@ def _fit(problem: str, spec: Spec, A: np.ndarray, B: np.ndarray, images: BoardOb
         if pose_based_instead(solution, defaulted=True):
             solution = limited_solve(problem, default_solver(problem), None, data, {}, timeout)
     else:
-        if "images" in registry.solver(spec.solver, problem).simulate_options:
+        if registry.solver(spec.solver, problem).fits_images:
             data["images"] = images
         solution = limited_solve(problem, spec.solver, spec.backend, data, dict(spec.options), timeout)
     if solution.status not in USABLE:

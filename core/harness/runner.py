@@ -12,9 +12,8 @@ master sequence), never from the order in which units run: results are the same 
 count and executor. The noise level is not in the key: trial k of every level of a sweep draws
 the same poses and the same standard-normal noise, scaled by the level (common random numbers),
 so error-vs-noise curves compare levels on paired data instead of adding the scatter of new
-poses at every level. Units run in-process (``jobs=1``), in a `ProcessPoolExecutor` (fork start
-method where available, so run-time plugins registered with `handeye.host.registry.register_plugin`
-are inherited; elsewhere workers re-register them) or on a dask.distributed cluster.
+poses at every level. Units run in-process (``jobs=1``), on worker processes or on a
+dask.distributed cluster (`handeye.harness.executors`).
 
 Each record (one per trial x spec) holds: where it comes from (study, sweep, level, pairs,
 trial, data seed, noise sigmas), what ran (label, solver, backend, options), how it went (status,
@@ -38,14 +37,11 @@ import contextlib
 import dataclasses
 import json
 import math
-import multiprocessing
 import os
 import signal
-import sys
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -54,29 +50,21 @@ import numpy as np
 from handeye.base.errors import InputError
 from handeye.framework.isolation import fork_available
 from handeye.framework.problem import Problem
-from handeye.framework.processes import die_with_parent
+from handeye.framework.progress import progress_bar
 from handeye.framework.solution import Status
 from handeye.geometry.se3 import random_poses
+from handeye.harness.executors import EXECUTORS, available_cores, cpu_seconds, execute
 from handeye.harness.interrupts import (
-    POLL,
     StudyInterrupted,
-    check_stop,
-    interruptible,
     stop_on_signals,
 )
 from handeye.harness.result import StudyJournal, StudyResult, UnitKey
 from handeye.harness.study import UNITS, GridPoint, Spec, Study
 from handeye.host.api import solve
-from handeye.host.registry import (
-    _extra as _runtime_plugins,  # run-time plugins, re-registered in workers
-)
-from handeye.host.registry import get_registry, register_plugin
+from handeye.host.registry import get_registry
 
 #: std of each translation axis of a random truth (mm), as `handeye.problems.axyb.random_truth`
 RANDOM_TRUTH_MM = 500.0
-EXECUTORS = ("process", "dask")
-#: seconds terminated workers get to exit before they are killed (SIGKILL)
-STOP_TIMEOUT = 2.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -273,179 +261,10 @@ def _failed(base: dict[str, Any], spec: Spec, reason: str, unknowns: Iterable[st
     return row
 
 
-# --------------------------------------------------------------------------------------------
-# executors
-
-#: what an executor does with a finished unit: finish(unit index, records, pid of the process that ran it)
-Finish = Callable[[int, list[dict[str, Any]], int], None]
-
-
-def _init_worker(plugins: list[tuple[str, Any]], parent: int | None = None) -> None:
-    """Prepare a process-pool worker: make it end with `parent` (the process running the study,
-    `handeye.framework.processes.die_with_parent`), leave Ctrl-C to the parent (which stops the workers itself) and let
-    SIGTERM end it at once, and make it see the run-time plugins of its parent (a no-op after
-    fork)."""
-    if parent is not None:
-        die_with_parent(parent)
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    known = {name for name, _ in _runtime_plugins}
-    for name, plugin in plugins:
-        if name not in known:
-            register_plugin(plugin, name)
-
-
 def _tagged(unit: Unit) -> tuple[int, list[dict[str, Any]], int]:
     """`run_unit` plus the id of the process that ran it (kept in the journal)."""
     index, records = run_unit(unit)
     return index, records, os.getpid()
-
-
-def _process_context() -> multiprocessing.context.BaseContext:
-    if sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods():
-        return multiprocessing.get_context("fork")
-    return multiprocessing.get_context()
-
-
-def _progress(total: int, desc: str, enabled: bool, initial: int = 0) -> Any:
-    """A tqdm bar on stderr without tqdm's monitor thread (no thread may run when workers fork);
-    `initial`: units already done (resumed)."""
-    from tqdm import tqdm
-
-    class Bar(tqdm):
-        monitor_interval = 0
-
-    return Bar(total=total, initial=initial, desc=desc, unit="trial", disable=not enabled, dynamic_ncols=True,
-               file=sys.stderr)
-
-
-def _run_serial(units: list[Unit], finish: Finish) -> None:
-    """Run `units` in this process, each `interruptible` (a signal stops its solve)."""
-    for unit in units:
-        with interruptible():
-            done = _tagged(unit)
-        finish(*done)
-
-
-def _run_processes(units: list[Unit], jobs: int, finish: Finish) -> None:
-    """Run `units` on a pool of `jobs` worker processes. On any way out but the end (a signal,
-    an error) the units finished but not yet handed over are handed over (`_harvest`) and the
-    pool is stopped at once (`_stop_pool`)."""
-    before = set(multiprocessing.active_children())
-    pool = ProcessPoolExecutor(max_workers=jobs, mp_context=_process_context(), initializer=_init_worker,
-                               initargs=(list(_runtime_plugins), os.getpid()))
-    futures: list[Future[Any]] = []
-    try:
-        futures = [pool.submit(_tagged, unit) for unit in units]
-        pending = set(futures)
-        while pending:
-            check_stop()
-            done, pending = wait(pending, timeout=POLL, return_when=FIRST_COMPLETED)
-            for future in done:
-                finish(*future.result())
-    except BaseException:
-        try:
-            _harvest(futures, finish)
-        finally:
-            _stop_pool(pool, before)
-        raise
-    pool.shutdown(wait=True)
-
-
-def _harvest(futures: Sequence[Future[Any]], finish: Finish) -> None:
-    """Hand over every unit that finished without being handed over yet (`finish` ignores the
-    ones it has), so that a stop keeps every finished row."""
-    for future in futures:
-        if future.done() and not future.cancelled() and future.exception() is None:
-            finish(*future.result())
-
-
-def _stop_pool(pool: ProcessPoolExecutor, before: set[Any]) -> None:
-    """Stop `pool` now: cancel its queued units and terminate its workers (SIGTERM; SIGKILL
-    after `STOP_TIMEOUT` s). ``shutdown`` alone would let the workers run every queued unit
-    first (wait=True) or leave them running (wait=False). The workers are this process's
-    multiprocessing children that were not there before the pool (`before`; the pool's own
-    list is private)."""
-    pool.shutdown(wait=False, cancel_futures=True)
-    workers = [p for p in multiprocessing.active_children() if p not in before]
-    for process in workers:
-        process.terminate()
-    deadline = time.monotonic() + STOP_TIMEOUT
-    for process in workers:
-        process.join(max(0.0, deadline - time.monotonic()))
-        if process.is_alive():
-            process.kill()
-            process.join(STOP_TIMEOUT)
-    pool.shutdown(wait=True)  # the pool's manager thread sees its workers gone and ends
-
-
-def _run_dask(units: list[Unit], scheduler: Any, jobs: int, finish: Finish) -> None:
-    """Run `units` on a dask.distributed cluster. On any way out but the end (a signal, an
-    error), the units not yet done are cancelled on the cluster and a cluster this function
-    started (no `scheduler`) is closed with its workers; a cluster given by address or Client
-    keeps running."""
-    try:
-        from distributed import Client
-        from distributed import as_completed as dask_completed
-    except ImportError:
-        raise InputError('executor "dask" needs dask.distributed: pip install "handeye[dask]"') from None
-    own = not isinstance(scheduler, Client)
-    if own:
-        client = Client(scheduler) if scheduler else Client(n_workers=jobs, threads_per_worker=1)
-    else:
-        client = scheduler
-    futures: list[Any] = []
-    try:
-        futures = client.map(_tagged, units, pure=False)
-        arriving = dask_completed(futures)
-        while not arriving.is_empty():
-            check_stop()
-            ready = arriving.next_batch(block=False)
-            for future in ready:
-                finish(*future.result())
-            if not ready:
-                time.sleep(POLL)
-    except BaseException:
-        if futures and not own:  # closing our own cluster below ends its work anyway
-            client.cancel(futures)
-        raise
-    finally:
-        if own:
-            client.close()
-
-
-def cpu_seconds() -> float:
-    """CPU time (user + system) of this process and of its finished child processes, i.e. the
-    process-pool workers once the pool is shut down; the time of dask workers is not in it."""
-    try:
-        import resource
-    except ImportError:  # not POSIX
-        return time.process_time()
-    total = 0.0
-    for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN):
-        usage = resource.getrusage(who)
-        total += usage.ru_utime + usage.ru_stime
-    return total
-
-
-def available_cores() -> int:
-    """Cores this process may run on (its CPU affinity where the OS tells it, else the count)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
-
-
-def _execute(units: list[Unit], executor: str, scheduler: Any, jobs: int, finish: Finish) -> None:
-    """Run `units` on the chosen executor, handing each finished one to `finish`."""
-    if units:
-        if executor == "dask":
-            _run_dask(units, scheduler, jobs, finish)
-        elif jobs == 1 or len(units) == 1:
-            _run_serial(units, finish)
-        else:
-            _run_processes(units, min(jobs, len(units)), finish)
-    check_stop()  # a request that came at the very end
 
 
 def run_study(study: Study, jobs: int | None = None, progress: bool = True, *,
@@ -480,7 +299,7 @@ def run_study(study: Study, jobs: int | None = None, progress: bool = True, *,
     resumed = len(by_index)
     todo = [unit for unit in units if unit.index not in by_index]
     start, cpu_start = time.perf_counter(), cpu_seconds()
-    bar = _progress(len(units), study.name, progress, initial=resumed)
+    bar = progress_bar(len(units), study.name, "trial", progress, in_logs=True, initial=resumed)
 
     def finish(index: int, records: list[dict[str, Any]], pid: int) -> None:
         if index in by_index:
@@ -492,7 +311,7 @@ def run_study(study: Study, jobs: int | None = None, progress: bool = True, *,
 
     try:
         with stop_on_signals():
-            _execute(todo, executor, scheduler, jobs, finish)
+            execute(todo, _tagged, executor, scheduler, jobs, finish)
     except KeyboardInterrupt as stop:
         raise StudyInterrupted(getattr(stop, "signum", signal.SIGINT), len(by_index), len(units),
                                journal.path if journal is not None else None) from None

@@ -278,12 +278,12 @@ def default_specs(problem: str | None = None) -> tuple[Spec, ...]:
     ``lmi-sdp`` (the paper's method: its backends are part of the comparison) and, where a solver
     wraps several methods behind an option (`SolverSpec.variants`: OpenCV's five AX=XB methods),
     one spec per method; `problem` defaults to the default problem. Backends that cannot run here are left out, and so are solvers that fit
-    board images (`SolverSpec.simulate_options` asking for ``images``: ``reprojection``), which
+    board images (`SolverSpec.fits_images`: ``reprojection``), which
     pose data cannot feed (bench/reprojection_study.py is their study)."""
     registry = get_registry()
     problem = problem or registry.default_problem()
     return tuple(spec for name in registry.solver_names(problem)
-                 if "images" not in registry.solver(name, problem).simulate_options
+                 if not registry.solver(name, problem).fits_images
                  for spec in _solver_specs(name, registry.solver(name, problem)))
 
 

@@ -23,6 +23,7 @@ from handeye.base.errors import (
 from handeye.checks.self_check import assess
 from handeye.framework.isolation import call_with_time_limit
 from handeye.framework.options import parse_options
+from handeye.framework.reported import Reported
 from handeye.framework.solution import (
     USABLE,
     Solution,
@@ -175,14 +176,10 @@ def _host(registry: Any, problem: str, solver: str, spec: Any, backend: str, dat
     the time limit, faults wrapped), the answer checked, the problem's diagnosis and, with
     `self_check`, the self-check (a failure makes a usable status `unreliable`)."""
     spec_problem = registry.problem(problem)
-    if getattr(data, "planar", None) is not None and not spec.planar_mode:
-        able = [n for n in registry.solver_names(problem) if registry.solver(n, problem).planar_mode]
-        raise InputError(f"solver {solver!r} has no planar (4-DOF) mode for data whose robot rotates about one "
-                         f"axis; use one of {', '.join(able) or '(none registered)'}")
-    if getattr(data, "camera_scale_unknown", False) and not spec.camera_scale_mode:
-        able = [n for n in registry.solver_names(problem) if registry.solver(n, problem).camera_scale_mode]
-        raise InputError(f"solver {solver!r} takes the camera's translations as metric; for camera_scale='unknown' "
-                         f"use one of {', '.join(able) or '(none registered)'}")
+    reason = spec.cannot_solve(data)
+    if reason:
+        able = [n for n in registry.solver_names(problem) if registry.solver(n, problem).cannot_solve(data) is None]
+        raise InputError(f"solver {solver!r} {reason}; use one of {', '.join(able) or '(none registered)'}")
     options = parse_options(spec.options, raw_options, solver)
 
     builtin = registry.is_builtin(solver, problem)
@@ -201,10 +198,11 @@ def _host(registry: Any, problem: str, solver: str, spec: Any, backend: str, dat
     # an answer that comes with the camera's scale (auto estimates it where the data demand it)
     # is judged with that scale free, as its solver fitted it (handeye.estimation.camera_scale)
     check_data = data
-    if "camera_scale" in diagnostics and getattr(data, "camera_scale_unknown", True) is False:
+    reported = Reported.of(diagnostics)
+    if reported.camera_scale is not None and getattr(data, "camera_scale_unknown", True) is False:
         check_data = dataclasses.replace(data, camera_scale_unknown=True)
-    elif "camera_scales" in diagnostics and getattr(data, "camera_scale_unknown", True) is False:
-        check_data = data.with_scales_unknown(list(diagnostics["camera_scales"]))  # a cell: some cameras' own
+    elif reported.camera_scales and getattr(data, "camera_scale_unknown", True) is False:
+        check_data = data.with_scales_unknown(list(reported.camera_scales))  # a cell: some cameras' own
     with _problem_faults(registry, problem):
         check = assess(spec_problem, check_data, unknowns, diagnostics, solver)
     diagnostics["self_check"] = {"reliable": check.reliable, "failures": list(check.failures), **check.figures}

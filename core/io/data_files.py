@@ -39,7 +39,7 @@ import numpy as np
 
 from handeye.base.errors import HandEyeError, InputError, shown
 from handeye.base.vocabulary import METRES_PER, SETUPS
-from handeye.framework.problem import StationReader
+from handeye.framework.problem_cell import StationReader
 from handeye.geometry.motions import PAIRINGS
 from handeye.geometry.validation import float_array, pose_stack
 from handeye.host.registry import get_registry

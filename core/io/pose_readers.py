@@ -30,7 +30,6 @@ message naming the file, the line (text) or pose (JSON / YAML / NPZ) and what to
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import numbers
 import re
@@ -56,10 +55,8 @@ from handeye.geometry.validation import (
     pose_stack,
 )
 from handeye.io.input_files import check_not_looping
-from handeye.io.output_files import new_file, write_text
 from handeye.io.pose_formats import PoseFormat, normalise_header, parse_format
 from handeye.io.pose_tables import (
-    POSES_KEY,
     Table,
     check_pose_shape,
     load_structured,
@@ -68,7 +65,6 @@ from handeye.io.pose_tables import (
     read_npz,
     read_text,
     structure,
-    yaml_module,
 )
 
 Array = NDArray[np.float64]
@@ -116,7 +112,7 @@ class PoseStack:
 
     def in_unit(self, unit: str) -> PoseStack:
         """A copy with translations converted to `unit` (``"mm"`` or ``"m"``)."""
-        _check_unit(unit, self.source or "poses")
+        check_unit(unit, self.source or "poses")
         scale = {"mm": 1e-3, "m": 1.0}[self.unit] / {"mm": 1e-3, "m": 1.0}[unit]
         T = np.array(self.poses)
         T[:, :3, 3] *= scale
@@ -270,60 +266,11 @@ def read_pose_dir(directory: str | Path, format: str | PoseFormat, *, unit: str 
 # --- end of the pose directory reader
 
 
-def write_poses(path: str | Path, poses: ArrayLike | PoseStack, format: str | PoseFormat, *,
-                unit: str | None = None, degrees: bool | None = None) -> Path:
-    """Write poses (n, 4, 4) (or a `PoseStack`, with its names and stamps) in `format`, the file
-    type chosen by extension, so that `read_poses` reads them back (floats written in full). The
-    file appears complete or not at all, replacing an existing one (`handeye.io.output_files`).
-    unit: required for bare arrays; a `PoseStack`'s own unit by default."""
-    path = Path(path)
-    fmt = parse_format(format)
-    stack = poses if isinstance(poses, PoseStack) else None
-    unit = unit or (stack.unit if stack else None)
-    if unit is None:
-        raise InputError("write_poses needs unit='mm' or unit='m' for an array of poses")
-    _check_unit(unit, str(path))
-    if stack is not None and unit != stack.unit:
-        stack = stack.in_unit(unit)
-    T = pose_stack(stack.poses if stack else poses, "poses")
-    rows = fmt.to_rows(T, degrees)
-    names = stack.names if stack else None
-    stamps = None if stack is None or stack.stamps is None else np.asarray(stack.stamps)
-    ext = path.suffix.lower()
-    header = (["name"] if names else []) + (["t"] if stamps is not None else []) + list(fmt.fields)
-    records = [([names[i]] if names else []) + ([float(stamps[i])] if stamps is not None else []) + [float(v) for v in r]
-               for i, r in enumerate(rows)]
-    if ext in TEXT_EXTENSIONS:
-        sep = "\t" if ext == ".tsv" else ","
-        lines = [f"# handeye poses: format {fmt.name}, unit {unit}", sep.join(header)]
-        lines += [sep.join(repr(v) if isinstance(v, float) else str(v) for v in rec) for rec in records]
-        write_text(path, "\n".join(lines) + "\n", force=True)
-    elif ext in (".json", ".yaml", ".yml"):
-        doc = {"format": fmt.name, "units": unit, POSES_KEY: [dict(zip(header, rec)) for rec in records]}
-        if ext == ".json":
-            write_text(path, json.dumps(doc, indent=1) + "\n", force=True)
-        else:
-            write_text(path, yaml_module().safe_dump(doc, sort_keys=False), force=True)
-    elif ext == ".npz":
-        extra = {"units": np.array(unit)}
-        if names:
-            extra["names"] = np.array(names)
-        if stamps is not None:
-            extra["stamps"] = stamps
-        with new_file(path, force=True, binary=True) as fh:  # a file object: np.savez would append .npz to other names
-            np.savez(fh, **{POSES_KEY: rows}, **extra)
-    else:
-        raise InputError(f"{str(path)!r}: unsupported pose file extension {ext or '(none)'!r}; supported: {', '.join(EXTENSIONS)}")
-    return path
-
-
-# ----------------------------------------------------------------------------- file readers
-
-
 # ----------------------------------------------------------------------------- conversion
 
 
-def _check_unit(unit: Any, src: str) -> None:
+def check_unit(unit: Any, src: str) -> None:
+    """InputError naming `src` unless `unit` is one of `UNITS`."""
     if unit not in UNITS:
         raise InputError(f"{src}: unit must be one of {list(UNITS)}, got {unit!r}")
 
@@ -404,9 +351,9 @@ def _numbers(table: Table, idx: list[int], src: str) -> Array:
 def _convert(table: Table, fmt: PoseFormat, src: str, *, unit: str | None, columns: Sequence[str | int] | None,
              degrees: bool | None, orthonormalize: bool) -> PoseStack:
     if table.unit is not None:
-        _check_unit(table.unit, f"{src}: units in the file")
+        check_unit(table.unit, f"{src}: units in the file")
     if unit is not None:
-        _check_unit(unit, src)
+        check_unit(unit, src)
         if table.unit is not None and table.unit != unit:
             raise InputError(f"{src}: the file says units {table.unit!r} but unit={unit!r} was passed; drop one")
     unit = unit or table.unit or fmt.unit

@@ -121,7 +121,8 @@ class Plan:
     def write(self, path: str | Path, format: str, unit: str) -> Path:
         """The stations in a robot's pose format (`handeye.io.pose_formats`, e.g. "kuka-abc",
         "ur-rotvec"), named station01, ... in the order to drive them."""
-        from handeye.io.pose_readers import PoseStack, write_poses
+        from handeye.io.pose_readers import PoseStack
+        from handeye.io.pose_writers import write_poses
 
         names = tuple(f"station{i + 1:02d}" for i in range(len(self.A)))
         return write_poses(path, PoseStack(self.A, unit=unit, format=format, names=names), format)
@@ -205,11 +206,8 @@ def _information(spec: Any, problem: str, A: np.ndarray, B: np.ndarray, seen: np
 
 
 def planners() -> list[str]:
-    """The registered problems that can plan stations (they implement `Problem.station_information`)."""
-    from handeye.framework.problem import Problem
-
-    problems = get_registry().problems
-    return [name for name, p in problems.items() if type(p).station_information is not Problem.station_information]
+    """The registered problems that can plan stations (their planning part: `PlanningPart.plans`)."""
+    return [name for name, p in get_registry().problems.items() if p.plans]
 
 
 def _std(information: np.ndarray, names: tuple[str, ...], interest: tuple[str, ...]) -> dict[str, dict[str, float]]:

@@ -42,6 +42,7 @@ import numpy as np
 
 from handeye.base.errors import HandEyeError, InputError, SolverError
 from handeye.checks.stations import DUPLICATE_DEG, DUPLICATE_FRACTION, cell_size
+from handeye.framework.reported import Reported
 from handeye.framework.solution import Solution, Status
 from handeye.geometry.se3 import inverse, rotation_angle
 from handeye.geometry.validation import pose_stack
@@ -310,7 +311,7 @@ class Session:
                 warnings.append(f"no answer from the {len(A)} stations yet: {reason}")
             return False
         self._last_solved = int(sum(self._kept))
-        for outlier in solution.diagnostics.get("outliers", []) or []:
+        for outlier in Reported.of(solution.diagnostics).outliers or ():
             row = int(rows[int(outlier["index"])])
             self._kept[row] = False
             self._left_out.append(Disagreement(row, self._names[row], math.inf, 0.0, float(outlier["rotation_deg"]),

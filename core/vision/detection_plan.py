@@ -58,11 +58,11 @@ def detect_set(files: Sequence[Path], board: Board, camera: Camera | None = None
     plan's probe is judged with them); `workers`: detection threads (default: the cores);
     `cache`: None / True the environment's cache, False none, a folder that one; `progress`: a
     progress bar on a terminal."""
+    from handeye.framework.progress import progress_bar
     from handeye.vision.board_survey import check_chessboard_size
-    from handeye.vision.detection_pool import progress_bar
 
     everything = range(len(files))
-    with progress_bar(len(files), progress) as bar:
+    with progress_bar(len(files), "detecting the board", "image", progress) as bar:
         run = _Runner(files, board, DetectionCache.resolve(cache), workers, bar.update)
         probes = probe_indices(len(files))
         if board.kind == "chessboard" and not run.cached(probes):  # a wrong board size named before the long search

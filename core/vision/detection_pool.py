@@ -14,7 +14,7 @@ top-level code runs again), and a forked one deadlocks when the parent holds a l
 OpenCV thread pool, or runs under pytest-xdist.
 
 Serial when there is no second worker: ``workers=1`` (or `WORKERS_VARIABLE`) or a single item.
-`progress_bar`: tqdm on stderr when it is a terminal, never in a log or a test.
+The bar while detecting: `handeye.framework.progress.progress_bar`, on a terminal only.
 """
 
 from __future__ import annotations
@@ -80,14 +80,6 @@ def map_in_order(work: Callable[[T], R], items: Sequence[T], workers: int | None
         for _ in as_completed(futures):
             done()
         return [f.result() for f in futures]
-
-
-def progress_bar(total: int, show: bool = True, description: str = "detecting the board"):
-    """A tqdm bar on stderr for `total` images, shown only on a terminal (tqdm's disable=None: not
-    in a log, a pipe or a test) and when `show`; a context manager with ``update()``."""
-    from tqdm import tqdm
-
-    return tqdm(total=total, desc=description, unit="image", leave=False, disable=None if show else True)
 
 
 def _work(item: Item) -> Outcome:

@@ -42,13 +42,13 @@ from typing import Any
 import numpy as np
 
 from handeye.base.errors import InputError
+from handeye.checks.stations import Dropped
 from handeye.io.pose_readers import PoseStack
 from handeye.vision.best_corners import choose
 from handeye.vision.board_set import Detector, check_distinct, detect_board_files
 from handeye.vision.boards import UNITS, Board
 from handeye.vision.camera_poses import board_pose, flag_outliers
 from handeye.vision.image_set import (
-    Dropped,
     _majority_size,
     list_images,
     pair_images,
@@ -135,20 +135,20 @@ def camera_observations(folder: str | Path, boards: Mapping[str, Board], camera:
     outcomes = detect_board_files(used, boards, camera, workers=workers, cache=cache, detector=detector)
     for k, (path, outcome) in enumerate(zip(used, outcomes)):
         if isinstance(outcome, InputError):
-            dropped.append(Dropped(path.stem, names[rows[k]], str(outcome).removeprefix(f"{path.name}: ")))
+            dropped.append(Dropped("image", path.stem, str(outcome).removeprefix(f"{path.name}: "), names[rows[k]]))
             found.append({})
             sizes.append(None)
             continue
         size_k, result = outcome
         sizes.append(size_k)
-        dropped += [Dropped(path.stem, None, f"{name} not found: {why}") for name, why in result.missing.items()]
+        dropped += [Dropped("image", path.stem, f"{name} not found: {why}") for name, why in result.missing.items()]
         found.append(result.found)
     size = _majority_size(sizes)
     warnings: list[str] = []
     for k, s in enumerate(sizes):
         if s is not None and s != size:
             reason = f"image size {s[0]}x{s[1]} differs from the {size[0]}x{size[1]} of most images"
-            dropped.append(Dropped(used[k].stem, names[rows[k]], reason))
+            dropped.append(Dropped("image", used[k].stem, reason, names[rows[k]]))
             warnings.append(f"dropped image {used[k].name}: {reason} (another camera or resolution?)")
             found[k] = {}
     views = [(k, name) for k, f in enumerate(found) for name in f]
@@ -186,7 +186,7 @@ def camera_observations(folder: str | Path, boards: Mapping[str, Board], camera:
         if not bad and not outliers:
             break
         for (k, name), reason in bad + outliers:
-            dropped.append(Dropped(used[k].stem, None, f"{name}: unreliable pose, {reason}"))
+            dropped.append(Dropped("image", used[k].stem, f"{name}: unreliable pose, {reason}"))
         warnings += [f"dropped {name} in image {used[k].name} ({names[rows[k]]}): unreliable pose, {reason}"
                      for (k, name), reason in outliers]
         views = [v for v in kept if v not in {o for o, _ in outliers}]

@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from handeye.base.errors import InputError
+from handeye.checks.stations import Dropped
 from handeye.io.input_files import load_json, load_yaml, number
 from handeye.io.pose_readers import PoseStack, natural_key, read_pose_dir  # noqa: F401 (re-exported)
 from handeye.streams.station_matching import default_max_dt, match_by_time
@@ -72,21 +73,6 @@ _NUMBER = re.compile(r"\d+(?:\.\d+)?")
 _NAMED = 5
 
 Detector = Callable[[np.ndarray, Board], Any]
-
-
-@dataclasses.dataclass(frozen=True)
-class Dropped:
-    """An image or robot pose left out, and why. `image` / `pose` name what was dropped (None
-    when only the other one was)."""
-
-    image: str | None
-    pose: str | None
-    reason: str
-
-    def describe(self) -> str:
-        what = " with ".join(x for x in (self.image and f"image {self.image}", self.pose and f"robot pose {self.pose}")
-                             if x)
-        return f"{what}: {self.reason}"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -242,10 +228,10 @@ def pair_images(files: Sequence[Path], robot: PoseStack, match: str, *, max_dt: 
             where[_name_key(n)] = i
         image_rows = [i for i, n in enumerate(names) if _name_key(n) in where]
         robot_rows = [where[_name_key(names[i])] for i in image_rows]
-        dropped = [Dropped(n, None, "no robot pose of that name")
+        dropped = [Dropped("image", n, "no robot pose of that name")
                    for n in names if _name_key(n) not in where]
         used = set(robot_rows)
-        dropped += [Dropped(None, robot_names[i], "no image of that name") for i in range(len(robot)) if i not in used]
+        dropped += [Dropped("robot", robot_names[i], "no image of that name") for i in range(len(robot)) if i not in used]
         note = f"paired {len(image_rows)} of {len(files)} images with robot poses by name"
     else:
         if robot.stamps is None:
@@ -260,11 +246,11 @@ def pair_images(files: Sequence[Path], robot: PoseStack, match: str, *, max_dt: 
         robot_rows, image_rows, dt = match_by_time(robot.stamps, np.asarray(stamps), limit)
         robot_rows, image_rows = list(robot_rows), list(image_rows)
         kept = set(image_rows)
-        dropped = [Dropped(n, None, f"no robot pose within {limit:.3g} s of its stamp {s:.6f} s")
+        dropped = [Dropped("image", n, f"no robot pose within {limit:.3g} s of its stamp {s:.6f} s")
                    for i, (n, s) in enumerate(zip(names, stamps)) if i not in kept]
         unused = len(robot) - len(set(robot_rows))
         if unused and unused <= 10:
-            dropped += [Dropped(None, robot_names[i], "no image at its time")
+            dropped += [Dropped("robot", robot_names[i], "no image at its time")
                         for i in range(len(robot)) if i not in set(robot_rows)]
         worst = float(np.max(np.abs(dt))) * 1e3 if len(dt) else float("nan")
         note = (f"paired {len(image_rows)} of {len(files)} images with robot poses by time (max |dt| {worst:.3g} ms, "
@@ -392,7 +378,7 @@ def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, ca
 
     found, reasons, size, warnings = _detect_all(files_used, board, detector, camera, workers, cache)
     keep = [k for k, d in enumerate(found) if d is not None]
-    dropped += [Dropped(files_used[k].stem, pose_of(k), reasons[k]) for k in range(len(found)) if found[k] is None]
+    dropped += [Dropped("image", files_used[k].stem, reasons[k], pose_of(k)) for k in range(len(found)) if found[k] is None]
     if size is None:
         raise InputError(f"none of the {len(files_used)} images could be read ({files_used[0].name}: {reasons[0]})")
     if not keep:
@@ -433,7 +419,7 @@ def images_and_poses(images: str | Path | Sequence[str | Path], board: Board, ca
         bad = failed + outliers
         if not bad:
             break
-        dropped += [Dropped(files_used[k].stem, pose_of(k), reason) for k, reason in bad]
+        dropped += [Dropped("image", files_used[k].stem, reason, pose_of(k)) for k, reason in bad]
         warnings += [f"dropped image {files_used[k].name}: {reason}" for k, reason in outliers]
         keep = [k for k in keep if k not in {b for b, _ in bad}]
         if not keep:

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from handeye.base.errors import InputError
-from handeye.framework.problem import Published
+from handeye.framework.problem_cell import Published
 from handeye.host.registry import get_registry
 
 #: the short names of frames in T_parent_child -> the frame's name in words

@@ -26,7 +26,7 @@ from handeye.base.errors import InputError
 from handeye.io.pose_readers import PoseStack
 from handeye.workflow.cell import IMAGE_MATCHES, Cell
 from handeye.workflow.reading import read_stream
-from handeye.workflow.stations import Dropped, Log, Stations, take
+from handeye.workflow.stations import Log, Stations, take
 
 
 def image_stations(cell: Cell, log: Log | None = None, robot: PoseStack | None = None, *,
@@ -62,10 +62,9 @@ def image_stations(cell: Cell, log: Log | None = None, robot: PoseStack | None =
     if log is not None:
         log("images", "\n".join(summary_lines(cell, board, images)))
     warnings = [*images.warnings, *[f"dropped {d.describe()}" for d in images.dropped
-                                    if d.image is not None and d.pose is not None
+                                    if d.kind == "image" and d.robot is not None
                                     and not any(d.reason in w for w in images.warnings)]]  # said once
-    dropped = tuple(Dropped("image", d.image, d.reason, robot=d.pose) if d.image is not None
-                    else Dropped("robot", d.pose, d.reason) for d in images.dropped)
+    dropped = tuple(images.dropped)
     robot_rows = np.asarray(images.robot_rows)
     return Stations(robot, camera_file, take(robot, robot_rows), robot_rows, rows, matching, dropped,
                     tuple(warnings), images)
@@ -120,7 +119,7 @@ def intrinsics_source(cell: Cell) -> str:
 def inputs_entry(cell: Cell, images: Any) -> dict[str, Any]:
     """The result's ``inputs.camera``: where the board poses came from."""
     return {"file": cell.images.folder, "format": f"images, board {cell.images.board}", "unit": images.unit,
-            "poses": len(images) + sum(d.image is not None for d in images.dropped),
+            "poses": len(images) + sum(d.kind == "image" for d in images.dropped),
             "holds": "T_cam_target", "intrinsics": intrinsics_source(cell)}
 
 

@@ -37,7 +37,8 @@ from typing import Any
 import numpy as np
 
 from handeye.base.errors import HandEyeError, InputError
-from handeye.framework.problem import JointStations
+from handeye.framework.problem_cell import JointStations
+from handeye.framework.reported import Reported
 from handeye.framework.solution import Status
 from handeye.geometry.kinematics import DHArm
 from handeye.geometry.se3 import inverse
@@ -211,7 +212,7 @@ def kinematics_entry(cell: Cell, arm: ArmModel, joints: JointStack, diagnostics:
     estimate, correction, 1-sigma) in the arm file's units, the parameters not identifiable (names
     and why), the table of the answer (the fitted one when the answer uses it, else the nominal)
     as rows and as an arm file's text (``arm_yaml``)."""
-    fitted = diagnostics.get("kinematics") or {}
+    fitted = Reported.of(diagnostics).kinematics
     angle = ANGLE_UNITS[arm.angle_unit]
     used = bool(fitted.get("used", False))
     table = np.array(fitted["dh"], dtype=float) if used and "dh" in fitted else arm.dh.table

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from handeye.base.errors import InputError
-from handeye.framework.problem import Observations
+from handeye.framework.problem_cell import Observations
 from handeye.geometry.se3 import inverse
 from handeye.host.api import solve
 from handeye.host.registry import get_registry

@@ -10,7 +10,7 @@ The images are paired with the robot's stations by the cell's ``matching.method`
 ``index``: the k-th image with the k-th robot pose; ``name``: file stem = station name; ``time``)
 exactly as one camera's images are; what each camera's images left out (an unreadable image, a
 board not found or with too few points, a board pose whose reprojection error is far above the
-camera's others) is listed as `handeye.workflow.stations.Dropped` entries (``image cam0/003``),
+camera's others) is listed as `handeye.checks.stations.Dropped` entries (``image cam0/003``),
 and the unreliable poses also as warnings. Each camera's intrinsics are treated as one camera's
 images treat them (`handeye.vision.image_observations`, step 5: a jackknife 1-sigma when
 calibrated here, a focal-length check of a given file, its warning prefixed ``camera NAME:``);
@@ -27,10 +27,10 @@ from typing import Any
 import numpy as np
 
 from handeye.base.errors import InputError
+from handeye.checks.stations import Dropped
 from handeye.io.observation_tables import ObservationTable
 from handeye.io.pose_readers import PoseStack
 from handeye.workflow.cell import IMAGE_MATCHES, Cell, ObservationStream
-from handeye.workflow.stations import Dropped
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,8 +85,8 @@ def image_tables(cell: Cell, robot: PoseStack, *, workers: int | None = None,
         tables.append(_table(stream, obs))
         cameras[stream.camera] = obs
         # an image left out takes no robot pose with it: the station may still have other cameras' images
-        dropped += [Dropped("image", f"{stream.camera}/{d.image}", d.reason) if d.image is not None
-                    else Dropped("robot", d.pose, f"camera {stream.camera}: {d.reason}") for d in obs.dropped]
+        dropped += [Dropped("image", f"{stream.camera}/{d.name}", d.reason) if d.kind == "image"
+                    else Dropped("robot", d.name, f"camera {stream.camera}: {d.reason}") for d in obs.dropped]
         warnings += [f"camera {stream.camera}: {w}" for w in obs.warnings]
         lines += summary(stream.camera, stream.images, obs)
     return ImageTables(tuple(tables), tuple(dropped), tuple(warnings), cameras, tuple(lines))

@@ -25,7 +25,7 @@ The statistic (docs/calibrate.md, "Plausibility checks"), two parts:
 2. **A better explanation.** Every usual mistake is undone on the raw streams and solved with a
    cheap closed form (the problem's `Problem.quick_solver`, kron-lstsq for the built-ins, else its
    first start); the as-given data is solved the same way. A problem says which of the mistakes
-   (`handeye.framework.problem.MISTAKES`) may be tried on its stations (`Problem.mistakes`).
+   (`handeye.framework.problem_cell.MISTAKES`) may be tried on its stations (`Problem.mistakes`).
    A hypothesis *explains* the data when its score (the larger of the two RMS, each divided by
    its limit) is below 1 (plausible) and at least `EXPLAIN_FACTOR` (4) times lower than the
    as-given data's. Noise cannot do that: a wrong model never fits noisy data better than the

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from handeye.base.errors import InputError
+from handeye.framework.reported import Reported
 from handeye.framework.solution import jsonable, standard_deviations
 from handeye.geometry.se3 import largest_relative_angle
 from handeye.io.output_files import write_bytes, write_text
@@ -131,8 +132,9 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
     motions = spec.station_reader is not None and spec.station_reader.pairing
     joined = _joined(stations, pairing) if stations is not None and motions else None
     # auto's outliers: indices of pairs, or of stations when it solved axxb on the stations
-    outlier_list = diagnostics.get("outliers")
-    on_stations = "formulation" in diagnostics and joined is not None
+    reported = Reported.of(diagnostics)
+    outlier_list = reported.outliers
+    on_stations = reported.on_stations and joined is not None
     outliers = None
     outlier_stations = None
     if outlier_list is not None:
@@ -167,7 +169,7 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
         "joined": joined,
         "outliers": outliers,
         "outlier_stations": outlier_stations,
-        "outlier_test": diagnostics.get("outlier_test"),
+        "outlier_test": reported.outlier_test,
         "stations": stations,
         "pairing": pairing,
         "data": data,
@@ -179,8 +181,8 @@ def collect(*, problem: str, setup: str | None, unit: str | None, solution: Any,
         "pair_table": None if not pair_table else [dict(row) for row in pair_table],
         "labels": None if labels is None else [list(map(str, label)) for label in labels],
         # a cell's monocular cameras: each one's scale and 1-sigma (the residuals above use them)
-        "camera_scales": {name: [s, (diagnostics.get("camera_scales_std") or {}).get(name)]
-                          for name, s in (diagnostics.get("camera_scales") or {}).items()} or None,
+        "camera_scales": {name: [s, reported.camera_scales_std.get(name)]
+                          for name, s in reported.camera_scales.items()} or None,
     })
 
 

@@ -22,6 +22,8 @@ from typing import Any
 import numpy as np
 
 from handeye.base.errors import InputError
+from handeye.checks.stations import Dropped
+from handeye.framework.reported import Reported
 from handeye.framework.solution import Solution, Status, standard_deviations
 from handeye.io.pose_readers import PoseStack
 from handeye.workflow.cell import Cell
@@ -44,7 +46,7 @@ from handeye.workflow.frames import (
     unknown_of,
 )
 from handeye.workflow.solving import UNUSABLE
-from handeye.workflow.stations import Dropped, Stations
+from handeye.workflow.stations import Stations
 
 
 @dataclasses.dataclass(frozen=True)
@@ -339,14 +341,13 @@ class CalibrationResult:
         camera's ``camera_scale`` {"scale", "std"}; a cell's monocular cameras' ``camera_scales``
         {name: {"scale", "std"}} (their translations times the scale are in the robot's unit,
         as the residuals are measured)."""
-        d, given = self.solution.diagnostics, self.facts.get("camera_scale")
-        if given == "unknown" and d.get("camera_scale") is not None:
-            return {"camera_scale": {"scale": float(d["camera_scale"]), "std": _number(d.get("camera_scale_std"))}}
-        if given is None or isinstance(given, str) or not d.get("camera_scales"):
+        d, given = Reported.of(self.solution.diagnostics), self.facts.get("camera_scale")
+        if given == "unknown" and d.camera_scale is not None:
+            return {"camera_scale": {"scale": d.camera_scale, "std": _number(d.camera_scale_std)}}
+        if given is None or isinstance(given, str) or not d.camera_scales:
             return {}
-        std = d.get("camera_scales_std") or {}
-        return {"camera_scales": {name: {"scale": float(s), "std": _number(std.get(name))}
-                                  for name, s in d["camera_scales"].items()}}
+        return {"camera_scales": {name: {"scale": float(s), "std": _number(d.camera_scales_std.get(name))}
+                                  for name, s in d.camera_scales.items()}}
 
     def _camera_names(self) -> list[str]:
         """The names of the poses that are cameras: those of the unknown whose frame's child is

@@ -1,8 +1,9 @@
 """Which solver a calibration runs and how long it may take, when the user chose neither: the
 defaults shared by ``handeye.calibrate``, ``handeye calibrate`` and ``handeye solve``.
 
-- `default_solver`: ``auto`` when installed, else ``kron-lstsq`` (`DEFAULT_SOLVERS`);
-- board images (axyb): `REPROJECTION_SOLVER` when installed (`image_solver`), which gives way to
+- `default_solver`: the host's default (``auto``, `handeye.host.api.DEFAULT_SOLVER`) when
+  registered for the problem, else the first of the problem's starts that is;
+- board images (axyb): the solver that fits them (`SolverSpec.fits_images`, `image_solver`), which gives way to
   the pose-based default where that predicts the corners of held-out stations better
   (`pose_based_instead`);
 - `time_limit`: none for handeye's own solvers, `PLUGIN_TIME_LIMIT` for a third party's, so a
@@ -27,13 +28,11 @@ from typing import Any
 import numpy as np
 
 from handeye.base.errors import HandEyeError, InputError
+from handeye.framework.reported import Reported
 from handeye.framework.solution import Solution, Status, jsonable
+from handeye.host.api import DEFAULT_SOLVER
 from handeye.host.registry import get_registry
 
-#: solvers tried, in order, when none is chosen
-DEFAULT_SOLVERS = ("auto", "kron-lstsq")
-#: the solver that refines on the corners' reprojection error, the default for board images
-REPROJECTION_SOLVER = "reprojection"
 #: folds of the stations over which the default corner fit is compared with the pose-based
 #: answer by held-out corner prediction (`pose_based_instead`)
 HELD_OUT_FOLDS = 3
@@ -44,20 +43,27 @@ PLUGIN_TIME_LIMIT = 600.0
 
 
 def default_solver(problem: str) -> str:
-    """The first of `DEFAULT_SOLVERS` registered for `problem`; InputError when none is."""
-    names = get_registry().solver_names(problem)
-    for name in DEFAULT_SOLVERS:
+    """The host's default solver (`DEFAULT_SOLVER`) when registered for `problem`, else the first
+    of the problem's starts (`Problem.starts`) that is; InputError when none is."""
+    registry = get_registry()
+    names = registry.solver_names(problem)
+    for name in (DEFAULT_SOLVER, *registry.problem(problem).starts):
         if name in names:
             return name
     raise InputError(f"no default solver for problem {problem!r}; set `solver` to one of {names}")
 
 
 def image_solver(problem: str) -> str | None:
-    """`REPROJECTION_SOLVER` when it is installed for `problem` (it fits the board images
-    themselves), else None (the default solver)."""
-    if REPROJECTION_SOLVER in get_registry().solver_names(problem):
-        return REPROJECTION_SOLVER
-    return None
+    """The first solver registered for `problem` that fits the board images themselves
+    (`SolverSpec.fits_images`), else None (the default solver then solves the board poses)."""
+    registry = get_registry()
+    return next((name for name in registry.solver_names(problem) if fits_images(problem, name)), None)
+
+
+def fits_images(problem: str, solver: str) -> bool:
+    """Whether `solver` of `problem` fits the board images themselves (`SolverSpec.fits_images`)."""
+    registry = get_registry()
+    return solver in registry.solver_names(problem) and registry.solver(solver, problem).fits_images
 
 
 def pose_based_instead(solution: Solution, defaulted: bool) -> str | None:
@@ -65,23 +71,22 @@ def pose_based_instead(solution: Solution, defaulted: bool) -> str | None:
     when the pose-based answer predicts the corners of stations it was not fitted to better than
     the corner fit does (the solver's own held-out comparison, ``held_out``, asked for by
     `image_data`); only when no solver was chosen."""
-    d = solution.diagnostics
-    verdict = d.get("held_out") or {}
-    if not defaulted or solution.solver != REPROJECTION_SOLVER or not verdict.get("pose_based_better"):
+    verdict = Reported.of(solution.diagnostics).held_out or {}
+    if not defaulted or not fits_images(solution.problem, solution.solver) or not verdict.get("pose_based_better"):
         return None
     corners = verdict["reprojection_px"]
     fitted = "failed on some fold" if corners is None else f"{corners:.3g} px"
     return (f"over {verdict['folds']} folds of the stations, the pose-based answer predicts the board corners of "
             f"images it was not fitted to to {verdict['pose_based_px']:.3g} px RMS, the fit to the corners to "
-            f"{fitted}: the answer is the pose-based one (`solver: reprojection` forces the corner fit)")
+            f"{fitted}: the answer is the pose-based one (`solver: {solution.solver}` forces the corner fit)")
 
 
 def image_data(image_set: Any, solver: str, problem: str, compare: bool = False) -> dict[str, Any]:
-    """The image observations as the solver's ``images`` field, for the reprojection solver only
+    """The image observations as the solver's ``images`` field, for a solver that fits them only
     (of a problem whose data take them, ``images`` among its `Problem.optional_fields`); with
     `compare` (the solver was not chosen by the user) also its held-out comparison with the
     pose-based answer over HELD_OUT_FOLDS folds of the stations, where there are enough of them."""
-    if (image_set is None or solver != REPROJECTION_SOLVER
+    if (image_set is None or not fits_images(problem, solver)
             or "images" not in get_registry().problem(problem).optional_fields):
         return {}
     stations = len(image_set.observations.image_points)
@@ -116,13 +121,13 @@ def in_robot_unit(data: Mapping[str, Any], facts: Mapping[str, Any],
     to the user)."""
     given = facts.get("camera_scale")
     if given == "unknown":
-        scale = diagnostics.get("camera_scale")
+        scale = Reported.of(diagnostics).camera_scale
         if scale is None:
             return data
         B = np.array(data["B"], dtype=float)
         B[:, :3, 3] *= scale
         return {**data, "B": B}
-    scales = diagnostics.get("camera_scales") if given is not None and not isinstance(given, str) else None
+    scales = Reported.of(diagnostics).camera_scales if given is not None and not isinstance(given, str) else None
     if not scales:
         return data
     B = np.array(data["B"], dtype=float)
@@ -159,13 +164,13 @@ def pose_based_intrinsics(solution: Solution, image_set: Any, robot_poses: np.nd
     covariance and 1-sigma widened by theirs, with the warning where a translation's 1-sigma at
     least doubles (`handeye.vision.intrinsics_effect`). Found by re-solving `cell`'s problem with
     the same solver, facts and options (4 solves of a few ms). The corner fit
-    (`REPROJECTION_SOLVER`), which does this itself, an unusable answer, or no images: `solution`
+    (`SolverSpec.fits_images`), which does this itself, an unusable answer, or no images: `solution`
     as it is."""
     from handeye.host.api import solve
     from handeye.io.data_files import from_poses
     from handeye.vision import intrinsics_effect as effect
 
-    if (image_set is None or solution.solver == REPROJECTION_SOLVER or solution.status in UNUSABLE
+    if (image_set is None or fits_images(solution.problem, solution.solver) or solution.status in UNUSABLE
             or len(robot_poses) != len(image_set.T_cam_target)):
         return solution
     obs = image_set.observations

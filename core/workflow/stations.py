@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from handeye.base.errors import InputError
+from handeye.checks.stations import Dropped
 from handeye.io.pose_readers import PoseStack
 from handeye.streams.station_matching import (
     default_max_dt,
@@ -29,27 +30,6 @@ from handeye.workflow.reading import read_stream
 
 #: a progress callback: (stage, text), stage ``"images"`` or ``"matching"``
 Log = Callable[[str, str], None]
-
-
-@dataclasses.dataclass(frozen=True)
-class Dropped:
-    """A pose or image left out of the stations, and why.
-
-    kind: ``"image"``, ``"camera"`` (a camera pose) or ``"robot"`` (a robot pose); name: the
-    image's file stem, the pose's name, else its row in its file as ``"row N"`` (1-based); robot:
-    the robot pose dropped together with an image (its name), if any; reason: in words.
-    """
-
-    kind: str
-    name: str
-    reason: str
-    robot: str | None = None
-
-    def describe(self) -> str:
-        """One line, e.g. ``image 4 with robot pose 4: board not found: ...``."""
-        what = {"image": "image", "camera": "camera pose", "robot": "robot pose"}[self.kind]
-        partner = f" with robot pose {self.robot}" if self.robot is not None else ""
-        return f"{what} {self.name}{partner}: {self.reason}"
 
 
 @dataclasses.dataclass(frozen=True)

@@ -422,6 +422,7 @@ SPEC = SolverSpec(
     unit_invariant=True,
     exact=True,
     simulate_options=SIMULATE_OPTIONS,
+    fits_images=True,
 )
 
 

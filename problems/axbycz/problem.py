@@ -13,7 +13,8 @@ import numpy as np
 from handeye import hookimpl
 from handeye.base.errors import DegenerateDataError, InputError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.problem import BenchSettings, Problem, pose_discrepancy
+from handeye.framework.problem import Problem, pose_discrepancy
+from handeye.framework.problem_studies import BenchSettings
 from handeye.geometry.kinematics import random_flange_poses
 from handeye.geometry.se3 import inverse
 from handeye.geometry.validation import pose_stack

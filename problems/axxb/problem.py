@@ -18,14 +18,9 @@ from handeye.base.vocabulary import SETUPS
 from handeye.estimation import camera_scale
 from handeye.estimation.noise import NoiseModel
 from handeye.estimation.robust import MAD_TO_SIGMA
-from handeye.framework.problem import (
-    BenchSettings,
-    Frame,
-    Problem,
-    Published,
-    StationReader,
-    pose_discrepancy,
-)
+from handeye.framework.problem import Problem, pose_discrepancy
+from handeye.framework.problem_cell import Frame, Published, StationReader
+from handeye.framework.problem_studies import BenchSettings
 from handeye.geometry.motions import PAIRINGS
 from handeye.geometry.se3 import inverse
 from handeye.geometry.validation import (

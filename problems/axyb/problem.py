@@ -16,15 +16,9 @@ from handeye import hookimpl
 from handeye.base.errors import DegenerateDataError, InputError
 from handeye.estimation import camera_scale
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.problem import (
-    BenchSettings,
-    BenchTarget,
-    Frame,
-    Problem,
-    Published,
-    StationReader,
-    pose_discrepancy,
-)
+from handeye.framework.problem import Problem, pose_discrepancy
+from handeye.framework.problem_cell import Frame, Published, StationReader
+from handeye.framework.problem_studies import BenchSettings, BenchTarget
 from handeye.geometry.kinematics import simulate_stations
 from handeye.geometry.validation import (
     check_motion_beyond_noise,

@@ -28,14 +28,9 @@ import numpy as np
 from handeye import hookimpl
 from handeye.base.errors import InputError
 from handeye.estimation.noise import NoiseModel
-from handeye.framework.problem import (
-    BenchSettings,
-    Frame,
-    JointStations,
-    Problem,
-    Published,
-    pose_discrepancy,
-)
+from handeye.framework.problem import Problem, pose_discrepancy
+from handeye.framework.problem_cell import Frame, JointStations, Published
+from handeye.framework.problem_studies import BenchSettings
 from handeye.geometry.kinematics import LR_MATE_200ID, LR_MATE_SIM_JOINTS, DHArm
 from handeye.geometry.se3 import inverse, make_pose
 from handeye.geometry.validation import pose_stack

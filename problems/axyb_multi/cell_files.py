@@ -18,7 +18,7 @@ import numpy as np
 
 from handeye.base.errors import InputError
 from handeye.base.vocabulary import SETUPS
-from handeye.framework.problem import ObservationData, Observations
+from handeye.framework.problem_cell import ObservationData, Observations
 from handeye.geometry.se3 import inverse
 
 

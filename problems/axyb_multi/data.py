@@ -155,7 +155,7 @@ class AXYBMultiData:
     @property
     def names(self) -> tuple[str, ...]:
         """The names of the X's then the Y's, in the order of the model's unknowns
-        (`handeye.framework.problem.flat_names`: X[0], ..., Y[0], ...)."""
+        (`handeye.framework.problem_engine.flat_names`: X[0], ..., Y[0], ...)."""
         return self.x_names + self.y_names
 
     @functools.cached_property

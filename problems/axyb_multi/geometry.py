@@ -10,7 +10,7 @@ One 6-vector per observation i, with j = x_i and k = y_i: the residual of A_i X 
     t_i = R_Ai t_Xj + t_Ai - R_Yk t_Bi - t_Yk        t(A_i X_j) - t(Y_k B_i)          [data units]
 
 The unknowns are the poses X[0], ..., X[nX-1], Y[0], ..., Y[nY-1] (the order of
-`handeye.framework.problem.flat_names`), each perturbed on the right, T <- T exp(xi), xi = (omega, v). An
+`handeye.framework.problem_engine.flat_names`), each perturbed on the right, T <- T exp(xi), xi = (omega, v). An
 observation depends on two of them only; its 6 x 12 block on (xi_Xj, xi_Yk) is AXYBModel's
 (derivation in docs/solvers/refine.md):
 

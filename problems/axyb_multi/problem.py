@@ -20,14 +20,9 @@ from handeye.base.errors import InputError
 from handeye.estimation.noise import NoiseModel
 from handeye.estimation.robust import OUTLIER_CHI2
 from handeye.estimation.whitening import estimate_sigmas
-from handeye.framework.problem import (
-    BenchSettings,
-    BenchTarget,
-    ErrorTable,
-    Frame,
-    Problem,
-    pose_discrepancy,
-)
+from handeye.framework.problem import ErrorTable, Problem, pose_discrepancy
+from handeye.framework.problem_cell import Frame
+from handeye.framework.problem_studies import BenchSettings, BenchTarget
 from handeye.geometry.se3 import (
     rotation_angle,
 )

@@ -5,9 +5,9 @@ errors its stations share (the reprojection solver's jackknife over the stations
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
-from handeye.checks.self_check import _rotation_residual, held_out_best
+from handeye.checks.self_check import _rotation_residual
+from handeye.framework.reported import Reported
 from handeye.plugins.reprojection.corners import Fit, station_jackknife
 
 
@@ -27,16 +27,16 @@ EVIDENCE = {"best": True, "measure": "board corners of held-out stations, px RMS
 
 def test_residuals_above_the_noise_fail_an_answer_without_held_out_evidence():
     failures, warnings, figures = [], [], {}
-    _rotation_residual(Residuals10xNoise(), None, {}, failures, figures, None, held_out_best({}), warnings)
+    _rotation_residual(Residuals10xNoise(), None, {}, failures, figures, None, Reported.of({}).held_out_best, warnings)
     assert len(failures) == 1 and "20 times what the noise of these data gives" in failures[0] and not warnings
     beaten = {"held_out": {**EVIDENCE, "best": False}}
-    assert held_out_best(beaten) is None and held_out_best({"held_out": "yes"}) is None
+    assert Reported.of(beaten).held_out_best is None and Reported.of({"held_out": "yes"}).held_out_best is None
 
 
 def test_the_answer_that_predicts_held_out_stations_best_gets_a_warning_not_a_failure():
     failures, warnings, figures = [], [], {}
     _rotation_residual(Residuals10xNoise(), None, {}, failures, figures, None,
-                       held_out_best({"held_out": EVIDENCE}), warnings)
+                       Reported.of({"held_out": EVIDENCE}).held_out_best, warnings)
     assert failures == [] and figures["rotation_residual"]["systematic"] is True
     assert len(warnings) == 1 and "20 times what the noise of these data gives" in warnings[0]
     assert ("board corners of held-out stations, px RMS: 1.23; with the robot's noise estimated 1.85, the "

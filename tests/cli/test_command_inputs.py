@@ -15,7 +15,8 @@ from hypothesis import strategies as st
 
 from handeye.estimation.noise import NoiseModel
 from handeye.geometry.se3 import inverse
-from handeye.io.pose_readers import PoseStack, write_poses
+from handeye.io.pose_readers import PoseStack
+from handeye.io.pose_writers import write_poses
 from handeye.problems.axyb import PROBLEM
 from tests.conftest import run_cli
 

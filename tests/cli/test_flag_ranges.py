@@ -6,11 +6,11 @@ checks)."""
 from __future__ import annotations
 
 import pytest
+from test_planning import write_camera
+from test_watch_cli import write_pair
 
 from handeye.problems.axyb import PROBLEM
 from tests.conftest import run_cli
-from test_planning import write_camera
-from test_watch_cli import write_pair
 
 VALUES = ("99999999999999999999999", "-5", "0", "nan", "inf", "1e400", "-inf")
 NUMBER_FLAGS = {

@@ -16,7 +16,8 @@ from handeye.cli import main
 from handeye.estimation.noise import NoiseModel
 from handeye.geometry import so3_fast
 from handeye.geometry.se3 import inverse, make_pose
-from handeye.io.pose_readers import PoseStack, read_poses, write_poses
+from handeye.io.pose_readers import PoseStack, read_poses
+from handeye.io.pose_writers import write_poses
 from handeye.planning.plan import plan
 from handeye.problems.axyb import PROBLEM
 from handeye.vision.boards import parse_board

@@ -287,3 +287,14 @@ def test_the_bias_bound_is_the_bias_when_the_noise_is_the_camera_s():
         bound.append(noise_figures(sol)["bias"])
     assert np.mean(bound) == pytest.approx(0.099, abs=0.01)
     assert np.mean(shortfall) == pytest.approx(np.mean(bound), abs=0.02)
+
+
+def test_a_solver_or_start_that_takes_the_translations_as_metric_is_refused_with_the_one_that_can():
+    """The host and refine ask the same capability check (SolverSpec.cannot_solve) and name the
+    solvers (or the start) that can solve the data instead."""
+    data, _ = simulate("axyb", seed=3)
+    with pytest.raises(InputError, match=r"^solver 'shah' takes the camera's translations as metric.*use one of "
+                                         r".*so3-sdp"):
+        handeye.solve("axyb", solver="shah", camera_scale="unknown", **data)
+    with pytest.raises(InputError, match=r"^init solver 'shah' takes .* as metric.*use init='so3-sdp'$"):
+        handeye.solve("axyb", solver="refine", init="shah", camera_scale="unknown", **data)

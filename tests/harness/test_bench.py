@@ -13,7 +13,7 @@ from conftest import SolverPlugin, identity_run
 
 import handeye
 from handeye import SolverSpec, hookimpl
-from handeye.framework.problem import BenchRow, BenchSettings, BenchTarget
+from handeye.framework.problem_studies import BenchRow, BenchSettings, BenchTarget
 from handeye.harness import bench
 from handeye.harness.bench_report import (
     data_line,

@@ -161,7 +161,7 @@ def test_bench_times_it(installed_problem, capsys):
 def _stations(tmp_path, module, *, pairs=12, seed=8, noise=None):
     """A cell's files: the robot's flange poses and the camera's board poses T_cam_target."""
     from handeye.geometry.se3 import inverse
-    from handeye.io.pose_readers import write_poses
+    from handeye.io.pose_writers import write_poses
 
     data, truth = module.PROBLEM.simulate(pairs=pairs, seed=seed, noise=noise)
     write_poses(tmp_path / "robot.csv", data["A"], "xyz-quat-xyzw", unit="mm")
@@ -201,7 +201,8 @@ def test_calibrate_finds_a_setup_mistake_for_it(installed_problem, tmp_path):
     """The plausibility check tries the usual mistakes with the problem's own closed form: robot
     poses given as T_flange_base."""
     from handeye.geometry.se3 import inverse
-    from handeye.io.pose_readers import read_poses, write_poses
+    from handeye.io.pose_readers import read_poses
+    from handeye.io.pose_writers import write_poses
     from handeye.workflow.cell import CameraStream, Cell, PoseStream
 
     _stations(tmp_path, installed_problem, noise=NOISE)

@@ -11,7 +11,8 @@ from handeye import InputError
 from handeye.cli import main
 from handeye.geometry.se3 import inverse, make_pose, so3_exp
 from handeye.io.bag_readers import is_bag, parse_topic, read_bag_poses
-from handeye.io.pose_readers import PoseStack, write_poses
+from handeye.io.pose_readers import PoseStack
+from handeye.io.pose_writers import write_poses
 
 rosbags = pytest.importorskip("rosbags")
 from rosbags.rosbag1 import Writer as Writer1

@@ -24,7 +24,8 @@ from handeye.io import npz
 from handeye.io.data_files import load_data, save_data
 from handeye.io.input_files import MAX_ALIAS_NODES, load_json, load_yaml
 from handeye.io.npz import load_npz
-from handeye.io.pose_readers import PoseStack, poses_from_rows, read_poses, write_poses
+from handeye.io.pose_readers import PoseStack, poses_from_rows, read_poses
+from handeye.io.pose_writers import write_poses
 from handeye.vision.boards import parse_board
 from handeye.vision.image_set import image_stamp
 from handeye.vision.intrinsics import load_camera

@@ -7,11 +7,11 @@ from __future__ import annotations
 import shutil
 
 import pytest
+from test_planning import write_camera
+from test_watch_cli import write_pair
 
 from handeye.io.examples import image_example_dir
 from tests.conftest import run_cli
-from test_planning import write_camera
-from test_watch_cli import write_pair
 
 PLAN = ["plan", "--setup", "eye-in-hand", "--x", "60,-20,100,17.19,0,0", "--y", "600,0,0,0,0,180",
         "--board", "chessboard:9x6:30mm", "--count", "4", "--workspace", "200,-500,50,1000,500,1000",

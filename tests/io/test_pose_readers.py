@@ -16,8 +16,8 @@ from handeye.io.pose_readers import (
     MAX_CORRECTION,
     poses_from_rows,
     read_poses,
-    write_poses,
 )
+from handeye.io.pose_writers import write_poses
 
 FANUC_DIR = Path(__file__).resolve().parents[3] / "shared" / "data" / "robcalib_axyb_fanuc_poses"
 

@@ -292,7 +292,8 @@ def test_cli_reads_recorded_camera_poses_as_calibrate_does_and_checks_them(tmp_p
     """--recorded-camera holds T_cam_target, as calibrate and watch read --camera (T_target_cam with
     --camera-poses camera-in-board); recorded stations read the other way are refused as calibrate's
     plausibility checks name them, instead of planned from."""
-    from handeye.io.pose_readers import PoseStack, write_poses
+    from handeye.io.pose_readers import PoseStack
+    from handeye.io.pose_writers import write_poses
 
     setup = "eye-in-hand"
     X, Y = CELLS[setup]

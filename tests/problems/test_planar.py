@@ -21,7 +21,7 @@ from handeye.estimation.noise import NoiseModel
 from handeye.geometry.se3 import inverse, make_pose, so3_exp
 from handeye.host.registry import get_registry
 from handeye.io.data_files import save_data
-from handeye.io.pose_readers import write_poses
+from handeye.io.pose_writers import write_poses
 from handeye.problems import planar
 from handeye.problems.axxb import motions
 

@@ -22,7 +22,8 @@ from handeye.cli import main
 from handeye.framework.problem import pose_errors
 from handeye.geometry.kinematics import LR_MATE_200ID, LR_MATE_SIM_JOINTS
 from handeye.geometry.se3 import inverse, make_pose, rotation_angle, so3_exp
-from handeye.io.pose_readers import PoseStack, read_poses, write_poses
+from handeye.io.pose_readers import PoseStack, read_poses
+from handeye.io.pose_writers import write_poses
 from handeye.problems.axyb import PAPER_X, PAPER_Y, PROBLEM
 from handeye.streams import angular_speed, checked_stream, pair_streams, resample_poses
 

@@ -198,10 +198,12 @@ class _Points:
 
 def test_the_progress_bar_shows_on_a_terminal_only(capfd):
     """Under pytest stderr is no terminal: no bar, nothing written."""
-    with detection_pool.progress_bar(3) as bar:
+    from handeye.framework.progress import progress_bar
+
+    with progress_bar(3, "detecting the board", "image") as bar:
         bar.update()
         assert bar.disable
-    with detection_pool.progress_bar(3, show=False) as bar:
+    with progress_bar(3, "detecting the board", "image", show=False) as bar:
         assert bar.disable
     assert capfd.readouterr().err == ""
 

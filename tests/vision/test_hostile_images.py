@@ -193,7 +193,7 @@ def test_an_odd_sized_first_image_drops_alone(tmp_path, capfd):
     assert out.count("image size 800x600") == 2  # the image list and one warning, not two
     result = json.loads(out_file.read_text())
     assert result["stations"] == 14 and result["camera"]["image_size"] == [640, 480]
-    assert [d["image"] for d in result["images"]["dropped"]] == ["0"]
+    assert [d["name"] for d in result["images"]["dropped"] if d["kind"] == "image"] == ["0"]
 
 
 def test_sizes_in_a_tie_go_to_the_first_and_every_odd_image_is_named(tmp_path):

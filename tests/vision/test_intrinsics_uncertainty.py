@@ -192,8 +192,9 @@ def test_a_cell_of_several_cameras_owes_each_cameras_intrinsics_their_share(tmp_
     both)."""
     import json
 
-    from handeye.workflow.observation_images import with_intrinsics
     from multi_images import CELL_YAML, write_cell
+
+    from handeye.workflow.observation_images import with_intrinsics
 
     monkeypatch.setenv("HANDEYE_NO_CACHE", "1")
     write_cell(tmp_path, 8)

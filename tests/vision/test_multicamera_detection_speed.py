@@ -15,6 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from multi_images import write_cell
 
 import handeye
 from handeye.cli import main
@@ -25,7 +26,6 @@ from handeye.vision.observations import Camera
 from handeye.vision.render import render, view_pose
 from handeye.workflow.cell import Cell
 from handeye.workflow.observation_images import image_tables
-from multi_images import write_cell
 
 STATIONS = 8
 CHESS_SPEC = "chessboard:9x6:25mm"

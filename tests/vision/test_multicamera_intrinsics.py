@@ -17,14 +17,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from multi_images import CAMERA, CAMERAS, CELL_YAML, write_cell
 
 import handeye
-from handeye.framework.solution import standard_deviations
 from handeye.io.pose_readers import PoseStack
 from handeye.vision.intrinsics_check import FOCAL_SIGMAS, jackknife_std
 from handeye.workflow.cell import Cell
 from handeye.workflow.observation_images import image_tables
-from multi_images import CAMERA, CAMERAS, CELL_YAML, write_cell
 
 STATIONS = 8
 SIZE = (640, 480)

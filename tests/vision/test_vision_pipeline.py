@@ -262,8 +262,8 @@ def test_pair_images_by_name_index_and_time(tmp_path):
     files = [tmp_path / f"{n}.png" for n in ("0", "1", "2", "3", "10")]
     paired = pair_images(files, _robot(5, names=("10", "3", "2", "1", "7")), "name")
     assert dict(zip(paired.image_rows.tolist(), paired.robot_rows.tolist())) == {1: 3, 2: 2, 3: 1, 4: 0}
-    assert {d.image for d in paired.dropped if d.image} == {"0"}
-    assert {d.pose for d in paired.dropped if d.pose} == {"7"}
+    assert {d.name for d in paired.dropped if d.kind == "image"} == {"0"}
+    assert {d.name for d in paired.dropped if d.kind == "robot"} == {"7"}
     assert pair_images(files, _robot(5), "name").robot_rows.tolist() == [0, 1, 2, 3]  # row numbers as names
     assert pair_images(files, _robot(5), "index").robot_rows.tolist() == [0, 1, 2, 3, 4]
     with pytest.raises(InputError, match="5 images and 4 robot poses"):
@@ -271,7 +271,7 @@ def test_pair_images_by_name_index_and_time(tmp_path):
     stamped = [tmp_path / f"frame_{t}.png" for t in ("100.02", "100.51", "101.0", "107.0")]
     paired = pair_images(stamped, _robot(4, stamps=[100.0, 100.5, 101.0, 101.5]), "time")
     assert paired.image_rows.tolist() == [0, 1, 2] and paired.robot_rows.tolist() == [0, 1, 2]
-    assert [d.image for d in paired.dropped if d.image] == ["frame_107.0"]
+    assert [d.name for d in paired.dropped if d.kind == "image"] == ["frame_107.0"]
     with pytest.raises(InputError, match="no time stamp column"):
         pair_images(stamped, _robot(4), "time")
 
@@ -335,11 +335,11 @@ def test_dropped_image_takes_its_robot_pose_and_the_rest_stay_aligned(tmp_path, 
     assert images.names == ("0", "1", "2", "4", "5", "6", "8")
     np.testing.assert_array_equal(images.robot_rows, [0, 1, 2, 4, 5, 6, 8])
     assert images.pose_names == images.names
-    reasons = {(d.image, d.pose): d.reason for d in images.dropped}
-    assert reasons[("3", "3")].startswith("board not found")
-    assert reasons[("7", "7")].startswith("unreadable image file")
-    assert reasons[("12", None)] == "no robot pose of that name"
-    assert reasons[(None, "9")] == "no image of that name"
+    reasons = {(d.kind, d.name, d.robot): d.reason for d in images.dropped}
+    assert reasons[("image", "3", "3")].startswith("board not found")
+    assert reasons[("image", "7", "7")].startswith("unreadable image file")
+    assert reasons[("image", "12", None)] == "no robot pose of that name"
+    assert reasons[("robot", "9", None)] == "no image of that name"
     for T, row in zip(images.T_cam_target, images.robot_rows):
         rot, trans = pose_error(T, cell["T_cam_target"][row])
         assert rot < 1e-9 and trans < 1e-7
@@ -366,7 +366,7 @@ def test_index_and_time_matching_keep_the_stations_aligned_around_a_dropped_imag
                               detector=StationDetector(cell))
     kept = [0, 1, 2, 4, 5, 6, 7]
     np.testing.assert_array_equal(order[images.robot_rows], kept)  # each image with its own station
-    assert [(d.image, d.pose) for d in images.dropped] == [(Path(names[3]).stem, str(order.tolist().index(3)))]
+    assert [(d.name, d.robot) for d in images.dropped] == [(Path(names[3]).stem, str(order.tolist().index(3)))]
     data = from_poses(robot.poses[images.robot_rows], images.T_cam_target, "axyb", setup="eye-to-hand").data
     solution = handeye.solve("axyb", solver="kron-lstsq", **data)
     for name in ("X", "Y"):
@@ -405,7 +405,7 @@ def test_an_image_far_off_the_others_is_dropped_with_a_warning(tmp_path):
     images = images_and_poses(folder, BOARD, CAMERA, setup="eye-in-hand", robot=_robot(8), match="index",
                               detector=one_bad)
     assert "4" not in images.names and len(images) == 7
-    assert any(d.image == "4" and "far above the others" in d.reason for d in images.dropped)
+    assert any(d.name == "4" and "far above the others" in d.reason for d in images.dropped)
     assert any("dropped image 4.png" in w for w in images.warnings)
 
 

@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from handeye.estimation.noise import NoiseModel
 from handeye.geometry.se3 import inverse, rotation_angle
-from handeye.io.pose_readers import write_poses
+from handeye.io.pose_writers import write_poses
 from handeye.problems.axxb import simulate_stations
 from tests.conftest import run_cli
 

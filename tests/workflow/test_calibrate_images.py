@@ -20,7 +20,8 @@ from test_vision_pipeline import pose_error, simulated_cell
 
 from handeye.geometry.se3 import inverse
 from handeye.io.examples import image_example_dir
-from handeye.io.pose_readers import read_pose_dir, write_poses
+from handeye.io.pose_readers import read_pose_dir
+from handeye.io.pose_writers import write_poses
 from handeye.vision.boards import parse_board
 from handeye.vision.image_set import images_and_poses
 from handeye.vision.observations import Camera
@@ -105,7 +106,7 @@ def test_eye_in_hand_calibrates_the_camera_and_drops_the_image_without_board(eye
     assert result["stations"] == 11 and result["units"]["translation"] == "m"
     pairs = result["matching"]["pairs"]
     assert [p["image"] for p in pairs] == [p["robot_pose"] for p in pairs] == [str(i) for i in range(12) if i != 4]
-    assert result["images"]["dropped"][0]["image"] == "4" and result["images"]["dropped"][0]["pose"] == "4"
+    assert result["images"]["dropped"][0] == {"kind": "image", "name": "4", "robot": "4", "reason": result["images"]["dropped"][0]["reason"]}
     check_truth(result, cell, scale=1e-3)
     camera = result["camera"]
     assert camera["source"] == "calibrated" and camera["image_size"] == [480, 360]

@@ -27,13 +27,14 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import handeye
+from handeye.checks.stations import Dropped
 from handeye.cli._cell_flags import cell_words
 from handeye.geometry.se3 import inverse
 from handeye.io.examples import image_example_dir, load_example
-from handeye.io.pose_readers import PoseStack, read_pose_dir, write_poses
+from handeye.io.pose_readers import PoseStack, read_pose_dir
+from handeye.io.pose_writers import write_poses
 from handeye.workflow.cell import CameraStream, Cell, Images, Matching, PoseStream
 from handeye.workflow.exports import plain
-from handeye.workflow.stations import Dropped
 from tests.conftest import run_cli
 
 SHARED = Path(__file__).parents[3] / "shared" / "data"
@@ -281,7 +282,8 @@ def test_the_result_carries_frames_stations_and_what_was_dropped(dropped_image):
     assert (dropped.kind, dropped.name, dropped.robot) == ("image", "4", "4")
     assert dropped.reason.startswith("board not found")
     assert dropped.describe().startswith("image 4 with robot pose 4: board not found")
-    assert result.to_dict()["images"]["dropped"][0] == {"image": "4", "pose": "4", "reason": dropped.reason}
+    assert result.to_dict()["images"]["dropped"][0] == {"kind": "image", "name": "4", "robot": "4",
+                                                           "reason": dropped.reason}
     assert any(w.startswith("dropped image 4 with robot pose 4") for w in result.warnings)
 
 

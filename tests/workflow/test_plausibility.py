@@ -15,7 +15,7 @@ from handeye.cli import main
 from handeye.estimation.noise import NoiseModel
 from handeye.framework.solution import Status
 from handeye.geometry.se3 import inverse
-from handeye.io.pose_readers import write_poses
+from handeye.io.pose_writers import write_poses
 from handeye.problems.axxb import simulate_stations
 from handeye.problems.axyb import PROBLEM as AXYB
 
@@ -162,7 +162,7 @@ def test_a_gross_pair_that_auto_leaves_out_is_not_an_implausible_fit(tmp_path, c
     from handeye import cli
     from handeye.estimation.noise import NoiseModel
     from handeye.geometry.se3 import inverse, make_pose, so3_exp
-    from handeye.io.pose_readers import write_poses
+    from handeye.io.pose_writers import write_poses
     from handeye.problems.axxb import simulate_stations
 
     stations, _ = simulate_stations(12, seed=3, noise=NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)}))

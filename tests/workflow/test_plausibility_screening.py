@@ -117,7 +117,7 @@ def test_a_hypothesis_whose_screening_fit_fails_is_fitted_on_all_stations(monkey
 def test_calibrate_euler_mistake_on_a_long_file(tmp_path, capsys, monkeypatch):
     """Through ``handeye calibrate`` (the robot file re-read with the other Euler sequences): the
     same message and explanation with and without the screening, and the Euler sequence named."""
-    from handeye.io.pose_readers import write_poses
+    from handeye.io.pose_writers import write_poses
 
     st, _ = simulate_stations(100, seed=3, noise=NoiseModel({"A": (0.0002, 0.05), "B": (0.002, 0.5)}))
     robot = write_poses(tmp_path / "robot.csv", np.array(st["A"]), "yaskawa", unit="mm")

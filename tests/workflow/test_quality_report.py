@@ -17,7 +17,7 @@ import handeye
 from handeye.cli import main
 from handeye.estimation.noise import NoiseModel
 from handeye.geometry.se3 import inverse
-from handeye.io.pose_readers import write_poses
+from handeye.io.pose_writers import write_poses
 from handeye.problems.axxb import simulate_stations
 
 #: the corrupted station (0-based pair index; file row BAD + 1)

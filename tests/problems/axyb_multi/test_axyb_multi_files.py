@@ -96,7 +96,7 @@ def test_per_camera_files_eye_in_hand(tmp_path):
 
 def test_observations_to_the_right_data(exact_cell):
     """The mapping per setup: eye-to-hand B = T_cam_marker, X per target, Y per camera."""
-    from handeye.framework.problem import Observations
+    from handeye.framework.problem_cell import Observations
     from handeye.problems.axyb_multi.cell_files import from_observations
 
     cell = example_cell(noise=False)

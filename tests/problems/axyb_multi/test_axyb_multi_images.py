@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from multi_images import BOARDS, CAMERA, CELL_YAML, write_cell
 
 import handeye
 from handeye.base.errors import InputError
@@ -29,7 +30,6 @@ from handeye.vision.board_set import check_distinct
 from handeye.vision.boards import parse_board
 from handeye.vision.image_observations import camera_observations
 from handeye.workflow.cell import Cell
-from multi_images import BOARDS, CAMERA, CELL_YAML, write_cell
 
 ROTATION_TOL_DEG = 0.15
 TRANSLATION_TOL_MM = 1.0
@@ -152,7 +152,7 @@ def test_a_board_pose_far_off_by_reprojection_is_dropped_with_a_note(cell_dir):
                               detector=spoiled)
     assert len(obs) == 2 * STATIONS - 1
     (note,) = [d for d in obs.dropped if "unreliable" in d.reason]
-    assert note.image == "02" and note.reason.startswith("board0: unreliable pose, reprojection error")
+    assert note.name == "02" and note.reason.startswith("board0: unreliable pose, reprojection error")
     assert any("dropped board0 in image 02.png" in w for w in obs.warnings)
     assert np.all(obs.errors < 0.5)
 

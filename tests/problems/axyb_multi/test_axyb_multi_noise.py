@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_axyb_multi_problem import relative_error
 
 import handeye
 from handeye import Status
 from handeye.estimation.noise import NoiseModel
 from handeye.estimation.noise_sources import min_gain
 from handeye.problems.axyb_multi import PROBLEM, simulate_cell
-from test_axyb_multi_problem import relative_error
 
 #: the study's camera noise (rad, mm per axis), multiplied per camera
 CAMERA = (0.002, 0.5)

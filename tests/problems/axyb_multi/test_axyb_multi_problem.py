@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from multi_cells import cell, concatenate, observe, stations_about_one_axis
 
 import handeye
 from handeye import DegenerateDataError, InputError
@@ -15,7 +16,6 @@ from handeye.geometry.kinematics import random_flange_poses
 from handeye.geometry.se3 import inverse, random_poses
 from handeye.problems.axyb_multi import PROBLEM, errors_per_pose, simulate_cell
 from handeye.problems.axyb_multi.geometry import AXYBMultiModel, poses_of
-from multi_cells import cell, concatenate, observe, stations_about_one_axis
 
 NOISE = NoiseModel(PROBLEM.study_noise)
 
