@@ -31,6 +31,7 @@ import time
 from typing import Any
 
 import numpy as np
+from scipy.linalg import cho_solve, solve_triangular
 
 from handeye import Status
 from handeye.base.errors import SolverError
@@ -122,10 +123,12 @@ class Constraints:
         """H_ij = tr(A_i X A_j Z^-1): (K, K), from the 10 x 10 blocks only."""
         k, L = self.k, self.L
         Xb, Zb = self.blocks(X), self.blocks(Zinv)  # [g, f, q, r], [g, f, p, s]
-        T1 = np.matmul(L[None, None], Xb[:, :, None])  # [g, f, c, p, r] = sum_q L[c,p,q] X[g,f,q,r]
-        T2 = np.matmul(L[None, None], np.swapaxes(Zb, 2, 3)[:, :, None])  # [g, f, d, r, p] = sum_s L[d,r,s] Zi[g,f,p,s]
-        T2 = np.swapaxes(T2, 3, 4)  # [g, f, d, p, r]
-        H = np.matmul(T1.reshape(k, k, 21, 100), T2.reshape(k, k, 21, 100).transpose(0, 1, 3, 2))  # [g, f, c, d]
+        # one product each over all blocks (a batch of k^2 x 21 products of 10 x 10 is 1.5x slower)
+        T1 = np.tensordot(L, Xb, axes=([2], [2]))  # [c, p, g, f, r] = sum_q L[c,p,q] X[g,f,q,r]
+        T1 = T1.transpose(2, 3, 0, 1, 4).reshape(k, k, 21, 100)
+        T2 = np.tensordot(L, Zb, axes=([2], [3]))  # [d, r, g, f, p] = sum_s L[d,r,s] Zi[g,f,p,s]
+        T2 = T2.transpose(2, 3, 0, 4, 1).reshape(k, k, 21, 100)  # [g, f, d, p, r]
+        H = np.matmul(T1, T2.transpose(0, 1, 3, 2))  # [g, f, c, d]
         H = H.transpose(0, 2, 1, 3).reshape(21 * k, 21 * k)
         H = H[np.ix_(self.select, self.select)]
         return 0.5 * (H + H.T)
@@ -136,8 +139,8 @@ def _solver(H: np.ndarray) -> Any:
     Cholesky, or, when rounding makes it fail (X nearly rank one near a tight optimum), the
     pseudo-inverse from its eigenvalues."""
     try:
-        R = np.linalg.cholesky(H)
-        return lambda r: np.linalg.solve(R.T, np.linalg.solve(R, r))
+        factor = (np.linalg.cholesky(H), True)
+        return lambda r: cho_solve(factor, r, check_finite=False)
     except np.linalg.LinAlgError:
         w, V = np.linalg.eigh(H)
         inv = np.divide(1.0, w, out=np.zeros_like(w), where=w > 1e-14 * w[-1])
@@ -165,8 +168,8 @@ def _direction(A: Constraints, X: np.ndarray, Rd: np.ndarray, Zinv: np.ndarray, 
 def _max_step(X: np.ndarray, dX: np.ndarray) -> float:
     """The largest alpha with X + alpha dX PSD (X positive definite), or inf."""
     R = np.linalg.cholesky(X)
-    Ri = np.linalg.solve(R, dX)  # L^-1 dX
-    W = np.linalg.solve(R, Ri.T)  # L^-1 dX L^-T (dX symmetric)
+    Ri = solve_triangular(R, dX, lower=True, check_finite=False)  # L^-1 dX
+    W = solve_triangular(R, Ri.T, lower=True, check_finite=False)  # L^-1 dX L^-T (dX symmetric)
     lam = np.linalg.eigvalsh(0.5 * (W + W.T))[0]
     return np.inf if lam >= 0 else -1.0 / lam
 
