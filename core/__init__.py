@@ -38,6 +38,7 @@ from handeye.base.errors import (
     SolverTimeoutError,
     UnknownPluginError,
 )
+from handeye.base.moved import REMOVAL_DATE
 from handeye.estimation.pose_model import PoseModel
 from handeye.framework.hookspecs import hookimpl
 from handeye.framework.options import NoOptions
@@ -53,8 +54,6 @@ from handeye.host.registry import get_registry, list_problems, list_solvers
 _LAZY_SUBMODULES = ("examples", "harness", "io", "problems")
 #: public names defined in a submodule that ``import handeye`` does not import (it reads files,
 #: OpenCV, the checks): name -> its module, imported on first use
-#: the day the old module paths of `_MOVED` stop importing (docs/changelog.md)
-REMOVAL_DATE = "2027-06-01"
 _LAZY_NAMES = {"calibrate": "workflow.calibration", "Cell": "workflow.cell", "CalibrationResult": "workflow.result"}
 #: modules that moved -> where they live now: those of the flat layout before the layers
 #: (``handeye.se3``, ``handeye.options``, ...) and those the layer order moved down or up

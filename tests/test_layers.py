@@ -44,6 +44,22 @@ def test_an_old_path_gives_the_module_at_its_new_place_with_a_warning():
     assert examples.returncode == 0, examples.stderr[-400:]  # a public name, not an old path
 
 
+@pytest.mark.parametrize(("old", "new", "name"), [
+    ("handeye.io.pose_readers", "handeye.io.pose_writers", "write_poses"),
+    ("handeye.framework.problem", "handeye.framework.problem_cell", "StationReader"),
+    ("handeye.framework.problem", "handeye.framework.problem_studies", "BenchSettings"),
+    ("handeye.framework.problem", "handeye.framework.problem_engine", "flatten"),
+])
+def test_a_name_moved_out_of_a_module_is_given_from_its_new_place_with_a_warning(old, new, name):
+    import importlib
+
+    with pytest.warns(DeprecationWarning, match=rf"^{old}\.{name} is now {new}\.{name}: .*{handeye.REMOVAL_DATE}"):
+        got = getattr(importlib.import_module(old), name)
+    assert got is getattr(importlib.import_module(new), name)
+    with pytest.raises(ImportError):
+        exec(f"from {old} import no_such_name")
+
+
 def test_no_module_of_handeye_imports_through_an_old_path():
     code = ("import warnings, importlib, pkgutil; warnings.simplefilter('error', DeprecationWarning)\n"
             "for base in ('handeye', 'handeye.problems', 'handeye.plugins'):\n"

@@ -46,6 +46,7 @@ from handeye.cli._common import (
 )
 from handeye.framework.solution import USABLE, standard_deviations
 from handeye.io.pose_formats import format_names, parse_format
+from handeye.planning.live_view import DEFAULT_PORT
 from handeye.planning.plan import Noise, planners
 from handeye.planning.session import MIN_STATIONS, Session, Tolerance, Update
 from handeye.workflow.cell_parts import (
@@ -119,6 +120,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     parser.add_argument("--figure", metavar="PNG",
                         help="at the end, draw the cell in 3D: the robot base, the stations (those left out grey), "
                              "the camera and its view (with --intrinsics), the board and the next poses suggested")
+    parser.add_argument("--live", nargs="?", type=whole_number, const=DEFAULT_PORT, metavar="PORT",
+                        help="show the cell in a browser while it records, redrawn at every answer "
+                             f"(http://localhost:PORT, default {DEFAULT_PORT}; needs pip install \"handeye[live]\")")
     parser.add_argument("--next-out", metavar="FILE",
                         help="write the suggested poses to this pose file (the robot's format and unit), rewritten "
                              "after every station (an existing file is kept unless --force)")
@@ -168,6 +172,12 @@ def run(args: argparse.Namespace) -> int:
     session: Session | None = None
     failed_at = None
     idle_since = time.monotonic()
+    live = None
+    if args.live is not None:
+        from handeye.planning.live_view import LiveView
+
+        live = LiveView(args.robot_unit or "mm", args.live)  # the unit is set again with the first station
+        _say(args, f"live view: {live.url} (open it in a browser)")
     try:
         while True:
             try:
@@ -195,6 +205,8 @@ def run(args: argparse.Namespace) -> int:
                     session = _session(args, station.unit, camera, board, target, camera_noise)
                 update = session.add(station.A, station.B, station.name)
                 _show(args, update, station, source, session)
+            if live is not None and stations and session is not None:
+                _live(args, live, session, board, camera, source.unit)
             if args.once:
                 break
             now = time.monotonic()
@@ -205,6 +217,9 @@ def run(args: argparse.Namespace) -> int:
             time.sleep(args.interval)
     except KeyboardInterrupt:  # Ctrl-C: the usual end of a recording
         pass
+    finally:
+        if live is not None:
+            live.close()
     code = _final(args, session, source.unit)
     if args.figure and session is not None:
         _figure(args, session, board, camera, source.unit)
@@ -261,23 +276,46 @@ def _pose_text(T: np.ndarray, robot_format: str) -> str:
     return " ".join(f"{k}={v:.6g}" for k, v in zip(fmt.fields, fmt.to_rows(T[None])[0]))
 
 
-def _figure(args: argparse.Namespace, session: Session, board: Any, camera: Any, unit: str | None) -> None:
-    """The recording drawn in 3D (`handeye.planning.figure.draw_cell`) at the answer so far, with
-    the last poses suggested; a line saying why not where there is no answer."""
-    from handeye.planning.figure import draw_cell
-
+def _picture(args: argparse.Namespace, session: Session, board: Any, camera: Any, unit: str | None
+             ) -> dict[str, Any] | None:
+    """What a picture of the recording shows at the answer so far (`handeye.planning.scene`), with
+    the last poses suggested and a title; None where there is no answer yet."""
     answer = session.unknowns
     if answer is None or {"X", "Y"} - set(answer):
-        _say(args, "figure: no answer to draw the cell with yet")
-        return
+        return None
     A, _ = session.stations
     last = session.last_suggestions
-    drawn = None if board is None else board.in_unit(unit or board.unit)
-    path = draw_cell(A, answer["X"], answer["Y"], args.setup, drawn, args.figure, unit or "",
-                     f"{len(A)} stations recorded ({int(sum(session.kept))} in the answer)"
-                     + ("; the next suggested" if last is not None else ""),
-                     camera=camera, left_out=~session.kept, following=None if last is None else last.A)
+    return {"A": A, "X": answer["X"], "Y": answer["Y"], "setup": args.setup,
+            "board": None if board is None else board.in_unit(unit or board.unit), "camera": camera,
+            "left_out": ~session.kept, "following": None if last is None else last.A,
+            "title": f"{len(A)} stations recorded ({int(sum(session.kept))} in the answer)"
+                     + ("; the next suggested" if last is not None else "")}
+
+
+def _figure(args: argparse.Namespace, session: Session, board: Any, camera: Any, unit: str | None) -> None:
+    """The recording drawn in 3D (`handeye.planning.figure.draw_cell`); a line saying why not
+    where there is no answer."""
+    from handeye.planning.figure import draw_cell
+
+    picture = _picture(args, session, board, camera, unit)
+    if picture is None:
+        _say(args, "figure: no answer to draw the cell with yet")
+        return
+    title = picture.pop("title")
+    path = draw_cell(picture.pop("A"), picture.pop("X"), picture.pop("Y"), picture.pop("setup"), picture.pop("board"),
+                     args.figure, unit or "", title, **picture)
     _say(args, f"figure: {path}")
+
+
+def _live(args: argparse.Namespace, live: Any, session: Session, board: Any, camera: Any, unit: str | None) -> None:
+    """The live view redrawn at the answer so far (`handeye.planning.live_view`)."""
+    from handeye.planning.scene import cell_scene
+
+    picture = _picture(args, session, board, camera, unit)
+    if picture is not None:
+        title = picture.pop("title")
+        live.unit = unit or live.unit
+        live.show(cell_scene(**picture), title)
 
 
 def _say(args: argparse.Namespace, message: str) -> None:

@@ -28,12 +28,20 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from handeye.base.moved import moved_names
 from handeye.framework.problem_cell import CellPart
 from handeye.framework.problem_engine import EnginePart, NamedPoses, SelfCheckPart
 from handeye.framework.problem_planning import PlanningPart
 from handeye.framework.problem_studies import StudyPart
 from handeye.geometry.se3 import make_pose, random_rotations, rotation_angle
 
+#: names that moved to the modules of the contract's optional parts (`handeye.base.moved`)
+__getattr__ = moved_names(__name__, {
+    **dict.fromkeys(("BenchRow", "BenchTarget", "BenchSettings"), "handeye.framework.problem_studies"),
+    **dict.fromkeys(("Frame", "Published", "StationReader", "Observations", "ObservationData", "JointStations",
+                     "MISTAKES"), "handeye.framework.problem_cell"),
+    **dict.fromkeys(("flat_names", "flatten", "unflatten"), "handeye.framework.problem_engine"),
+})
 #: errors per unknown: {"X": {"rotation": rad, "translation": data units}, ...}
 ErrorTable = dict[str, dict[str, float]]
 

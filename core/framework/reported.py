@@ -35,7 +35,6 @@ from collections.abc import Mapping
 from typing import Any
 
 
-
 @dataclasses.dataclass(frozen=True)
 class Reported:
     """The entries of a solver's diagnostics core reads (module docstring), typed; absent

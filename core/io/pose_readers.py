@@ -41,6 +41,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from handeye.base.errors import InputError, shown
+from handeye.base.moved import moved_names
 from handeye.base.vocabulary import LENGTH_UNITS
 from handeye.geometry.se3 import (
     ORTHONORMALITY_TOL,
@@ -68,6 +69,9 @@ from handeye.io.pose_tables import (
 )
 
 Array = NDArray[np.float64]
+
+#: names that moved to another module (`handeye.base.moved`)
+__getattr__ = moved_names(__name__, {"write_poses": "handeye.io.pose_writers"})
 
 #: accepted length units (the unit of every translation of the file, recorded in the result)
 UNITS = LENGTH_UNITS

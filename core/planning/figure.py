@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from handeye.planning.scene import cell_scene
 from handeye.vision.boards import Board
 
 
@@ -43,17 +44,13 @@ def draw_cell(A: np.ndarray, X: np.ndarray, Y: np.ndarray, setup: str, board: Bo
     matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
 
-    eye_in_hand = setup == "eye-in-hand"
-    cameras = A @ X if eye_in_hand else np.repeat(Y[None], len(A), axis=0)
-    boards = np.repeat(Y[None], len(A), axis=0) if eye_in_hand else A @ X
-    extra = [] if following is None or not len(following) else [np.asarray(following)[:, :3, 3]]
-    points = np.concatenate([A[:, :3, 3], cameras[:, :3, 3], boards[:, :3, 3], np.zeros((1, 3)), *extra])
-    size = 0.06 * float(np.ptp(points, axis=0).max() or 1.0)
+    scene = cell_scene(A, X, Y, setup, board, camera, left_out, following)
+    size, eye_in_hand, cameras, boards = scene.size, scene.eye_in_hand, scene.cameras, scene.boards
     fig = plt.figure(figsize=(8, 7))
     ax = fig.add_subplot(projection="3d")
     _triad(ax, np.eye(4), 2 * size, lw=2.5)
     ax.text(0, 0, 0, " robot base")
-    out = set() if left_out is None else {int(i) for i in np.flatnonzero(left_out)}
+    out = {int(i) for i in np.flatnonzero(~scene.kept)}
     for i, T in enumerate(A):
         if i in out:
             ax.scatter(*T[:3, 3], color="0.6", marker="x", s=30)
@@ -62,25 +59,22 @@ def draw_cell(A: np.ndarray, X: np.ndarray, Y: np.ndarray, setup: str, board: Bo
         ax.text(*T[:3, 3], f" {i + 1}", fontsize=8, color="0.5" if i in out else "k")
     if path_line and len(A) > 1:
         ax.plot(*A[:, :3, 3].T, color="0.5", lw=0.8, ls="--", label="path through the stations")
-    if following is not None and len(following):
-        nxt = np.asarray(following)
+    if len(scene.following):
+        nxt = scene.following
         ax.scatter(*nxt[:, :3, 3].T, color="tab:orange", marker="*", s=120, label="next to record")
         for T in nxt:
             _triad(ax, T, size, lw=2.0)
-    distance = float(np.median(np.linalg.norm(boards[:, :3, 3] - cameras[:, :3, 3], axis=1)))
     if eye_in_hand:
         ax.scatter(*cameras[:, :3, 3].T, marker="^", color="k", s=12, label="camera at each station")
-        if board is not None:
-            ax.plot(*_board_outline(board, Y).T, color="k", lw=2, label="board")
+        if scene.board_outline is not None:
+            ax.plot(*scene.board_outline.T, color="k", lw=2, label="board")
         else:
             ax.scatter(*Y[:3, 3], marker="s", color="k", s=40, label="board")
     else:
         ax.scatter(*Y[:3, 3], marker="^", color="k", s=40, label="camera")
         ax.scatter(*boards[:, :3, 3].T, marker="s", color="k", s=10, label="board at each station")
-    if camera is not None and getattr(camera, "size", None):
-        for k, C in enumerate(cameras if eye_in_hand else cameras[:1]):
-            for edge in _frustum(C, camera, distance):
-                ax.plot(*edge.T, color="tab:purple", lw=0.6, alpha=0.6, label="camera's view" if k == 0 else None)
+    for k, edge in enumerate(scene.views):
+        ax.plot(*edge.T, color="tab:purple", lw=0.6, alpha=0.6, label="camera's view" if k == 0 else None)
     ax.set_xlabel(f"x ({unit})")
     ax.set_ylabel(f"y ({unit})")
     ax.set_zlabel(f"z ({unit})")
@@ -92,23 +86,3 @@ def draw_cell(A: np.ndarray, X: np.ndarray, Y: np.ndarray, setup: str, board: Bo
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
-
-
-def _frustum(C: np.ndarray, camera: Any, depth: float) -> list[np.ndarray]:
-    """The four edges and the far rectangle of the camera's field of view (pose C = T_base_cam),
-    out to `depth`, in the base frame."""
-    width, height = camera.size
-    K_inv = np.linalg.inv(camera.K)
-    corners = np.array([[0, 0, 1], [width, 0, 1], [width, height, 1], [0, height, 1]], dtype=float) @ K_inv.T
-    far = corners * depth / corners[:, 2:3]
-    world = far @ C[:3, :3].T + C[:3, 3]
-    edges = [np.array([C[:3, 3], p]) for p in world]
-    edges.append(np.vstack([world, world[:1]]))
-    return edges
-
-
-def _board_outline(board: Board, T: np.ndarray) -> np.ndarray:
-    """(5, 3) the board's printed outline in the base frame (closed)."""
-    x0, y0, x1, y1 = board.extent()
-    local = np.array([[x0, y0, 0], [x1, y0, 0], [x1, y1, 0], [x0, y1, 0], [x0, y0, 0]], dtype=float)
-    return local @ T[:3, :3].T + T[:3, 3]
