@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from handeye.framework.reported import Reported
+
 
 class Status(str, enum.Enum):
     """How far a solver stands behind its answer.
@@ -114,8 +116,6 @@ def standard_deviations(diagnostics: Mapping[str, Any]) -> dict[str, dict[str, f
     """The 1-sigma of each unknown a solver reported, {name: {"rotation": rad, "translation":
     data unit}} (root of the sum of the three axes' variances), from its covariance: refine's
     ``std``, or auto's under ``refine`` (`Reported.std`); empty when it gave none."""
-    from handeye.framework.reported import Reported
-
     std = Reported.of(diagnostics).std
     return {name: {"rotation": float(s["rotation"]), "translation": float(s["translation"])}
             for name, s in std.items()}
